@@ -1,0 +1,10 @@
+# VTSIM_SANITIZE=address -> ASan + UBSan (all UB checks fatal); =thread -> TSan.
+if(VTSIM_SANITIZE STREQUAL "address")
+  add_compile_options(-fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer)
+  add_link_options(-fsanitize=address,undefined)
+elseif(VTSIM_SANITIZE STREQUAL "thread")
+  add_compile_options(-fsanitize=thread -fno-omit-frame-pointer)
+  add_link_options(-fsanitize=thread)
+elseif(NOT VTSIM_SANITIZE STREQUAL "")
+  message(FATAL_ERROR "VTSIM_SANITIZE must be '', 'address' or 'thread' (got '${VTSIM_SANITIZE}')")
+endif()

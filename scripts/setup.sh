@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Installs vtsim's build dependencies from Debian if any is missing (idempotent), then configures
+# and builds one build tree.  Usage: scripts/setup.sh [BUILD_DIR] [extra cmake args...]
+#   scripts/setup.sh                      -> build/ (Release), produces build/vtsim
+#   scripts/setup.sh build-asan -DVTSIM_SANITIZE=address -DCMAKE_BUILD_TYPE=RelWithDebInfo
+set -euo pipefail
+here=$(cd "$(dirname "$0")/.." && pwd)
+cd "$here"
+
+PKGS=(build-essential cmake pkg-config git
+      libopenimageio-dev libglm-dev doctest-dev libcli11-dev nlohmann-json3-dev
+      libtomlplusplus-dev libfmt-dev libzstd-dev liblz4-dev fio python3 ninja-build)
+
+missing=()
+for p in "${PKGS[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "setup: installing ${missing[*]}" >&2
+  if [ "$(id -u)" -eq 0 ]; then SUDO=(); else SUDO=(sudo); fi
+  "${SUDO[@]}" env DEBIAN_FRONTEND=noninteractive apt-get update -qq
+  "${SUDO[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+build=${1:-build}
+shift || true
+gen=()
+command -v ninja >/dev/null 2>&1 && gen=(-G Ninja)
+if [ ! -f "$build/CMakeCache.txt" ]; then
+  cmake -S . -B "$build" "${gen[@]}" -DCMAKE_BUILD_TYPE=Release "$@" >/dev/null
+else
+  cmake -S . -B "$build" "$@" >/dev/null
+fi
+cmake --build "$build" -j"$(nproc)"

@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# The test command: installs what is missing, builds, and runs the whole suite three times —
+# Release (-Werror), ASan+UBSan, and TSan — with ctest. Idempotent; exits non-zero on any failure.
+# VTSIM_TEST_VARIANTS="release asan tsan" selects variants (all three by default).
+set -euo pipefail
+here=$(cd "$(dirname "$0")/.." && pwd)
+cd "$here"
+variants=${VTSIM_TEST_VARIANTS:-"release asan tsan"}
+jobs=$(nproc)
+for v in $variants; do
+  case $v in
+    release) dir=build;      args=() ;;
+    asan)    dir=build-asan; args=(-DVTSIM_SANITIZE=address -DCMAKE_BUILD_TYPE=RelWithDebInfo -DVTSIM_BUILD_BENCH=OFF) ;;
+    tsan)    dir=build-tsan; args=(-DVTSIM_SANITIZE=thread  -DCMAKE_BUILD_TYPE=RelWithDebInfo -DVTSIM_BUILD_BENCH=OFF) ;;
+    *) echo "test.sh: unknown variant '$v' (release|asan|tsan)" >&2; exit 2 ;;
+  esac
+  echo "== $v: build ($dir)"
+  bash scripts/setup.sh "$dir" "${args[@]}"
+  echo "== $v: ctest"
+  export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+  export TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1
+  ctest --test-dir "$dir" --output-on-failure -j"$jobs" --timeout 600
+done
+echo "== all test variants passed: $variants"

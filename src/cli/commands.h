@@ -1,0 +1,19 @@
+#pragma once
+// Each command family lives in its own cmd_*.cpp and registers its subcommands here.
+// Exit codes (docs/cli.md): 0 success; 1 the command ran and found a failure (a regression in
+// `vtsim compare`, tiles that failed in a replay with --fail-on-error); 2 bad input or usage
+// (the message names the file, line or field); 3 internal error (a bug: please report it).
+#include <CLI/CLI.hpp>
+
+namespace vtsim::cli {
+
+inline constexpr int kExitOk = 0, kExitFailure = 1, kExitBadInput = 2, kExitInternal = 3;
+
+// Thrown by a command callback to end the program with a given exit code (after printing).
+struct Exit {
+  int code;
+};
+
+void register_trace_commands(CLI::App& app);
+
+}  // namespace vtsim::cli
