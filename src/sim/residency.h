@@ -1,0 +1,18 @@
+#pragma once
+// The question pop-in measurement asks a streaming system: which level would the screen sample
+// for this texel right now? Clipmaps answer from their valid windows, virtual textures from the
+// page table's fallback; both apply the MaxTextureLOD clamp.
+#include <cstdint>
+
+namespace vtsim {
+
+class IResidency {
+ public:
+  virtual ~IResidency() = default;
+  // Finest level >= desired_level the screen would sample at level-0 texel (u, v) given what is
+  // resident (and any throttle clamp). Returns num_levels() when nothing covering it is resident.
+  virtual int resident_level(std::int64_t u, std::int64_t v, int desired_level) const = 0;
+  virtual int num_levels() const = 0;
+};
+
+}  // namespace vtsim
