@@ -12,7 +12,7 @@ struct TextureExtent {
   std::int64_t height = 0;  // texels
 };
 
-// Number of mip levels of a W×H texture down to 1×1: 1 + floor(log2(max(W, H))).
+// Number of mip levels of a W×H texture down to 1×1 with ceil halving: 1 + ceil(log2(max(W, H))).
 int mip_level_count(TextureExtent e);
 
 // Knobs of the feedback renderer.
