@@ -1,0 +1,275 @@
+#include "cache/clipmap.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <stdexcept>
+
+namespace vtsim {
+
+namespace {
+
+// Floor division and modulo for signed coordinates (camera outside the texture, negative tiles).
+inline std::int64_t floor_div(std::int64_t a, std::int64_t b) {
+  const std::int64_t q = a / b;
+  return (a % b != 0 && ((a < 0) != (b < 0))) ? q - 1 : q;
+}
+inline std::int64_t floor_mod(std::int64_t a, std::int64_t b) { return a - floor_div(a, b) * b; }
+inline std::int64_t ceil_div(std::int64_t a, std::int64_t b) { return (a + b - 1) / b; }
+
+}  // namespace
+
+ClipmapMemory clipmap_memory(TextureExtent e, int tile_size, int clipsize) {
+  ClipmapMemory m;
+  const std::int64_t n = clipsize / tile_size;
+  std::int64_t w = e.width, h = e.height;
+  for (;;) {
+    ++m.levels;
+    const auto area = static_cast<std::uint64_t>(w) * static_cast<std::uint64_t>(h);
+    m.full_mip_texels += area;
+    if (std::max(w, h) > clipsize) {
+      ++m.stack_levels;
+      const std::int64_t wx = std::min(n, ceil_div(w, tile_size)), wy = std::min(n, ceil_div(h, tile_size));
+      m.stack_texels += static_cast<std::uint64_t>(wx * tile_size) * static_cast<std::uint64_t>(wy * tile_size);
+    } else {
+      ++m.pyramid_levels;
+      m.pyramid_texels += area;
+    }
+    if (w == 1 && h == 1) break;
+    w = (w + 1) / 2;
+    h = (h + 1) / 2;
+  }
+  return m;
+}
+
+Clipmap::Clipmap(const ClipmapParams& p) : p_(p) {
+  if (p.extent.width <= 0 || p.extent.height <= 0) throw std::invalid_argument("clipmap: empty texture");
+  if (p.tile_size <= 0 || p.clipsize <= 0 || p.clipsize % p.tile_size != 0)
+    throw std::invalid_argument("clipmap: clipsize must be a positive multiple of the tile size");
+  if (p.layers < 1 || p.layers > 16) throw std::invalid_argument("clipmap: layers must be 1..16");
+  n_ = p.clipsize / p.tile_size;
+  full_mask_ = p.layers == 32 ? 0xFFFFFFFFu : (1u << p.layers) - 1u;
+  std::int64_t w = p.extent.width, h = p.extent.height;
+  first_pyramid_ = -1;
+  for (int l = 0;; ++l) {
+    Level L;
+    L.texels_x = w;
+    L.texels_y = h;
+    L.tiles_x = ceil_div(w, p.tile_size);
+    L.tiles_y = ceil_div(h, p.tile_size);
+    L.stack = std::max(w, h) > p.clipsize;
+    if (L.stack) {
+      L.wx = std::min<std::int64_t>(n_, L.tiles_x);
+      L.wy = std::min<std::int64_t>(n_, L.tiles_y);
+    } else {
+      if (first_pyramid_ < 0) first_pyramid_ = l;
+      L.wx = L.tiles_x;
+      L.wy = L.tiles_y;
+      L.placed = true;  // the pyramid's window is the whole level
+      L.cx = L.tiles_x / 2;
+      L.cy = L.tiles_y / 2;
+    }
+    L.slots.resize(static_cast<std::size_t>(L.wx * L.wy));
+    L.missing = static_cast<std::uint64_t>(L.wx * L.wy) * static_cast<std::uint64_t>(p.layers);
+    levels_.push_back(std::move(L));
+    if (w == 1 && h == 1) break;
+    w = (w + 1) / 2;
+    h = (h + 1) / 2;
+  }
+  if (levels_.size() > TileKey::kMaxLevels) throw std::invalid_argument("clipmap: too many levels");
+}
+
+std::size_t Clipmap::slot_index(const Level& L, std::int64_t tx, std::int64_t ty) const {
+  return static_cast<std::size_t>(floor_mod(ty, L.wy) * L.wx + floor_mod(tx, L.wx));
+}
+
+bool Clipmap::in_window(const Level& L, std::int64_t tx, std::int64_t ty) const {
+  return L.placed && tx >= L.ox && tx < L.ox + L.wx && ty >= L.oy && ty < L.oy + L.wy;
+}
+
+bool Clipmap::valid_tile(const Level& L, std::int64_t tx, std::int64_t ty) const {
+  if (!in_window(L, tx, ty)) return false;
+  const std::int64_t b = p_.invalid_border_tiles;
+  if (b > 0 && L.stack) {
+    // The invalid border (seed 000 §4-6) lies along window edges that can move; an edge on the
+    // texture's edge never receives new tiles.
+    if (L.ox > 0 && tx < L.ox + b) return false;
+    if (L.ox + L.wx < L.tiles_x && tx >= L.ox + L.wx - b) return false;
+    if (L.oy > 0 && ty < L.oy + b) return false;
+    if (L.oy + L.wy < L.tiles_y && ty >= L.oy + L.wy - b) return false;
+  }
+  const Slot& s = L.slots[slot_index(L, tx, ty)];
+  return s.tx == tx && s.ty == ty && s.mask == full_mask_;
+}
+
+Clipmap::Window Clipmap::window(int level) const {
+  const Level& L = levels_.at(static_cast<std::size_t>(level));
+  return {L.ox, L.oy, L.wx, L.wy};
+}
+
+void Clipmap::target_window(const Level& L, int level, std::int64_t gu, std::int64_t gv, std::int64_t& cx,
+                            std::int64_t& cy, std::int64_t& ox, std::int64_t& oy, bool& moved) const {
+  const std::int64_t T = p_.tile_size;
+  const std::int64_t gl_x = gu >> level, gl_y = gv >> level;  // arithmetic shift: floor for negatives
+  const std::int64_t thr = static_cast<std::int64_t>(std::llround(p_.update_threshold_tiles * static_cast<double>(T)));
+  cx = L.cx;
+  cy = L.cy;
+  moved = false;
+  auto axis = [&](std::int64_t g, std::int64_t& c) {
+    const std::int64_t d = g - (c * T + T / 2);
+    if (!L.placed || d >= T - T / 2 + thr || d < -(T / 2) - thr) {
+      const std::int64_t nc = floor_div(g, T);
+      if (nc != c || !L.placed) moved = true;
+      c = nc;
+    }
+  };
+  axis(gl_x, cx);
+  axis(gl_y, cy);
+  ox = std::clamp<std::int64_t>(cx - n_ / 2, 0, std::max<std::int64_t>(0, L.tiles_x - L.wx));
+  oy = std::clamp<std::int64_t>(cy - n_ / 2, 0, std::max<std::int64_t>(0, L.tiles_y - L.wy));
+}
+
+void Clipmap::recount(Level& L) {
+  L.missing = missing_in(L, L.ox, L.oy);
+}
+
+std::uint64_t Clipmap::missing_in(const Level& L, std::int64_t ox, std::int64_t oy) const {
+  std::uint64_t missing = 0;
+  for (std::int64_t ty = oy; ty < oy + L.wy; ++ty)
+    for (std::int64_t tx = ox; tx < ox + L.wx; ++tx) {
+      const Slot& s = L.slots[slot_index(L, tx, ty)];
+      const std::uint32_t have = (s.tx == tx && s.ty == ty) ? s.mask : 0u;
+      missing += static_cast<std::uint64_t>(p_.layers - std::popcount(have));
+    }
+  return missing;
+}
+
+int Clipmap::update_windows(std::int64_t gu, std::int64_t gv, int finest_active) {
+  const int from = std::max(finest_active, clamp_);
+  int moved_levels = 0;
+  for (int l = std::max(from, 0); l < num_levels(); ++l) {
+    Level& L = levels_[static_cast<std::size_t>(l)];
+    if (!L.stack) break;  // pyramid levels follow the stack and never move
+    std::int64_t cx, cy, ox, oy;
+    bool moved;
+    target_window(L, l, gu, gv, cx, cy, ox, oy, moved);
+    L.cx = cx;
+    L.cy = cy;
+    if (!L.placed || ox != L.ox || oy != L.oy) {
+      L.ox = ox;
+      L.oy = oy;
+      L.placed = true;
+      recount(L);
+      ++stats_.window_moves;
+      ++moved_levels;
+    }
+  }
+  return moved_levels;
+}
+
+void Clipmap::missing_bytes_by_level(std::int64_t gu, std::int64_t gv, int finest_active,
+                                     std::uint64_t tile_bytes_all_layers, std::vector<std::uint64_t>& out) const {
+  out.assign(levels_.size(), 0);
+  const std::uint64_t per_layer = tile_bytes_all_layers / static_cast<std::uint64_t>(p_.layers);
+  for (int l = 0; l < num_levels(); ++l) {
+    const Level& L = levels_[static_cast<std::size_t>(l)];
+    if (L.stack && l < finest_active) continue;
+    std::uint64_t missing = L.missing;
+    if (L.stack) {
+      std::int64_t cx, cy, ox, oy;
+      bool moved;
+      target_window(L, l, gu, gv, cx, cy, ox, oy, moved);
+      if (!L.placed || ox != L.ox || oy != L.oy) missing = missing_in(L, ox, oy);
+    }
+    out[static_cast<std::size_t>(l)] = missing * per_layer;
+  }
+}
+
+void Clipmap::emit_prefetch(std::int64_t fu, std::int64_t fv, int finest_active, std::vector<Need>& out) const {
+  const int from = std::max(finest_active, clamp_);
+  for (int l = std::max(from, 0); l < num_levels(); ++l) {
+    const Level& L = levels_[static_cast<std::size_t>(l)];
+    if (!L.stack) break;
+    if (!L.placed) continue;
+    std::int64_t cx, cy, ox, oy;
+    bool moved;
+    target_window(L, l, fu, fv, cx, cy, ox, oy, moved);
+    if (ox == L.ox && oy == L.oy) continue;
+    for (std::int64_t ty = oy; ty < oy + L.wy; ++ty)
+      for (std::int64_t tx = ox; tx < ox + L.wx; ++tx) {
+        if (in_window(L, tx, ty)) continue;  // already wanted (or resident) as a demand tile
+        const std::int64_t dx = tx - L.cx, dy = ty - L.cy;
+        const auto dist = static_cast<std::uint32_t>((dx < 0 ? -dx : dx) + (dy < 0 ? -dy : dy));
+        const std::uint64_t prio = make_priority(static_cast<std::uint32_t>(l), 0, dist);
+        for (int layer = 0; layer < p_.layers; ++layer)
+          out.push_back(Need{TileKey(static_cast<std::uint32_t>(layer), static_cast<std::uint32_t>(l), tx, ty), prio, true});
+      }
+  }
+}
+
+bool Clipmap::commit(TileKey key) {
+  const int l = static_cast<int>(key.level());
+  if (l >= num_levels() || static_cast<int>(key.layer()) >= p_.layers) return false;
+  Level& L = levels_[static_cast<std::size_t>(l)];
+  const std::int64_t tx = key.x(), ty = key.y();
+  if (!in_window(L, tx, ty)) {
+    ++stats_.stale_commits;
+    return false;
+  }
+  Slot& s = L.slots[slot_index(L, tx, ty)];
+  if (s.tx != tx || s.ty != ty) {
+    if (s.mask) {
+      const auto n = static_cast<std::uint64_t>(std::popcount(s.mask));
+      stats_.vram_evictions += n;
+      if (!s.sampled) stats_.evicted_unsampled += n;
+    }
+    s.tx = tx;
+    s.ty = ty;
+    s.mask = 0;
+    s.sampled = false;
+  }
+  const std::uint32_t bit = 1u << key.layer();
+  if (!(s.mask & bit)) {
+    s.mask |= bit;
+    --L.missing;
+  }
+  return true;
+}
+
+bool Clipmap::resident(TileKey key) const {
+  const int l = static_cast<int>(key.level());
+  if (l >= num_levels()) return false;
+  const Level& L = levels_[static_cast<std::size_t>(l)];
+  if (!in_window(L, key.x(), key.y())) return false;
+  const Slot& s = L.slots[slot_index(L, key.x(), key.y())];
+  return s.tx == key.x() && s.ty == key.y() && (s.mask & (1u << key.layer()));
+}
+
+int Clipmap::resident_level(std::int64_t u, std::int64_t v, int desired_level) const {
+  const std::int64_t T = p_.tile_size, m = p_.filter_margin_texels;
+  for (int l = std::max(desired_level, clamp_); l < num_levels(); ++l) {
+    const Level& L = levels_[static_cast<std::size_t>(l)];
+    const std::int64_t ul = u >> l, vl = v >> l;
+    const std::int64_t x0 = std::max<std::int64_t>(0, ul - m), x1 = std::min(L.texels_x - 1, ul + m);
+    const std::int64_t y0 = std::max<std::int64_t>(0, vl - m), y1 = std::min(L.texels_y - 1, vl + m);
+    const std::int64_t tx0 = x0 / T, tx1 = x1 / T, ty0 = y0 / T, ty1 = y1 / T;
+    bool ok = true;
+    for (std::int64_t ty = ty0; ok && ty <= ty1; ++ty)
+      for (std::int64_t tx = tx0; ok && tx <= tx1; ++tx) ok = valid_tile(L, tx, ty);
+    if (ok) {
+      if (mark_sampled_) L.slots[slot_index(L, ul / T, vl / T)].sampled = true;
+      return l;
+    }
+  }
+  return num_levels();
+}
+
+std::uint64_t Clipmap::resident_unsampled() const {
+  std::uint64_t n = 0;
+  for (const Level& L : levels_)
+    for (const Slot& s : L.slots)
+      if (s.mask && !s.sampled) n += static_cast<std::uint64_t>(std::popcount(s.mask));
+  return n;
+}
+
+}  // namespace vtsim

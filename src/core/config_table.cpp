@@ -1,0 +1,146 @@
+#include "core/config_table.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <toml++/toml.h>
+
+namespace vtsim {
+
+std::string config_value_to_string(const ConfigValue& v) {
+  return std::visit(
+      [](const auto& x) -> std::string {
+        using T = std::decay_t<decltype(x)>;
+        if constexpr (std::is_same_v<T, bool>) return x ? "true" : "false";
+        else if constexpr (std::is_same_v<T, std::string>) return "\"" + x + "\"";
+        else if constexpr (std::is_same_v<T, double>) return cfg::fmt_double(x);
+        else return std::to_string(x);
+      },
+      v);
+}
+
+namespace cfg {
+
+std::int64_t as_int(const ConfigValue& v) {
+  if (const auto* i = std::get_if<std::int64_t>(&v)) return *i;
+  if (const auto* d = std::get_if<double>(&v)) {
+    if (std::isfinite(*d) && *d == std::floor(*d) && std::fabs(*d) < 9.0e18) return static_cast<std::int64_t>(*d);
+  }
+  throw std::invalid_argument("expected an integer, got " + config_value_to_string(v));
+}
+
+double as_double(const ConfigValue& v) {
+  if (const auto* d = std::get_if<double>(&v)) {
+    if (!std::isfinite(*d)) throw std::invalid_argument("expected a finite number, got " + fmt_double(*d));
+    return *d;
+  }
+  if (const auto* i = std::get_if<std::int64_t>(&v)) return static_cast<double>(*i);
+  throw std::invalid_argument("expected a number, got " + config_value_to_string(v));
+}
+
+bool as_bool(const ConfigValue& v) {
+  if (const auto* b = std::get_if<bool>(&v)) return *b;
+  throw std::invalid_argument("expected true or false, got " + config_value_to_string(v));
+}
+
+std::string as_string(const ConfigValue& v) {
+  if (const auto* s = std::get_if<std::string>(&v)) return *s;
+  // Numbers are accepted where a string is expected (e.g. --set name=5): use their text.
+  return std::visit(
+      [](const auto& x) -> std::string {
+        using T = std::decay_t<decltype(x)>;
+        if constexpr (std::is_same_v<T, bool>) return x ? "true" : "false";
+        else if constexpr (std::is_same_v<T, std::string>) return x;
+        else if constexpr (std::is_same_v<T, double>) return fmt_double(x);
+        else return std::to_string(x);
+      },
+      v);
+}
+
+std::string fmt_double(double d) { return fmt::format("{}", d); }
+
+}  // namespace cfg
+
+std::pair<std::string, ConfigValue> parse_set_argument(const std::string& arg) {
+  const auto eq = arg.find('=');
+  if (eq == std::string::npos || eq == 0)
+    throw InputError("--set " + arg, "expected key=value (e.g. --set upload.tiles_per_frame=8)");
+  std::string key = arg.substr(0, eq), text = arg.substr(eq + 1);
+  auto trim = [](std::string& s) {
+    const auto b = s.find_first_not_of(" \t"), e = s.find_last_not_of(" \t");
+    s = b == std::string::npos ? std::string() : s.substr(b, e - b + 1);
+  };
+  trim(key);
+  trim(text);
+  if (text == "true") return {key, true};
+  if (text == "false") return {key, false};
+  if (text.size() >= 2 && text.front() == '"' && text.back() == '"') return {key, text.substr(1, text.size() - 2)};
+  // Integer?
+  {
+    std::size_t pos = 0;
+    try {
+      const long long i = std::stoll(text, &pos, 10);
+      if (pos == text.size()) return {key, static_cast<std::int64_t>(i)};
+    } catch (const std::exception&) {
+    }
+  }
+  // Real?
+  {
+    std::size_t pos = 0;
+    try {
+      const double d = std::stod(text, &pos);
+      if (pos == text.size()) return {key, d};
+    } catch (const std::exception&) {
+    }
+  }
+  return {key, text};
+}
+
+namespace {
+
+void flatten(const toml::table& t, const std::string& prefix, const std::string& path,
+             std::vector<TomlEntry>& out) {
+  for (const auto& [k, node] : t) {
+    const std::string key = prefix.empty() ? std::string(k.str()) : prefix + "." + std::string(k.str());
+    const long long line = static_cast<long long>(node.source().begin.line);
+    if (const auto* sub = node.as_table()) {
+      flatten(*sub, key, path, out);
+    } else if (const auto* i = node.as_integer()) {
+      out.push_back({key, static_cast<std::int64_t>(i->get()), line});
+    } else if (const auto* d = node.as_floating_point()) {
+      out.push_back({key, d->get(), line});
+    } else if (const auto* b = node.as_boolean()) {
+      out.push_back({key, b->get(), line});
+    } else if (const auto* s = node.as_string()) {
+      out.push_back({key, s->get(), line});
+    } else {
+      throw InputError(at_line(path, line), "field '" + key + "': unsupported value type (expected a number, "
+                                            "boolean or string)");
+    }
+  }
+}
+
+}  // namespace
+
+std::vector<TomlEntry> read_toml_entries(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, "cannot open config file");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  const std::string text = ss.str();
+  if (text.size() > (16u << 20)) throw InputError(path, "config file is larger than 16 MiB");
+  toml::table tbl;
+  try {
+    tbl = toml::parse(text, path);
+  } catch (const toml::parse_error& e) {
+    throw InputError(at_line(path, static_cast<long long>(e.source().begin.line)),
+                     std::string("TOML syntax error: ") + std::string(e.description()));
+  }
+  std::vector<TomlEntry> out;
+  flatten(tbl, "", path, out);
+  return out;
+}
+
+}  // namespace vtsim

@@ -1,0 +1,24 @@
+// The one table of throttling/residency policies: adding a policy is one file in impl/ and one
+// line here.
+#include "stream/i_throttle.h"
+
+namespace vtsim {
+
+std::unique_ptr<IThrottlePolicy> make_throttle_none(const ThrottleParams&);
+std::unique_ptr<IThrottlePolicy> make_throttle_deadline(const ThrottleParams&);
+
+const std::vector<ThrottlePolicyInfo>& throttle_policies() {
+  static const std::vector<ThrottlePolicyInfo> table = {
+      {"none", "never clamp: every level requested and sampled", make_throttle_none},
+      {"deadline", "MaxTextureLOD (seed 000 §4-4): clamp levels whose backlog misses the deadline", make_throttle_deadline},
+  };
+  return table;
+}
+
+std::unique_ptr<IThrottlePolicy> make_throttle_policy(const std::string& name, const ThrottleParams& p) {
+  for (const auto& info : throttle_policies())
+    if (name == info.name) return info.make(p);
+  return nullptr;
+}
+
+}  // namespace vtsim
