@@ -207,7 +207,7 @@ void Clipmap::emit_prefetch(std::int64_t fu, std::int64_t fv, int finest_active,
   }
 }
 
-bool Clipmap::commit(TileKey key) {
+bool Clipmap::commit(TileKey key, Evicted* evicted) {
   const int l = static_cast<int>(key.level());
   if (l >= num_levels() || static_cast<int>(key.layer()) >= p_.layers) return false;
   Level& L = levels_[static_cast<std::size_t>(l)];
@@ -219,6 +219,7 @@ bool Clipmap::commit(TileKey key) {
   Slot& s = L.slots[slot_index(L, tx, ty)];
   if (s.tx != tx || s.ty != ty) {
     if (s.mask) {
+      if (evicted) *evicted = Evicted{s.tx, s.ty, s.mask, s.sampled};
       const auto n = static_cast<std::uint64_t>(std::popcount(s.mask));
       stats_.vram_evictions += n;
       if (!s.sampled) stats_.evicted_unsampled += n;

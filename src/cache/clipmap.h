@@ -94,7 +94,12 @@ class Clipmap final : public IResidency {
 
   // A tile layer finished uploading. Returns false (and changes nothing) if the tile is no longer
   // in its level's window. Overwriting a slot that held another tile is a VRAM eviction.
-  bool commit(TileKey key);
+  struct Evicted {
+    std::int64_t tx = -1, ty = -1;  // tile whose slot was overwritten
+    std::uint32_t mask = 0;         // its layers that were resident (0: nothing evicted)
+    bool sampled = false;
+  };
+  bool commit(TileKey key, Evicted* evicted = nullptr);
 
   bool resident(TileKey key) const;  // that layer of that tile is in VRAM and in its window
   bool level_complete(int level) const { return levels_[static_cast<std::size_t>(level)].missing == 0; }

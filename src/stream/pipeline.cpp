@@ -7,10 +7,15 @@ namespace vtsim {
 
 Pipeline::Pipeline(const PipelineConfig& cfg, IExecutor& exec, TileSizer sizer)
     : cfg_(cfg), exec_(exec), sizer_(std::move(sizer)), ram_(cfg.ram_bytes) {
-  ram_.set_hook([this](TileKey, RamEntry&, std::uint64_t bytes, LruRemoval reason) {
+  ram_.set_hook([this](TileKey key, RamEntry&, std::uint64_t bytes, LruRemoval reason) {
     if (reason == LruRemoval::kEvicted || reason == LruRemoval::kShrunk) {
       ++counters_.ram_evictions;
       counters_.ram_evicted_bytes += bytes;
+      ram_evicted_at_[key] = frame_;
+      if (ram_evicted_at_.size() > 65536) {  // forget evictions too old to count as thrash
+        for (auto it = ram_evicted_at_.begin(); it != ram_evicted_at_.end();)
+          it = frame_ - it->second > cfg_.thrash_frames ? ram_evicted_at_.erase(it) : std::next(it);
+      }
     }
   });
 }
@@ -48,6 +53,7 @@ void Pipeline::on_result(JobResult& r) {
   by_id_.erase(idit);
   Request& q = requests_.at(key);
   if (r.bytes_read) {
+    counters_.disk_bytes_by_level[key.level()] += r.bytes_read;
     counters_.disk_bytes += r.bytes_read;
     ++counters_.disk_reads;
     if (q.prefetch) counters_.prefetch_disk_bytes += r.bytes_read;
@@ -142,6 +148,13 @@ void Pipeline::set_needs(const std::vector<Need>& needs) {
         } else {
           ++counters_.ram_misses;
           q.state = State::queued;
+          if (!ram_evicted_at_.empty()) {
+            auto ev = ram_evicted_at_.find(n.key);
+            if (ev != ram_evicted_at_.end()) {
+              if (frame_ - ev->second <= cfg_.thrash_frames) ++counters_.ram_thrash;
+              ram_evicted_at_.erase(ev);
+            }
+          }
         }
       }
       requests_.emplace(n.key, std::move(q));

@@ -55,6 +55,7 @@ struct PipelineConfig {
   int retry_backoff_frames = 2;            // frames to wait before a retry
   double failed_retry_s = 0.0;             // failed tiles are not requested again for this long; 0 = never
   bool cache_prefetched_on_cancel = true;  // a cancelled tile whose decode finished still enters RAM
+  int thrash_frames = 60;                  // a miss within this many frames of an eviction is thrash
 };
 
 // Sizes of a tile: what crosses the disk and what decode produces (RAM and VRAM bytes).
@@ -104,12 +105,20 @@ struct PipelineCounters {
   std::uint64_t faults = 0, retries = 0, failed_tiles = 0;
   std::uint64_t ram_evictions = 0, ram_evicted_bytes = 0;
   std::uint64_t fault_by_kind[8] = {};
+  std::uint64_t ram_thrash = 0;          // RAM misses on tiles evicted within thrash_frames
+  std::uint64_t disk_bytes_by_level[TileKey::kMaxLevels] = {};
 };
 
 // What a throttling policy may read: the backlog by level (bytes not yet resident).
 struct Backlog {
   std::vector<std::uint64_t> bytes_by_level;   // queued + in flight + waiting upload, demand only
   std::vector<std::uint32_t> tiles_by_level;
+};
+
+// What the RAM cache holds per tile: the decoded data (real clock; null when simulated).
+struct RamEntry {
+  std::shared_ptr<const TileData> data;
+  bool prefetched = false;  // brought in by look-ahead prefetch and not used since
 };
 
 class Pipeline {
@@ -155,11 +164,6 @@ class Pipeline {
     JobResult timing;
     std::shared_ptr<const TileData> data;
   };
-  struct RamEntry {
-    std::shared_ptr<const TileData> data;
-    bool prefetched = false;
-  };
-
   void on_result(JobResult& r);
   void to_ram(Request& q, const std::shared_ptr<const TileData>& data, bool prefetched);
   void drop(TileKey key);
@@ -171,6 +175,7 @@ class Pipeline {
   std::unordered_map<TileKey, Request, TileKeyHash> requests_;
   std::unordered_map<RequestId, TileKey> by_id_;
   std::unordered_map<TileKey, Ticks, TileKeyHash> failed_;  // key -> time it failed
+  std::unordered_map<TileKey, int, TileKeyHash> ram_evicted_at_;  // key -> frame of its RAM eviction
   PipelineCounters counters_;
   RequestId next_id_ = 1;
   int frame_ = 0;

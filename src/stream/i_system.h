@@ -1,0 +1,50 @@
+#pragma once
+// A streaming system decides what must be resident (clipmap windows, VT feedback pages) and holds
+// VRAM residency; the pipeline moves tiles; the frame loop (sim/replay.h) joins them. Clipmap and
+// virtual texturing implement this interface and share everything else.
+#include <cstdint>
+#include <glm/vec3.hpp>
+#include <nlohmann/json.hpp>
+#include <vector>
+
+#include "core/time.h"
+#include "sim/residency.h"
+#include "sim/trace.h"
+#include "sim/view.h"
+#include "stream/i_throttle.h"
+#include "stream/pipeline.h"
+
+namespace vtsim {
+
+struct SystemFrame {
+  int frame = 0;
+  Ticks now = 0;
+  const Pose* pose = nullptr;
+  glm::dvec3 velocity_mps{0.0};    // camera velocity (zero across a cut)
+  const ViewBuffer* view = nullptr;  // feedback of this frame (may be an earlier frame's, see view.feedback_every)
+  int finest_needed = 0;           // finest desired level of any sample (num_levels: nothing visible)
+};
+
+class IStreamingSystem : public IResidency {
+ public:
+  // Per frame, in this order.
+  virtual void begin_frame(const SystemFrame& f) = 0;
+  virtual void missing_bytes_by_level(std::vector<std::uint64_t>& out) const = 0;
+  virtual int coarsest_clamp() const = 0;   // the clamp that means "coarsest fallback only"
+  virtual void apply_throttle(const ThrottleDecision& d) = 0;
+  virtual void emit_needs(std::vector<Need>& out) = 0;  // demand and prefetch, not resident
+  // Counts tiles the clamp kept from being needed in the last emit_needs.
+  virtual std::uint32_t throttled_needs() const = 0;
+  // An uploaded tile becomes resident; false if it is no longer wanted (stale).
+  virtual bool commit(TileKey key, int frame) = 0;
+  virtual void set_mark_sampled(bool on) = 0;
+  virtual double pool_occupancy() const { return 0.0; }
+  virtual double pool_pressure() const { return 0.0; }
+  // System-specific counters for the summary ("clipmap" or "vt" section), and the VRAM totals.
+  virtual nlohmann::json stats_json() const = 0;
+  virtual std::uint64_t vram_evictions() const = 0;
+  virtual std::uint64_t vram_thrash() const = 0;
+  virtual std::uint64_t evicted_unsampled_bytes() const = 0;
+};
+
+}  // namespace vtsim
