@@ -27,7 +27,7 @@ struct SourceTrace {
 void check_position(const glm::dvec3& p, const std::string& where) {
   for (int k = 0; k < 3; ++k)
     if (std::abs(p[k]) > kMaxAbsCoordinate_m)
-      throw InputError(where, fmt::format("coordinate {} = {} m is beyond +-{:g} m", "xyz"[k], p[k],
+      throw InputError(where, fmt::format("coordinate {} = {} m is not within +-{:g} m", "xyz"[k], p[k],
                                           kMaxAbsCoordinate_m));
 }
 

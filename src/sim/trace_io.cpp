@@ -69,10 +69,10 @@ void parse_magic(std::string_view line, const std::string& where, Trace& trace) 
 
 void check_pose_ranges(const Pose& p, const std::string& where) {
   if (std::abs(p.t_s) > kMaxAbsTime_s)
-    throw InputError(where, fmt::format("time {} s is beyond +-{:g} s", p.t_s, kMaxAbsTime_s));
+    throw InputError(where, fmt::format("time {} s is not within +-{:g} s", p.t_s, kMaxAbsTime_s));
   for (int k = 0; k < 3; ++k)
     if (!std::isfinite(p.pos_m[k]) || std::abs(p.pos_m[k]) > kMaxAbsCoordinate_m)
-      throw InputError(where, fmt::format("coordinate {} = {} m is beyond +-{:g} m", "xyz"[k],
+      throw InputError(where, fmt::format("coordinate {} = {} m is not within +-{:g} m", "xyz"[k],
                                           p.pos_m[k], kMaxAbsCoordinate_m));
   if (!(p.vfov_deg > 0.0 && p.vfov_deg < 180.0))
     throw InputError(where, fmt::format("vfov_deg {} is outside (0, 180)", p.vfov_deg));

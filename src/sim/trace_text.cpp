@@ -278,6 +278,7 @@ double half_ulp_of_text(std::string_view tok) {
   long long decimals = 0;
   std::size_t i = tok.find('.');
   const std::size_t e = tok.find_first_of("eE");
+  if (i == std::string_view::npos && e == std::string_view::npos) return 0.0;  // "1", "0": exact
   if (i != std::string_view::npos && (e == std::string_view::npos || i < e))
     for (++i; i < tok.size() && is_digit(tok[i]); ++i) ++decimals;
   if (e != std::string_view::npos) {

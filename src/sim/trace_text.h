@@ -79,7 +79,8 @@ int parse_int(std::string_view tok, int lo, int hi, const std::string& where,
 void check_quat(glm::dquat& q, const std::string& where, bool strict, TraceRepairs& repairs,
                 double text_tolerance = 0.0);
 
-// Half a unit in the last printed digit of a decimal token: "0.6132" -> 5e-5, "1.5e-3" -> 5e-5.
+// Half a unit in the last printed digit of a decimal token: "0.6132" -> 5e-5, "1.5e-3" -> 5e-5;
+// an integer token ("1", "0") is taken as exact: 0.
 // A quaternion read from such text is off unit length by up to sum(|q_i| * half_ulp_i) from the
 // rounding alone, which is not worth reporting as a repair.
 double half_ulp_of_text(std::string_view tok);
