@@ -170,7 +170,7 @@ void register_gen(CLI::App* trace) {
     }
     const Trace t = generate_trace(p);
     save_trace(t, a->out);
-    if (a->out != "-") fmt::print(stderr, "wrote {} poses ({}) to {}\n", t.poses.size(), t.name, a->out);
+    if (a->out != "-") fmt::print(stderr, "wrote {} poses to {}\n", t.poses.size(), a->out);
   });
 }
 

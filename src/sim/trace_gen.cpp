@@ -105,10 +105,10 @@ void turn_state(const TraceGenParams& p, double t, double& heading_deg, glm::dve
 }
 
 std::string describe(const TraceGenParams& p) {
-  std::string s = fmt::format("{} duration_s={} fps={} speed_mps={} heading_deg={} height_m={} "
-                              "pitch_deg={} vfov_deg={} start_m={},{}",
-                              kind_name(p.kind), p.duration_s, p.fps, p.speed_mps, p.heading_deg,
-                              p.height_m, p.pitch_deg, p.vfov_deg, p.start_m.x, p.start_m.y);
+  std::string s = fmt::format("{} duration_s={} fps={} speed_mps={} heading_deg={} height_m={} ",
+                              kind_name(p.kind), p.duration_s, p.fps, p.speed_mps, p.heading_deg, p.height_m);
+  if (p.kind != TraceKind::orbit) s += fmt::format("pitch_deg={} ", p.pitch_deg);  // orbit: computed
+  s += fmt::format("vfov_deg={} start_m={},{}", p.vfov_deg, p.start_m.x, p.start_m.y);
   if (p.kind == TraceKind::turn)
     s += fmt::format(" turn_deg={} turn_s={} event_s={}", p.turn_deg, p.turn_s, p.event_s);
   if (p.kind == TraceKind::teleport)

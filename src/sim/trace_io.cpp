@@ -1,5 +1,6 @@
 #include "sim/trace_io.h"
 
+#include <fmt/compile.h>
 #include <fmt/core.h>
 #include <fmt/format.h>
 
@@ -158,19 +159,26 @@ void validate_trace(const Trace& trace, const std::string& where) {
   if (trace.poses.empty()) throw InputError(where, "the trace has no poses");
   for (std::size_t i = 0; i < trace.poses.size(); ++i) {
     const Pose& p = trace.poses[i];
-    const std::string w = fmt::format("{} pose {}", where, i);
-    if (!std::isfinite(p.t_s)) throw InputError(w, "time is not finite");
-    check_pose_ranges(p, w);
+    const auto w = [&] { return fmt::format("{} pose {}", where, i); };  // only on error
+    if (!std::isfinite(p.t_s)) throw InputError(w(), "time is not finite");
+    bool in_range = std::abs(p.t_s) <= kMaxAbsTime_s && p.vfov_deg > 0.0 && p.vfov_deg < 180.0;
+    for (int k = 0; k < 3; ++k) in_range = in_range && std::abs(p.pos_m[k]) <= kMaxAbsCoordinate_m;
+    if (!in_range) check_pose_ranges(p, w());
     if (i > 0 && !(p.t_s > trace.poses[i - 1].t_s))
-      throw InputError(w, fmt::format("time {} s does not increase (previous {} s)", p.t_s,
-                                      trace.poses[i - 1].t_s));
+      throw InputError(w(), fmt::format("time {} s does not increase (previous {} s)", p.t_s,
+                                        trace.poses[i - 1].t_s));
     const double n2 = p.q.w * p.q.w + p.q.x * p.q.x + p.q.y * p.q.y + p.q.z * p.q.z;
     if (!std::isfinite(n2) || !(std::abs(std::sqrt(n2) - 1.0) <= kQuatUnitTolerance))
-      throw InputError(w, fmt::format("quaternion norm {} is not unit", std::sqrt(n2)));
+      throw InputError(w(), fmt::format("quaternion norm {} is not unit", std::sqrt(n2)));
   }
 }
 
-std::string format_trace(const Trace& trace) {
+namespace {
+
+// Formats the native text in chunks of about 64 KiB handed to sink(data, size): a long trace is
+// written without building its whole text in memory.
+template <class Sink>
+void emit_native(const Trace& trace, Sink&& sink) {
   fmt::memory_buffer out;
   auto it = std::back_inserter(out);
   fmt::format_to(it, "# {} {} image_width={} image_height={}\n", kMagic, kVersion,
@@ -178,26 +186,40 @@ std::string format_trace(const Trace& trace) {
   if (!trace.name.empty()) fmt::format_to(it, "{} {}\n", kNamePrefix, trace_text::sanitize_line(trace.name));
   fmt::format_to(it, "{}\n", kHeader);
   // fmt's "{}" for double is the shortest string that reads back to the same bits.
-  for (const Pose& p : trace.poses)
-    fmt::format_to(it, "{},{},{},{},{},{},{},{},{}\n", p.t_s, p.pos_m.x, p.pos_m.y, p.pos_m.z,
-                   p.q.w, p.q.x, p.q.y, p.q.z, p.vfov_deg);
-  return fmt::to_string(out);
+  for (const Pose& p : trace.poses) {
+    fmt::format_to(it, FMT_COMPILE("{},{},{},{},{},{},{},{},{}\n"), p.t_s, p.pos_m.x, p.pos_m.y,
+                   p.pos_m.z, p.q.w, p.q.x, p.q.y, p.q.z, p.vfov_deg);
+    if (out.size() >= 64 * 1024) {
+      sink(out.data(), out.size());
+      out.clear();
+    }
+  }
+  sink(out.data(), out.size());
+}
+
+}  // namespace
+
+std::string format_trace(const Trace& trace) {
+  std::string s;
+  s.reserve(200 + trace.poses.size() * 160);  // a pose line is at most ~9 * 24 bytes, often ~120
+  emit_native(trace, [&](const char* d, std::size_t n) { s.append(d, n); });
+  return s;
 }
 
 void save_trace(const Trace& trace, const std::string& path) {
   validate_trace(trace, path);
-  const std::string text = format_trace(trace);
-  if (path == "-") {
-    if (std::fwrite(text.data(), 1, text.size(), stdout) != text.size() || std::fflush(stdout) != 0)
-      throw InputError("stdout", "write failed");
-    return;
-  }
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "wb"), &std::fclose);
-  if (!f) throw InputError(path, fmt::format("cannot create: {}", std::strerror(errno)));
-  if (std::fwrite(text.data(), 1, text.size(), f.get()) != text.size())
-    throw InputError(path, fmt::format("write failed: {}", std::strerror(errno)));
-  if (std::fclose(f.release()) != 0)
-    throw InputError(path, fmt::format("write failed: {}", std::strerror(errno)));
+  const bool to_stdout = path == "-";
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> owned(to_stdout ? nullptr : std::fopen(path.c_str(), "wb"),
+                                                        &std::fclose);
+  if (!to_stdout && !owned) throw InputError(path, fmt::format("cannot create: {}", std::strerror(errno)));
+  std::FILE* f = to_stdout ? stdout : owned.get();
+  const std::string where = to_stdout ? "stdout" : path;
+  emit_native(trace, [&](const char* d, std::size_t n) {
+    if (std::fwrite(d, 1, n, f) != n) throw InputError(where, fmt::format("write failed: {}", std::strerror(errno)));
+  });
+  if (std::fflush(f) != 0) throw InputError(where, fmt::format("write failed: {}", std::strerror(errno)));
+  if (!to_stdout && std::fclose(owned.release()) != 0)
+    throw InputError(where, fmt::format("write failed: {}", std::strerror(errno)));
 }
 
 }  // namespace vtsim
