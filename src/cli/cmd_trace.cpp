@@ -1,11 +1,390 @@
-// vtsim trace …: generate, import, inspect camera traces (docs/traces.md).
+// vtsim trace …: generate, import, resample and inspect camera traces (docs/traces.md).
+#include <fmt/core.h>
+
+#include <charconv>
+#include <cmath>
+#include <memory>
+#include <numbers>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
 #include "cli/commands.h"
+#include "core/error.h"
+#include "sim/trace_gen.h"
+#include "sim/trace_import.h"
+#include "sim/trace_io.h"
+#include "sim/trace_resample.h"
+#include "sim/trace_stats.h"
 
 namespace vtsim::cli {
+
+namespace {
+
+// "a,b,c" -> n finite doubles; InputError naming the option otherwise.
+std::vector<double> parse_list(const std::string& s, std::size_t n, char sep, const std::string& opt) {
+  std::vector<double> v;
+  std::size_t b = 0;
+  for (;;) {
+    const std::size_t e = s.find(sep, b);
+    const std::string tok = s.substr(b, e == std::string::npos ? std::string::npos : e - b);
+    double x = 0.0;
+    const auto [p, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), x);
+    if (tok.empty() || ec != std::errc() || p != tok.data() + tok.size() || !std::isfinite(x))
+      throw InputError(opt, fmt::format("'{}' is not {} finite numbers separated by '{}'", s, n, sep));
+    v.push_back(x);
+    if (e == std::string::npos) break;
+    b = e + 1;
+  }
+  if (v.size() != n)
+    throw InputError(opt, fmt::format("'{}' is not {} numbers separated by '{}'", s, n, sep));
+  return v;
+}
+
+void parse_image(const std::string& s, int& w, int& h) {
+  const std::vector<double> v = parse_list(s, 2, 'x', "--image");
+  for (double x : v)
+    if (x != std::floor(x) || x < 1 || x > kMaxImageSide)
+      throw InputError("--image", fmt::format("'{}': sides must be integers in [1, {}]", s, kMaxImageSide));
+  w = static_cast<int>(v[0]);
+  h = static_cast<int>(v[1]);
+}
+
+GapPolicy parse_gap_policy(const std::string& s) {
+  if (s == "interpolate") return GapPolicy::interpolate;
+  if (s == "hold") return GapPolicy::hold;
+  if (s == "error") return GapPolicy::error;
+  throw InputError("--gap-policy", fmt::format("'{}' is not interpolate, hold or error", s));
+}
+
+std::string repairs_text(const TraceRepairs& r) {
+  std::vector<std::string> parts;
+  if (r.quats_renormalised) parts.push_back(fmt::format("{} quaternions renormalised", r.quats_renormalised));
+  if (r.duplicate_times_dropped)
+    parts.push_back(fmt::format("{} poses with a repeated time dropped", r.duplicate_times_dropped));
+  if (r.rotations_orthonormalised)
+    parts.push_back(fmt::format("{} rotations orthonormalised", r.rotations_orthonormalised));
+  if (parts.empty()) return "none";
+  std::string s = parts[0];
+  for (std::size_t i = 1; i < parts.size(); ++i) s += "; " + parts[i];
+  return s;
+}
+
+nlohmann::json repairs_json(const TraceRepairs& r) {
+  return {{"quats_renormalised", r.quats_renormalised},
+          {"duplicate_times_dropped", r.duplicate_times_dropped},
+          {"rotations_orthonormalised", r.rotations_orthonormalised}};
+}
+
+// Options shared by `import` and `info` for reading a non-native file.
+struct ReadArgs {
+  std::string format = "auto";
+  std::string times;
+  double rate = 0.0;
+  bool strict = false;
+
+  void add(CLI::App* c) {
+    c->add_option("--format", format, "Input format: auto, native, tum, euroc, kitti")->capture_default_str();
+    c->add_option("--times", times, "KITTI: file with one time in seconds per pose");
+    c->add_option("--rate", rate, "KITTI: fixed pose rate in Hz (KITTI odometry is 10)");
+    c->add_flag("--strict", strict, "Refuse repairable input (renormalised quaternions, repeated times)");
+  }
+  ImportOptions options() const {
+    ImportOptions o;
+    if (format != "auto") o.format = parse_trace_format(format, "--format");
+    o.kitti_times_path = times;
+    o.kitti_rate_hz = rate;
+    o.read.strict = strict;
+    return o;
+  }
+};
+
+void register_gen(CLI::App* trace) {
+  struct Args {
+    std::string kind, out;
+    double duration = 0, fps = 0, speed = 0, heading = 0, height = 0, pitch = 0, vfov = 0;
+    double turn = 0, turn_time = 0, at = 0, jump = 0, jump_heading = 0, radius = 0;
+    std::string start, image;
+  };
+  auto a = std::make_shared<Args>();
+  auto* c = trace->add_subcommand("gen", "Generate a standard synthetic trace");
+  c->footer(
+      "Kinds and their defaults (all start at the terrain centre (4096, 4096), heading 0 = +x,\n"
+      "20 s at 60 Hz, 1920x1080, vfov 60):\n"
+      "  walk           1.5 m/s, eye height 1.7 m, pitch -15\n"
+      "  walk_diagonal  walk at heading 45\n"
+      "  run            5 m/s, 1.7 m, pitch -15\n"
+      "  drive          20 m/s, 1.5 m, pitch -15\n"
+      "  flight         100 m/s, 300 m, pitch -30\n"
+      "  turn           walk; turns 180 deg in 0.5 s at t = 10 s\n"
+      "  teleport       walk; jumps 2000 m north (heading 90) at t = 10 s\n"
+      "  orbit          radius 50 m around the start point at 30 m, looking at its foot; one lap\n"
+      "                 in 20 s (5*pi m/s)\n"
+      "  static         1.7 m, pitch -15, no motion\n"
+      "Example: vtsim trace gen flight --duration 600 -o flight_10min.csv");
+  c->add_option("kind", a->kind, "walk, walk_diagonal, run, drive, flight, turn, teleport, orbit, static")
+      ->required();
+  c->add_option("-o,--output", a->out, "Output native trace (.csv; - for stdout)")->required();
+  auto* o_duration = c->add_option("--duration", a->duration, "Length in seconds");
+  auto* o_fps = c->add_option("--fps", a->fps, "Frames per second");
+  auto* o_speed = c->add_option("--speed", a->speed, "Speed in m/s (orbit: along the circle)");
+  auto* o_heading = c->add_option("--heading", a->heading, "Heading in degrees, counter-clockwise from +x (east)");
+  auto* o_height = c->add_option("--height", a->height, "Camera height in metres above z = 0");
+  auto* o_pitch = c->add_option("--pitch", a->pitch, "Pitch in degrees, up positive (not orbit)");
+  auto* o_vfov = c->add_option("--vfov", a->vfov, "Vertical field of view in degrees");
+  auto* o_start = c->add_option("--start", a->start, "Start point X,Y in metres (orbit: the centre)");
+  auto* o_image = c->add_option("--image", a->image, "Image size WxH in pixels");
+  auto* o_turn = c->add_option("--turn", a->turn, "turn: angle in degrees, counter-clockwise positive");
+  auto* o_turn_time = c->add_option("--turn-time", a->turn_time, "turn: seconds the turn takes");
+  auto* o_at = c->add_option("--at", a->at, "turn, teleport: time of the event in seconds");
+  auto* o_jump = c->add_option("--jump", a->jump, "teleport: jump distance in metres");
+  auto* o_jump_heading = c->add_option("--jump-heading", a->jump_heading, "teleport: jump direction in degrees");
+  auto* o_radius = c->add_option("--radius", a->radius, "orbit: radius in metres");
+  c->callback([=] {
+    const TraceKind kind = parse_trace_kind(a->kind, "kind");
+    TraceGenParams p = default_gen_params(kind);
+    const bool duration_given = o_duration->count() > 0;
+    if (duration_given) p.duration_s = a->duration;
+    if (o_fps->count()) p.fps = a->fps;
+    if (o_speed->count()) p.speed_mps = a->speed;
+    else if (kind == TraceKind::orbit && duration_given && std::isfinite(p.duration_s) && p.duration_s > 0)
+      p.speed_mps = 2.0 * std::numbers::pi * p.radius_m / p.duration_s;  // keep one lap
+    if (o_heading->count()) p.heading_deg = a->heading;
+    if (o_height->count()) p.height_m = a->height;
+    if (o_pitch->count()) p.pitch_deg = a->pitch;
+    if (o_vfov->count()) p.vfov_deg = a->vfov;
+    if (o_start->count()) {
+      const auto v = parse_list(a->start, 2, ',', "--start");
+      p.start_m = {v[0], v[1]};
+    }
+    if (o_image->count()) parse_image(a->image, p.image_width, p.image_height);
+    if (o_turn->count()) p.turn_deg = a->turn;
+    if (o_turn_time->count()) p.turn_s = a->turn_time;
+    if (o_at->count()) p.event_s = a->at;
+    if (o_jump->count()) p.jump_m = a->jump;
+    if (o_jump_heading->count()) p.jump_heading_deg = a->jump_heading;
+    if (o_radius->count()) {
+      if (kind == TraceKind::orbit && !o_speed->count() && a->radius > 0 && std::isfinite(a->radius))
+        p.speed_mps *= a->radius / p.radius_m;  // keep the lap time
+      p.radius_m = a->radius;
+    }
+    const Trace t = generate_trace(p);
+    save_trace(t, a->out);
+    if (a->out != "-") fmt::print(stderr, "wrote {} poses to {}\n", t.poses.size(), a->out);
+  });
+}
+
+struct TransformArgs {
+  double scale = 1.0, yaw = 0.0, time_scale = 1.0, time_offset = 0.0, vfov = 0.0;
+  std::string offset, up, camera, image;
+  bool recenter = false, keep_time = false;
+
+  void add(CLI::App* c) {
+    c->add_option("--scale", scale, "Multiply positions (room metres -> terrain metres)")->capture_default_str();
+    c->add_option("--offset", offset, "Add X,Y,Z metres last (e.g. 4096,4096,300)");
+    c->add_flag("--recenter", recenter, "Subtract the first position first (the trace starts at --offset)");
+    c->add_option("--yaw", yaw, "Rotate about world +z by degrees, counter-clockwise")->capture_default_str();
+    c->add_option("--up", up,
+                  "Source world axes: z-up, y-up, y-down (= -y-up, use --up=-y-up), ned, or 3 letters "
+                  "of ENWSUD (default: the format's)");
+    c->add_option("--camera", camera,
+                  "Source camera axes: optical, flu, opengl, imu-urf, or 3 letters of FBLRUD "
+                  "(default: the format's)");
+    c->add_option("--time-scale", time_scale, "Multiply times (2 = half speed)")->capture_default_str();
+    c->add_option("--time-offset", time_offset, "Add seconds to times last")->capture_default_str();
+    c->add_flag("--keep-time", keep_time, "Keep source times instead of starting at 0");
+    c->add_option("--vfov", vfov, "Vertical field of view in degrees for every pose (default 60; native: kept)");
+    c->add_option("--image", image, "Image size WxH in pixels (default 1920x1080; native: kept)");
+  }
+  void apply(ImportOptions& o) const {
+    TraceTransform& tf = o.transform;
+    tf.scale = scale;
+    if (!offset.empty()) {
+      const auto v = parse_list(offset, 3, ',', "--offset");
+      tf.offset_m = {v[0], v[1], v[2]};
+    }
+    tf.recenter = recenter;
+    tf.yaw_deg = yaw;
+    tf.world_axes = up;
+    tf.camera_axes = camera;
+    tf.time_scale = time_scale;
+    tf.time_offset_s = time_offset;
+    tf.rebase_time = !keep_time;
+    tf.vfov_deg = vfov;
+    if (!image.empty()) parse_image(image, o.image_width, o.image_height);
+  }
+};
+
+struct ResampleArgs {
+  double gap = 0.5;
+  std::string policy = "interpolate";
+  void add(CLI::App* c) {
+    c->add_option("--gap", gap, "An input time step longer than this (s) is a gap")->capture_default_str();
+    c->add_option("--gap-policy", policy, "In a gap: interpolate, hold (freeze, then jump) or error")
+        ->capture_default_str();
+  }
+};
+
+void print_resample_report(const ResampleReport& r, double fps, const ResampleArgs& ra) {
+  fmt::print(stderr, "resampled to {} Hz: {} frames; {} gaps longer than {} s ({:.6g} s in total, {})\n",
+             fps, r.frames, r.gaps, ra.gap, r.gap_time_s, ra.policy);
+}
+
+void register_import(CLI::App* trace) {
+  struct Args {
+    std::string in, out;
+    ReadArgs read;
+    TransformArgs tf;
+    ResampleArgs rs;
+    double resample = 0.0;
+  };
+  auto a = std::make_shared<Args>();
+  auto* c = trace->add_subcommand("import", "Convert a TUM, EuRoC or KITTI trajectory to a native trace");
+  c->footer(
+      "Transform order: time t' = (t - t0) * time-scale + time-offset; position\n"
+      "p' = offset + scale * Rz(yaw) * W * (p - [recenter] p0); orientation q' = Rz(yaw) * W * q * C^-1\n"
+      "(W: source world axes -> ENU, C: source camera axes -> FLU). Defaults per format:\n"
+      "tum z-up/optical, euroc z-up/imu-urf, kitti y-down/optical, native ENU/FLU.\n"
+      "Example (a handheld recording flown over the terrain centre at 300 m, 100x larger):\n"
+      "  vtsim trace import --format tum --scale 100 --recenter --offset 4096,4096,300 \\\n"
+      "      --resample 60 tum_fr1_xyz_groundtruth.txt -o fr1_flight.csv");
+  c->add_option("input", a->in, "Input trajectory file")->required();
+  c->add_option("-o,--output", a->out, "Output native trace (- for stdout)")->required();
+  a->read.add(c);
+  a->tf.add(c);
+  c->add_option("--resample", a->resample, "Resample to this frame rate (Hz) after the transform");
+  a->rs.add(c);
+  c->callback([a] {
+    ImportOptions o = a->read.options();
+    a->tf.apply(o);
+    TraceLoadReport rep;
+    Trace t = import_trace(a->in, o, &rep);
+    fmt::print(stderr, "read {} poses ({}, {} lines) from {}; repairs: {}\n", rep.poses, rep.format,
+               rep.lines, a->in, repairs_text(rep.repairs));
+    if (a->resample != 0.0) {
+      ResampleOptions ro;
+      ro.fps = a->resample;
+      ro.gap_s = a->rs.gap;
+      ro.gap_policy = parse_gap_policy(a->rs.policy);
+      ResampleReport rr;
+      t = resample(t, ro, &rr);
+      print_resample_report(rr, ro.fps, a->rs);
+    }
+    save_trace(t, a->out);
+    if (a->out != "-") fmt::print(stderr, "wrote {} poses to {}\n", t.poses.size(), a->out);
+  });
+}
+
+void register_resample(CLI::App* trace) {
+  struct Args {
+    std::string in, out;
+    double fps = 0.0;
+    ResampleArgs rs;
+  };
+  auto a = std::make_shared<Args>();
+  auto* c = trace->add_subcommand("resample", "Resample a trace to a fixed frame rate");
+  c->footer(
+      "Frame k is at t0 + k / fps; positions and vfov interpolate linearly, orientations by\n"
+      "shortest-arc slerp. Example: vtsim trace resample --fps 60 recorded.csv -o recorded_60.csv");
+  c->add_option("input", a->in, "Input trace (native; other formats are detected and imported with defaults)")
+      ->required();
+  c->add_option("-o,--output", a->out, "Output native trace (- for stdout)")->required();
+  c->add_option("--fps", a->fps, "Output frame rate in Hz")->required();
+  a->rs.add(c);
+  c->callback([a] {
+    TraceLoadReport rep;
+    const Trace in = load_any_trace(a->in, {}, &rep);
+    if (rep.repairs.total()) fmt::print(stderr, "{}: repairs: {}\n", a->in, repairs_text(rep.repairs));
+    ResampleOptions ro;
+    ro.fps = a->fps;
+    ro.gap_s = a->rs.gap;
+    ro.gap_policy = parse_gap_policy(a->rs.policy);
+    ResampleReport rr;
+    const Trace t = resample(in, ro, &rr);
+    print_resample_report(rr, ro.fps, a->rs);
+    save_trace(t, a->out);
+  });
+}
+
+void print_events(const char* what, std::int64_t n, const std::vector<TraceEvent>& list) {
+  for (const TraceEvent& e : list)
+    fmt::print("  {} at pose {} (t = {:.6f} s): {:.6g} m in {:.6g} s\n", what, e.pose, e.t_s,
+               e.distance_m, e.dt_s);
+  if (static_cast<std::int64_t>(list.size()) < n)
+    fmt::print("  ... {} more\n", n - static_cast<std::int64_t>(list.size()));
+}
+
+void register_info(CLI::App* trace) {
+  struct Args {
+    std::string in;
+    bool json = false;
+    ReadArgs read;
+    TraceStatsOptions so;
+  };
+  auto a = std::make_shared<Args>();
+  auto* c = trace->add_subcommand("info", "Duration, rate, path length, speeds, cuts and gaps of a trace");
+  c->footer(
+      "Any supported format (detected, or --format); non-native files are read with the import\n"
+      "defaults (times from 0). Example: vtsim trace info --json traces/walk.csv");
+  c->add_option("input", a->in, "Trace file")->required();
+  c->add_flag("--json", a->json, "Print JSON instead of text");
+  a->read.add(c);
+  c->add_option("--cut-speed", a->so.cut_speed_mps, "A step faster than this (m/s) ...")->capture_default_str();
+  c->add_option("--cut-distance", a->so.cut_distance_m, "... and longer than this (m) is a cut")
+      ->capture_default_str();
+  c->add_option("--gap", a->so.gap_s, "A time step longer than this (s) is a gap")->capture_default_str();
+  c->add_option("--min-step", a->so.min_step_s, "Measure speeds over steps at least this long (s; 0: raw steps)")
+      ->capture_default_str();
+  c->callback([a] {
+    TraceLoadReport rep;
+    ImportOptions io = a->read.options();
+    if (!io.format) io.format = detect_trace_format(a->in, io.read.limits);
+    // A native file is shown as stored; other formats as imported with the defaults.
+    const Trace t = *io.format == TraceFormat::native ? load_trace(a->in, io.read, &rep)
+                                                      : import_trace(a->in, io, &rep);
+    const TraceStats s = trace_stats(t, a->so);
+    if (a->json) {
+      nlohmann::json j = to_json(s);
+      j["file"] = a->in;
+      j["format"] = rep.format;
+      j["name"] = t.name;
+      j["lines"] = rep.lines;
+      j["repairs"] = repairs_json(rep.repairs);
+      fmt::print("{}\n", j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace));
+      return;
+    }
+    fmt::print("file:          {} ({}, {} lines)\n", a->in, rep.format, rep.lines);
+    fmt::print("name:          {}\n", t.name);
+    fmt::print("frames:        {}\n", s.frames);
+    fmt::print("duration:      {:.6f} s\n", s.duration_s);
+    fmt::print("mean rate:     {:.6g} Hz (step min {:.6g} s, max {:.6g} s)\n", s.mean_rate_hz, s.dt_min_s,
+               s.dt_max_s);
+    fmt::print("path length:   {:.6g} m\n", s.path_length_m);
+    fmt::print("speed:         p50 {:.6g}  p99 {:.6g}  max {:.6g} m/s (over {} steps >= {:g} s)\n",
+               s.speed_p50_mps, s.speed_p99_mps, s.speed_max_mps, s.speed_steps, a->so.min_step_s);
+    fmt::print("angular speed: max {:.6g} deg/s\n", s.angular_speed_max_dps);
+    fmt::print("bounding box:  x [{:.6g}, {:.6g}]  y [{:.6g}, {:.6g}]  z [{:.6g}, {:.6g}] m\n", s.bbox_min_m.x,
+               s.bbox_max_m.x, s.bbox_min_m.y, s.bbox_max_m.y, s.bbox_min_m.z, s.bbox_max_m.z);
+    fmt::print("image:         {}x{}, vfov {:.6g}..{:.6g} deg\n", s.image_width, s.image_height, s.vfov_min_deg,
+               s.vfov_max_deg);
+    fmt::print("cuts:          {} (steps > {:g} m at > {:g} m/s)\n", s.cuts, a->so.cut_distance_m,
+               a->so.cut_speed_mps);
+    print_events("cut", s.cuts, s.cut_list);
+    fmt::print("gaps:          {} (steps > {:g} s)\n", s.gaps, a->so.gap_s);
+    print_events("gap", s.gaps, s.gap_list);
+    fmt::print("repairs:       {}\n", repairs_text(rep.repairs));
+  });
+}
+
+}  // namespace
 
 void register_trace_commands(CLI::App& app) {
   auto* trace = app.add_subcommand("trace", "Generate, import, resample and inspect camera traces");
   trace->require_subcommand(1);
+  register_gen(trace);
+  register_import(trace);
+  register_resample(trace);
+  register_info(trace);
 }
 
 }  // namespace vtsim::cli
