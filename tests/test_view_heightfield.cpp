@@ -176,13 +176,17 @@ TEST_CASE("heightfield: a flat field renders what the plane renders") {
   flat.render(cam, vp, a);
   plane->render(cam, vp, b);
   REQUIRE(a.samples.size() == b.samples.size());
-  int texel_diff = 0;
+  int texel_diff = 0, pixel_diff = 0;
   double worst = 0.0;
   for (std::size_t i = 0; i < a.samples.size(); ++i) {
-    REQUIRE(a.samples[i].pixel == b.samples[i].pixel);
+    if (a.samples[i].pixel != b.samples[i].pixel) {
+      ++pixel_diff;
+      continue;
+    }
     texel_diff += a.samples[i].u != b.samples[i].u || a.samples[i].v != b.samples[i].v;
     worst = std::max(worst, std::fabs(static_cast<double>(a.samples[i].lod - b.samples[i].lod)));
   }
+  CHECK(pixel_diff == 0);
   CHECK(texel_diff <= static_cast<int>(a.samples.size() / 1000));  // t = −oz/dz vs −oz·(1/dz): 1 ulp
   CHECK(worst < 1e-5);
 }

@@ -33,6 +33,8 @@ double parse_number(std::string_view tok, const std::string& where, const char* 
   const char* first = tok.data();
   if (!tok.empty() && tok[0] == '+') ++first;  // from_chars rejects a leading '+'
   const auto [ptr, ec] = std::from_chars(first, tok.data() + tok.size(), x);
+  if (ec == std::errc::result_out_of_range && ptr == tok.data() + tok.size())
+    throw InputError(where, std::string(what) + " '" + std::string(tok) + "' is not a finite number within ±1e12");
   if (ec != std::errc() || ptr != tok.data() + tok.size() || tok.empty())
     throw InputError(where, std::string("malformed ") + what + " '" + std::string(tok) + "'");
   if (!std::isfinite(x) || std::fabs(x) > kMaxCoord)
