@@ -39,6 +39,7 @@ struct ViewCounters {
   std::uint64_t clipped = 0;       // hit outside [near, far]
   std::uint64_t backfacing = 0;    // nearest hit faces away from the camera
   std::uint64_t outside_texture = 0;  // hit a surface point whose texel lies outside the texture
+  std::uint64_t untextured = 0;    // nearest hit is a mesh face without texture coordinates
 };
 
 struct ViewBuffer {

@@ -1,0 +1,196 @@
+// vtsim view: render one feedback frame of a scene and write it as a PNG (docs/view.md).
+#include <fmt/core.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "cli/commands.h"
+#include "core/error.h"
+#include "sim/camera.h"
+#include "sim/feedback.h"
+#include "sim/scene.h"
+#include "sim/scene_heightfield.h"
+#include "sim/view_image.h"
+
+namespace vtsim::cli {
+
+namespace {
+
+struct ViewOptions {
+  std::string scene = "plane";
+  std::string obj, heightmap;
+  double spacing_m = 8.0, height_scale_m = 1.0, z0_m = 0.0;
+  unsigned long long seed = 1;
+  double terrain_size_m = 8192.0, texels_per_m = 128.0;
+  std::string pos = "4096,4096,1.7";
+  bool agl = false;
+  double yaw = 0.0, pitch = -10.0, roll = 0.0, vfov = 60.0;
+  std::string size = "1920x1080";
+  int divisor = 8;
+  float lod_bias = 0.0f;
+  float aniso = 0.0f;
+  double near_m = 0.05, far_m = 1.0e7;
+  int tile_size = 128;
+  std::string out = "view.png";
+  int zoom = 1;
+};
+
+glm::dvec3 parse_pos(const std::string& s) {
+  glm::dvec3 p;
+  const char* c = s.c_str();
+  for (int k = 0; k < 3; ++k) {
+    char* end = nullptr;
+    p[k] = std::strtod(c, &end);
+    if (end == c || !std::isfinite(p[k])) throw InputError("--pos", "expected x,y,z in metres, got '" + s + "'");
+    c = end;
+    if (k < 2) {
+      if (*c != ',') throw InputError("--pos", "expected x,y,z in metres, got '" + s + "'");
+      ++c;
+    }
+  }
+  if (*c != '\0') throw InputError("--pos", "expected x,y,z in metres, got '" + s + "'");
+  return p;
+}
+
+void parse_size(const std::string& s, int& w, int& h) {
+  char x = 0;
+  char* end = nullptr;
+  const long a = std::strtol(s.c_str(), &end, 10);
+  if (end == s.c_str() || (*end != 'x' && *end != 'X')) throw InputError("--size", "expected WxH, got '" + s + "'");
+  x = *end;
+  const char* rest = end + 1;
+  const long b = std::strtol(rest, &end, 10);
+  if (end == rest || *end != '\0' || a < 1 || b < 1 || a > kMaxImageSide || b > kMaxImageSide)
+    throw InputError("--size", "expected WxH with sides in 1.." + std::to_string(kMaxImageSide) + ", got '" + s + "'");
+  (void)x;
+  w = static_cast<int>(a);
+  h = static_cast<int>(b);
+}
+
+void run_view(const ViewOptions& o) {
+  SceneConfig cfg;
+  cfg.kind = parse_scene_kind(o.scene);
+  cfg.size_x_m = cfg.size_y_m = o.terrain_size_m;
+  cfg.texels_per_m = o.texels_per_m;
+  cfg.obj_path = o.obj;
+  cfg.heightmap_path = o.heightmap;
+  cfg.spacing_m = o.spacing_m;
+  cfg.height_scale_m = o.height_scale_m;
+  cfg.z0_m = o.z0_m;
+  cfg.seed = o.seed;
+  if (o.zoom < 1 || o.zoom > 64) throw InputError("--zoom", "must be in [1, 64]");
+
+  int width = 0, height = 0;
+  parse_size(o.size, width, height);
+  glm::dvec3 pos = parse_pos(o.pos);
+
+  const auto t_build = std::chrono::steady_clock::now();
+  const std::unique_ptr<IScene> scene = make_scene(cfg);
+  const double build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_build).count();
+  if (o.agl) {
+    double ground = 0.0;
+    if (const auto* hs = dynamic_cast<const HeightfieldScene*>(scene.get())) {
+      ground = hs->height_at(pos.x, pos.y);
+      if (!std::isfinite(ground)) throw InputError("--agl", "the position is outside the heightfield");
+    } else if (cfg.kind == SceneKind::plane) {
+      ground = cfg.plane_z_m;
+    }
+    pos.z += ground;
+  }
+
+  // INTEGRATION POINT (trace files): src/sim/trace_io.h (load_trace) is being written in
+  // parallel. Once it lands, add `--trace FILE` with `--frame N` or `--time T` and take the pose
+  // and image size from the trace instead of --pos/--yaw/--pitch/--roll/--vfov/--size:
+  //   const Trace tr = load_trace(trace_path);
+  //   const Pose pose = has_time ? trace_pose_at(tr, time_s) : trace_pose(tr, frame);
+  //   width = tr.image_width; height = tr.image_height;   (unless --size was given)
+  const Pose pose = pose_from_angles(pos, o.yaw, o.pitch, o.roll, o.vfov);
+  const Camera cam = make_camera(pose, width, height);
+
+  ViewParams vp;
+  vp.divisor = o.divisor;
+  vp.lod_bias = o.lod_bias;
+  vp.anisotropic = o.aniso > 0.0f;
+  if (vp.anisotropic) vp.max_aniso = o.aniso;
+  vp.near_m = o.near_m;
+  vp.far_m = o.far_m;
+
+  ViewBuffer vb;
+  const auto t0 = std::chrono::steady_clock::now();
+  scene->render(cam, vp, vb);
+  const auto t1 = std::chrono::steady_clock::now();
+  const TextureExtent ext = scene->texture();
+  const int levels = mip_level_count(ext);
+  std::vector<TileUse> tiles;
+  aggregate_feedback(vb, o.tile_size, levels, tiles);
+  const auto t2 = std::chrono::steady_clock::now();
+  write_level_image(o.out, vb, levels, o.zoom);
+
+  const double pixels = static_cast<double>(vb.width) * vb.height;
+  const ViewCounters& c = vb.counters;
+  fmt::print("scene {}: texture {}x{} texels, {} levels (built in {:.1f} ms)\n", o.scene, ext.width, ext.height, levels,
+             build_ms);
+  fmt::print("camera ({:.3f}, {:.3f}, {:.3f}) m, yaw {} pitch {} roll {} deg, vfov {} (hfov {:.2f}) deg, image {}x{}\n",
+             pos.x, pos.y, pos.z, o.yaw, o.pitch, o.roll, o.vfov, cam.hfov_deg(), width, height);
+  fmt::print("buffer {}x{} (divisor {}): samples {} ({:.1f} %), sky {}, clipped {}, backfacing {}, "
+             "outside texture {}, untextured {}\n",
+             vb.width, vb.height, vb.divisor, vb.samples.size(), 100.0 * static_cast<double>(vb.samples.size()) / pixels,
+             c.sky, c.clipped, c.backfacing, c.outside_texture, c.untextured);
+  std::vector<std::uint64_t> per_level(static_cast<std::size_t>(levels), 0), tiles_per_level(static_cast<std::size_t>(levels), 0);
+  for (const ViewSample& s : vb.samples) ++per_level[static_cast<std::size_t>(desired_level(s.lod, levels))];
+  for (const TileUse& t : tiles) ++tiles_per_level[t.key.level()];
+  fmt::print("touched tiles ({} texels): {}\n", o.tile_size, tiles.size());
+  for (int l = 0; l < levels; ++l)
+    if (per_level[static_cast<std::size_t>(l)] > 0)
+      fmt::print("  level {:2}: {:8} samples {:6} tiles\n", l, per_level[static_cast<std::size_t>(l)],
+                 tiles_per_level[static_cast<std::size_t>(l)]);
+  fmt::print("render {:.3f} ms, aggregate {:.3f} ms\n", std::chrono::duration<double, std::milli>(t1 - t0).count(),
+             std::chrono::duration<double, std::milli>(t2 - t1).count());
+  fmt::print("wrote {} ({}x{}: colour = desired level, level 0 red, then orange, yellow, lime, green, cyan, "
+             "blue, purple, magenta, pink, brown, white, repeating; black = no sample)\n",
+             o.out, vb.width * o.zoom, vb.height * o.zoom);
+}
+
+}  // namespace
+
+void register_view_commands(CLI::App& app) {
+  auto opt = std::make_shared<ViewOptions>();
+  auto* cmd = app.add_subcommand("view", "Render one feedback frame of a scene; write the desired mip level as a PNG");
+  cmd->add_option("--scene", opt->scene, "plane | heightfield | mesh | town")->capture_default_str();
+  cmd->add_option("--obj", opt->obj, "Wavefront OBJ file (scene mesh); vt in [0,1) spans the texture");
+  cmd->add_option("--heightmap", opt->heightmap, "heightmap image (scene heightfield); default: generated noise");
+  cmd->add_option("--spacing", opt->spacing_m, "heightfield post spacing, m")->capture_default_str();
+  cmd->add_option("--height-scale", opt->height_scale_m, "metres per heightmap value")->capture_default_str();
+  cmd->add_option("--z0", opt->z0_m, "heightfield height of value 0, m")->capture_default_str();
+  cmd->add_option("--seed", opt->seed, "generated heightfield / town seed")->capture_default_str();
+  cmd->add_option("--terrain-size", opt->terrain_size_m, "terrain (texture) side, m")->capture_default_str();
+  cmd->add_option("--texels-per-m", opt->texels_per_m, "level-0 texel density")->capture_default_str();
+  cmd->add_option("--pos", opt->pos, "camera position x,y,z, m")->capture_default_str();
+  cmd->add_flag("--agl", opt->agl, "z of --pos is above the ground under the camera");
+  cmd->add_option("--yaw", opt->yaw, "heading, degrees counter-clockwise from +x")->capture_default_str();
+  cmd->add_option("--pitch", opt->pitch, "degrees above the horizon")->capture_default_str();
+  cmd->add_option("--roll", opt->roll, "degrees, right side down")->capture_default_str();
+  cmd->add_option("--vfov", opt->vfov, "vertical field of view, degrees")->capture_default_str();
+  cmd->add_option("--size", opt->size, "full-resolution image WxH")->capture_default_str();
+  cmd->add_option("--divisor", opt->divisor, "feedback buffer = image / divisor")->capture_default_str();
+  cmd->add_option("--lod-bias", opt->lod_bias, "added to every LOD")->capture_default_str();
+  cmd->add_option("--aniso", opt->aniso, "anisotropic LOD with this max ratio (0: isotropic)")->capture_default_str();
+  cmd->add_option("--near", opt->near_m, "near plane, m (view depth)")->capture_default_str();
+  cmd->add_option("--far", opt->far_m, "far plane, m (view depth)")->capture_default_str();
+  cmd->add_option("--tile-size", opt->tile_size, "tile payload size for the touched-tile count, texels")
+      ->capture_default_str();
+  cmd->add_option("-o,--out", opt->out, "output PNG (any format OpenImageIO writes)")->capture_default_str();
+  cmd->add_option("--zoom", opt->zoom, "upscale the buffer image by this factor")->capture_default_str();
+  cmd->callback([opt]() {
+    try {
+      run_view(*opt);
+    } catch (const std::invalid_argument& e) {
+      throw InputError("view", e.what());
+    }
+  });
+}
+
+}  // namespace vtsim::cli

@@ -1,0 +1,307 @@
+#include "sim/scene_heightfield.h"
+
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "core/error.h"
+#include "core/tile_key.h"
+#include "sim/render_util.h"
+
+namespace vtsim {
+
+namespace {
+
+void check_grid_params(double spacing_m, double x0_m, double y0_m) {
+  if (!(spacing_m > 0.0) || !std::isfinite(spacing_m))
+    throw InputError("spacing_m", "post spacing must be finite and > 0");
+  if (!std::isfinite(x0_m) || !std::isfinite(y0_m))
+    throw InputError("origin", "heightfield origin must be finite");
+}
+
+// Value-noise lattice value in [-1, 1): a hash of (i, j, octave, seed).
+double lattice(std::int64_t i, std::int64_t j, int octave, std::uint64_t seed) {
+  std::uint64_t h = mix64(seed + 0x9e3779b97f4a7c15ULL * static_cast<std::uint64_t>(octave + 1));
+  h = mix64(h ^ static_cast<std::uint64_t>(i));
+  h = mix64(h ^ (static_cast<std::uint64_t>(j) * 0xd1b54a32d192ed03ULL));
+  return static_cast<double>(h >> 11) * 0x1p-52 - 1.0;
+}
+
+}  // namespace
+
+Heightfield load_heightfield(const std::string& path, double spacing_m, double height_scale_m,
+                             double z0_m, double x0_m, double y0_m) {
+  check_grid_params(spacing_m, x0_m, y0_m);
+  if (!std::isfinite(height_scale_m)) throw InputError("height_scale_m", "must be finite");
+  if (!std::isfinite(z0_m)) throw InputError("z0_m", "must be finite");
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) throw InputError(path, "cannot read as an image: " + OIIO::geterror());
+  const OIIO::ImageSpec spec = in->spec();
+  const std::int64_t w = spec.width, h = spec.height;
+  if (spec.depth > 1) throw InputError(path, "volume images are not heightmaps");
+  if (w < 2 || h < 2) throw InputError(path, "a heightmap needs at least 2×2 pixels");
+  if (w * h > kMaxHeightfieldPosts)
+    throw InputError(path, std::to_string(w) + "×" + std::to_string(h) + " pixels is more than the " +
+                               std::to_string(kMaxHeightfieldPosts) + "-post limit");
+  if (spec.nchannels < 1) throw InputError(path, "image has no channels");
+  std::vector<float> px(static_cast<std::size_t>(w * h));
+  if (!in->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, px.data()))
+    throw InputError(path, "cannot decode image: " + in->geterror());
+  in->close();
+  Heightfield hf;
+  hf.nx = static_cast<int>(w);
+  hf.ny = static_cast<int>(h);
+  hf.spacing_m = spacing_m;
+  hf.x0_m = x0_m;
+  hf.y0_m = y0_m;
+  hf.z_m = std::move(px);  // converted in place below
+  for (std::int64_t j = 0; j < h; ++j)
+    for (std::int64_t i = 0; i < w; ++i) {
+      const float value = hf.z_m[static_cast<std::size_t>(j * w + i)];
+      const double z = z0_m + height_scale_m * static_cast<double>(value);
+      if (!std::isfinite(value) || !std::isfinite(z) || std::fabs(z) > 1e30)
+        throw InputError(path + ": row " + std::to_string(j) + ", column " + std::to_string(i),
+                         "height is not a finite number");
+      hf.z_m[static_cast<std::size_t>(j * w + i)] = static_cast<float>(z);
+    }
+  return hf;
+}
+
+Heightfield generate_heightfield(int posts, double spacing_m, double amplitude_m, double z0_m,
+                                 std::uint64_t seed, double x0_m, double y0_m) {
+  check_grid_params(spacing_m, x0_m, y0_m);
+  if (posts < 2 || static_cast<std::int64_t>(posts) * posts > kMaxHeightfieldPosts)
+    throw InputError("noise_posts", "must be in [2, 8192]");
+  if (!(amplitude_m >= 0.0) || !std::isfinite(amplitude_m) || amplitude_m > 1e6)
+    throw InputError("noise_amplitude_m", "must be in [0, 1e6]");
+  if (!std::isfinite(z0_m) || std::fabs(z0_m) > 1e12) throw InputError("z0_m", "must be finite");
+  Heightfield hf;
+  hf.nx = hf.ny = posts;
+  hf.spacing_m = spacing_m;
+  hf.x0_m = x0_m;
+  hf.y0_m = y0_m;
+  hf.z_m.resize(static_cast<std::size_t>(posts) * static_cast<std::size_t>(posts));
+  constexpr int kOctaves = 6, kBasePeriod = 256;  // periods 256, 128, ..., 8 posts
+  for (int j = 0; j < posts; ++j)
+    for (int i = 0; i < posts; ++i) {
+      double sum = 0.0, amp = 1.0, norm = 0.0;
+      for (int k = 0; k < kOctaves; ++k) {
+        const int period = kBasePeriod >> k;
+        const std::int64_t li = i / period, lj = j / period;
+        const double fx = static_cast<double>(i % period) / period;
+        const double fy = static_cast<double>(j % period) / period;
+        const double sx = fx * fx * (3.0 - 2.0 * fx), sy = fy * fy * (3.0 - 2.0 * fy);
+        const double a = lattice(li, lj, k, seed), b = lattice(li + 1, lj, k, seed);
+        const double c = lattice(li, lj + 1, k, seed), d = lattice(li + 1, lj + 1, k, seed);
+        sum += amp * ((a + (b - a) * sx) * (1.0 - sy) + (c + (d - c) * sx) * sy);
+        norm += amp;
+        amp *= 0.5;
+      }
+      hf.z_m[static_cast<std::size_t>(j) * static_cast<std::size_t>(posts) + static_cast<std::size_t>(i)] =
+          static_cast<float>(z0_m + amplitude_m * sum / norm);
+    }
+  return hf;
+}
+
+HeightfieldScene::HeightfieldScene(Heightfield hf, const GroundTexture& tex) : hf_(std::move(hf)), tex_(tex) {
+  check_grid_params(hf_.spacing_m, hf_.x0_m, hf_.y0_m);
+  if (hf_.nx < 2 || hf_.ny < 2 ||
+      static_cast<std::int64_t>(hf_.nx) * hf_.ny > kMaxHeightfieldPosts ||
+      hf_.z_m.size() != static_cast<std::size_t>(hf_.nx) * static_cast<std::size_t>(hf_.ny))
+    throw InputError("heightfield", "needs nx·ny heights with 2 <= nx, ny and nx·ny <= 2^26");
+  for (float z : hf_.z_m)
+    if (!std::isfinite(z)) throw InputError("heightfield", "height is not finite");
+  cells_x_ = hf_.nx - 1;
+  cells_y_ = hf_.ny - 1;
+  // Level 0: one node per cell, its highest corner; level l+1 halves with ceil up to 1×1.
+  int w = cells_x_, h = cells_y_;
+  std::vector<float> lvl(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
+  const auto post = [&](int i, int j) { return hf_.z_m[static_cast<std::size_t>(j) * hf_.nx + i]; };
+  for (int j = 0; j < h; ++j)
+    for (int i = 0; i < w; ++i)
+      lvl[static_cast<std::size_t>(j) * w + i] =
+          std::max(std::max(post(i, j), post(i + 1, j)), std::max(post(i, j + 1), post(i + 1, j + 1)));
+  max_.push_back(std::move(lvl));
+  level_w_.push_back(w);
+  level_h_.push_back(h);
+  while (w > 1 || h > 1) {
+    const int pw = w, ph = h;
+    const std::vector<float>& prev = max_.back();
+    w = (w + 1) / 2;
+    h = (h + 1) / 2;
+    std::vector<float> next(static_cast<std::size_t>(w) * static_cast<std::size_t>(h),
+                            -std::numeric_limits<float>::infinity());
+    for (int j = 0; j < ph; ++j)
+      for (int i = 0; i < pw; ++i) {
+        float& m = next[static_cast<std::size_t>(j / 2) * w + i / 2];
+        m = std::max(m, prev[static_cast<std::size_t>(j) * pw + i]);
+      }
+    max_.push_back(std::move(next));
+    level_w_.push_back(w);
+    level_h_.push_back(h);
+  }
+}
+
+double HeightfieldScene::height_at(double x_m, double y_m) const {
+  const double X = (x_m - hf_.x0_m) / hf_.spacing_m, Y = (y_m - hf_.y0_m) / hf_.spacing_m;
+  if (!(X >= 0.0 && X <= cells_x_ && Y >= 0.0 && Y <= cells_y_))
+    return std::numeric_limits<double>::quiet_NaN();
+  const int i = std::min(static_cast<int>(X), cells_x_ - 1), j = std::min(static_cast<int>(Y), cells_y_ - 1);
+  const double fx = X - i, fy = Y - j;
+  const auto post = [&](int a, int b) {
+    return static_cast<double>(hf_.z_m[static_cast<std::size_t>(b) * hf_.nx + a]);
+  };
+  const double h00 = post(i, j), h10 = post(i + 1, j), h01 = post(i, j + 1), h11 = post(i + 1, j + 1);
+  if (fx >= fy) return h00 + (h10 - h00) * fx + (h11 - h10) * fy;  // triangle (00, 10, 11)
+  return h00 + (h11 - h01) * fx + (h01 - h00) * fy;                // triangle (00, 11, 01)
+}
+
+struct HeightfieldScene::Hit {
+  double t = 0.0;          // ray parameter of the nearest hit with t >= t_near
+  double b = 0.0, c = 0.0; // its triangle: z = a + b·fx + c·fy in cell units
+  bool found = false;
+  bool clipped = false;    // some hit lay nearer than t_near (the near plane cut it away)
+};
+
+// Front-to-back traversal of the max quadtree with an explicit stack. Children are pushed so that
+// they pop in the order the ray enters them (for direction signs (sx, sy) that is
+// (near x, near y), (far x, near y), (near x, far y), (far x, far y): a ray never crosses both
+// "middle" quadrants), so the first leaf hit at or beyond t_near is the nearest.
+HeightfieldScene::Hit HeightfieldScene::cast(const glm::dvec3& o, const glm::dvec3& d, double t_near) const {
+  const double s = hf_.spacing_m;
+  const double X = (o.x - hf_.x0_m) / s, Y = (o.y - hf_.y0_m) / s, oz = o.z;
+  const double dX = d.x / s, dY = d.y / s, dz = d.z;
+  const bool flat_x = dX == 0.0, flat_y = dY == 0.0;
+  const double ix = flat_x ? 0.0 : 1.0 / dX, iy = flat_y ? 0.0 : 1.0 / dY;
+  const int fa = dX < 0.0 ? 1 : 0, fb = dY < 0.0 ? 1 : 0;
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  constexpr double kEps = 1e-9;  // cell-unit tolerance: a ray through a shared edge hits one side
+  struct Node {
+    int l, i, j;
+  };
+  Node stack[4 * 40];  // at most 3 siblings wait per level (< 32 levels) plus 4
+  int sp = 0;
+  stack[sp++] = Node{static_cast<int>(max_.size()) - 1, 0, 0};
+  Hit hit;
+  const float* posts = hf_.z_m.data();
+  const int nx = hf_.nx;
+  while (sp > 0) {
+    const Node nd = stack[--sp];
+    const double xlo = static_cast<double>(nd.i << nd.l);
+    const double xhi = static_cast<double>(std::min((nd.i + 1) << nd.l, cells_x_));
+    const double ylo = static_cast<double>(nd.j << nd.l);
+    const double yhi = static_cast<double>(std::min((nd.j + 1) << nd.l, cells_y_));
+    double t0 = 0.0, t1 = kInf;
+    if (flat_x) {
+      if (X < xlo || X > xhi) continue;
+    } else {
+      double a = (xlo - X) * ix, b = (xhi - X) * ix;
+      if (a > b) std::swap(a, b);
+      t0 = std::max(t0, a);
+      t1 = std::min(t1, b);
+    }
+    if (flat_y) {
+      if (Y < ylo || Y > yhi) continue;
+    } else {
+      double a = (ylo - Y) * iy, b = (yhi - Y) * iy;
+      if (a > b) std::swap(a, b);
+      t0 = std::max(t0, a);
+      t1 = std::min(t1, b);
+    }
+    if (t0 > t1) continue;
+    const double zmin = dz >= 0.0 ? oz + t0 * dz : oz + t1 * dz;
+    if (zmin > static_cast<double>(max_[static_cast<std::size_t>(nd.l)]
+                                       [static_cast<std::size_t>(nd.j) * level_w_[static_cast<std::size_t>(nd.l)] + nd.i]))
+      continue;
+    if (nd.l > 0) {
+      const int cl = nd.l - 1, cw = level_w_[static_cast<std::size_t>(cl)], ch = level_h_[static_cast<std::size_t>(cl)];
+      const int order[4][2] = {{fa, fb}, {1 - fa, fb}, {fa, 1 - fb}, {1 - fa, 1 - fb}};
+      for (int k = 3; k >= 0; --k) {
+        const int ci = 2 * nd.i + order[k][0], cj = 2 * nd.j + order[k][1];
+        if (ci < cw && cj < ch) stack[sp++] = Node{cl, ci, cj};
+      }
+      continue;
+    }
+    // Leaf: the cell's two triangles, z = h00 + b·fx + c·fy in cell-local coordinates.
+    const std::size_t base = static_cast<std::size_t>(nd.j) * nx + nd.i;
+    const double h00 = posts[base], h10 = posts[base + 1], h01 = posts[base + nx], h11 = posts[base + nx + 1];
+    const double X0 = X - nd.i, Y0 = Y - nd.j;
+    const double tri[2][2] = {{h10 - h00, h11 - h10}, {h11 - h01, h01 - h00}};
+    double best = kInf;
+    int best_k = -1;
+    for (int k = 0; k < 2; ++k) {
+      const double b = tri[k][0], c = tri[k][1];
+      const double den = dz - b * dX - c * dY;  // d·n with n = (−b/s, −c/s, 1)
+      if (den == 0.0) continue;
+      const double t = (h00 + b * X0 + c * Y0 - oz) / den;
+      if (!(t > 0.0)) continue;
+      const double fx = X0 + t * dX, fy = Y0 + t * dY;
+      if (!(fx >= -kEps && fx <= 1.0 + kEps && fy >= -kEps && fy <= 1.0 + kEps)) continue;
+      if (k == 0 ? fx - fy < -kEps : fy - fx < -kEps) continue;
+      if (t < t_near) {
+        hit.clipped = true;
+        continue;
+      }
+      if (t < best) {
+        best = t;
+        best_k = k;
+      }
+    }
+    if (best_k >= 0) {
+      hit.found = true;
+      hit.t = best;
+      hit.b = tri[best_k][0];
+      hit.c = tri[best_k][1];
+      return hit;
+    }
+  }
+  return hit;
+}
+
+void HeightfieldScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) const {
+  detail::begin_frame(cam, p, out);
+  const LodRule rule = detail::lod_rule(p);
+  const double f = cam.focal_px;
+  const double t_near = p.near_m / f, t_far = p.far_m / f;
+  const double tpm = tex_.texels_per_m, s = hf_.spacing_m;
+  const glm::dvec3 gu(tpm, 0.0, 0.0), gv(0.0, tpm, 0.0);
+  const glm::dvec3 ddx = -cam.left, ddy = -cam.up;
+  const double ox = cam.pos_m.x - tex_.x0_m, oy = cam.pos_m.y - tex_.y0_m;
+  const int div = p.divisor, bw = out.width, bh = out.height;
+  ViewCounters c;
+  for (int by = 0; by < bh; ++by) {
+    const double py = sample_pos(by, div, cam.height);
+    for (int bx = 0; bx < bw; ++bx) {
+      const glm::dvec3 d = cam.ray_dir(sample_pos(bx, div, cam.width), py);
+      const Hit h = cast(cam.pos_m, d, t_near);
+      if (!h.found) {
+        if (h.clipped) ++c.clipped;
+        else ++c.sky;
+        continue;
+      }
+      if (h.t > t_far) {
+        ++c.clipped;
+        continue;
+      }
+      const glm::dvec3 n(-h.b / s, -h.c / s, 1.0);
+      if (!(glm::dot(d, n) < 0.0)) {
+        ++c.backfacing;
+        continue;
+      }
+      std::int64_t u, v;
+      if (!detail::texel_index((ox + h.t * d.x) * tpm, tex_.extent.width, u) ||
+          !detail::texel_index((oy + h.t * d.y) * tpm, tex_.extent.height, v)) {
+        ++c.outside_texture;
+        continue;
+      }
+      const double lod = plane_footprint_lod(d, h.t, n, ddx, ddy, gu, gv, rule);
+      out.samples.push_back(ViewSample{u, v, static_cast<float>(lod), static_cast<std::uint32_t>(by * bw + bx)});
+    }
+  }
+  out.counters = c;
+}
+
+}  // namespace vtsim

@@ -1,0 +1,346 @@
+#include "sim/scene_mesh.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <string>
+
+#include <glm/geometric.hpp>
+
+#include "core/error.h"
+#include "sim/render_util.h"
+
+namespace vtsim {
+
+namespace {
+
+constexpr std::uint32_t kNoTri = 0xffffffffu;
+constexpr std::uint32_t kBackBit = 0x80000000u;
+constexpr std::uint32_t kChunkSize = 64;  // triangles per culling box: few boxes, tight bounds
+// The part of a triangle between view depth near/1024 and near is rasterised only to tell
+// "clipped" from "sky" in the counters; nearer than that it is ignored (projection blows up).
+constexpr double kNearFlagFraction = 1.0 / 1024.0;
+
+std::uint32_t spread_bits10(std::uint32_t x) {  // 10 bits -> every third bit (Morton)
+  x &= 0x3ffu;
+  x = (x | (x << 16)) & 0x030000ffu;
+  x = (x | (x << 8)) & 0x0300f00fu;
+  x = (x | (x << 4)) & 0x030c30c3u;
+  x = (x | (x << 2)) & 0x09249249u;
+  return x;
+}
+
+// Camera-space vertex: x right, y up, z view depth.
+struct CV {
+  double x, y, z;
+};
+// Projected vertex: full-resolution pixel position and 1/z.
+struct PV {
+  double X, Y, iz;
+};
+
+bool lex_less(const CV& a, const CV& b) {
+  if (a.x != b.x) return a.x < b.x;
+  if (a.y != b.y) return a.y < b.y;
+  return a.z < b.z;
+}
+
+// Point of segment ab at depth zc, computed from the endpoints in a canonical order so that two
+// triangles sharing the edge get bit-identical points (no cracks along clipped shared edges).
+CV clip_point(CV a, CV b, double zc) {
+  if (lex_less(b, a)) std::swap(a, b);
+  const double t = (zc - a.z) / (b.z - a.z);
+  return CV{a.x + t * (b.x - a.x), a.y + t * (b.y - a.y), zc};
+}
+
+// Sutherland–Hodgman against one depth plane: keep z >= zc (keep_above) or z < zc.
+int clip_poly(const CV* in, int n, double zc, bool keep_above, CV* out) {
+  int m = 0;
+  for (int k = 0; k < n; ++k) {
+    const CV& a = in[k];
+    const CV& b = in[(k + 1) % n];
+    const bool ain = keep_above ? a.z >= zc : a.z < zc;
+    const bool bin = keep_above ? b.z >= zc : b.z < zc;
+    if (ain) out[m++] = a;
+    if (ain != bin) out[m++] = clip_point(a, b, zc);
+  }
+  return m;
+}
+
+// Edge function of s against edge p→q, evaluated from the lexicographically smaller endpoint so
+// that the neighbour triangle (which walks q→p) gets exactly the negated value.
+inline double edge_fn(const PV& p, const PV& q, double sx, double sy) {
+  const bool swap = q.X < p.X || (q.X == p.X && q.Y < p.Y);
+  const PV& a = swap ? q : p;
+  const PV& b = swap ? p : q;
+  const double e = (b.X - a.X) * (sy - a.Y) - (b.Y - a.Y) * (sx - a.X);
+  return swap ? -e : e;
+}
+
+// Top-left style tie rule: a sample exactly on an edge belongs to one of the two triangles
+// sharing it (they walk it in opposite directions).
+inline bool owns_edge(const PV& p, const PV& q) {
+  const double dy = q.Y - p.Y, dx = q.X - p.X;
+  return dy > 0.0 || (dy == 0.0 && dx < 0.0);
+}
+
+struct Scratch {
+  std::vector<double> invz;          // 1/view depth of the nearest surface, 0 = none
+  std::vector<std::uint32_t> id;     // triangle index | kBackBit, or kNoTri
+  std::vector<std::uint8_t> near_cut;  // covered only by geometry the near plane cut away
+  std::vector<double> sx, sy;        // sample positions of buffer columns / rows, full-res pixels
+};
+
+// Buffer columns whose sample position may lie in [lo, hi] (a superset; the edge test decides).
+inline void sample_range(double lo, double hi, int div, int n, int& b0, int& b1) {
+  if (!std::isfinite(lo) || !std::isfinite(hi)) {
+    b0 = 0;
+    b1 = -1;
+    return;
+  }
+  const double off = static_cast<double>(div / 2) + 0.5;
+  double a = std::floor((lo - off) / div) - 1.0, b = std::ceil((hi - off) / div) + 1.0;
+  a = std::clamp(a, 0.0, static_cast<double>(n - 1));
+  b = std::clamp(b, -1.0, static_cast<double>(n - 1));
+  b0 = static_cast<int>(a);
+  b1 = static_cast<int>(b);
+}
+
+// Rasterises a convex polygon (fan) at the buffer's samples. Depth mode: nearest 1/z wins and
+// writes `tag`; flag mode (depth == false): marks near_cut only.
+void raster_poly(const PV* v, int n, std::uint32_t tag, bool depth, int div, int bw, int bh, Scratch& s) {
+  for (int k = 1; k + 1 < n; ++k) {
+    PV a = v[0], b = v[k], c = v[k + 1];
+    double area = (b.X - a.X) * (c.Y - a.Y) - (b.Y - a.Y) * (c.X - a.X);
+    if (!(area != 0.0) || !std::isfinite(area)) continue;
+    if (area < 0.0) {
+      std::swap(b, c);
+      area = -area;
+    }
+    const double inv_area = 1.0 / area;
+    int x0, x1, y0, y1;
+    sample_range(std::min({a.X, b.X, c.X}), std::max({a.X, b.X, c.X}), div, bw, x0, x1);
+    sample_range(std::min({a.Y, b.Y, c.Y}), std::max({a.Y, b.Y, c.Y}), div, bh, y0, y1);
+    const bool own_ab = owns_edge(a, b), own_bc = owns_edge(b, c), own_ca = owns_edge(c, a);
+    for (int y = y0; y <= y1; ++y) {
+      const double sy = s.sy[static_cast<std::size_t>(y)];
+      for (int x = x0; x <= x1; ++x) {
+        const double sx = s.sx[static_cast<std::size_t>(x)];
+        const double e_ab = edge_fn(a, b, sx, sy), e_bc = edge_fn(b, c, sx, sy), e_ca = edge_fn(c, a, sx, sy);
+        if (!(e_ab > 0.0 || (e_ab == 0.0 && own_ab)) || !(e_bc > 0.0 || (e_bc == 0.0 && own_bc)) ||
+            !(e_ca > 0.0 || (e_ca == 0.0 && own_ca)))
+          continue;
+        const std::size_t idx = static_cast<std::size_t>(y) * static_cast<std::size_t>(bw) + static_cast<std::size_t>(x);
+        if (!depth) {
+          s.near_cut[idx] = 1;
+          continue;
+        }
+        const double iz = (e_bc * a.iz + e_ca * b.iz + e_ab * c.iz) * inv_area;
+        if (iz > s.invz[idx]) {
+          s.invz[idx] = iz;
+          s.id[idx] = tag;
+        }
+      }
+    }
+  }
+}
+
+}  // namespace
+
+MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
+  if (extent.width < 1 || extent.height < 1) throw InputError("texture", "extent must be at least 1×1");
+  if (mesh.tris.empty()) throw InputError("mesh", "no triangles");
+  if (mesh.tris.size() >= kBackBit) throw InputError("mesh", "more than 2^31 − 1 triangles");
+  const double W = static_cast<double>(extent.width), H = static_cast<double>(extent.height);
+  std::vector<Tri> tris;
+  tris.reserve(mesh.tris.size());
+  for (std::size_t k = 0; k < mesh.tris.size(); ++k) {
+    const Mesh::Tri& mt = mesh.tris[k];
+    const std::string where = "mesh triangle " + std::to_string(k);
+    Tri t;
+    for (int c = 0; c < 3; ++c) {
+      if (mt.p[c] >= mesh.positions.size()) throw InputError(where, "vertex index out of range");
+      t.p[c] = mesh.positions[mt.p[c]];
+      if (!std::isfinite(t.p[c].x) || !std::isfinite(t.p[c].y) || !std::isfinite(t.p[c].z))
+        throw InputError(where, "vertex is not finite");
+    }
+    const glm::dvec3 e1 = t.p[1] - t.p[0], e2 = t.p[2] - t.p[0];
+    t.n = glm::cross(e1, e2);
+    const double a2 = glm::dot(t.n, t.n);
+    if (!(a2 > 0.0) || !std::isfinite(a2)) throw InputError(where, "zero-area or non-finite triangle");
+    t.textured = mt.t[0] >= 0;
+    if (t.textured) {
+      glm::dvec2 uv[3];
+      for (int c = 0; c < 3; ++c) {
+        if (mt.t[c] < 0 || static_cast<std::size_t>(mt.t[c]) >= mesh.uvs.size())
+          throw InputError(where, "texture coordinate index out of range");
+        uv[c] = mesh.uvs[static_cast<std::size_t>(mt.t[c])];
+        if (!std::isfinite(uv[c].x) || !std::isfinite(uv[c].y)) throw InputError(where, "uv is not finite");
+      }
+      // Gradient g of an affine attribute on the triangle's plane from g·e1 = Δ1, g·e2 = Δ2,
+      // g·n = 0: g = (Δ1·(e2 × n) + Δ2·(n × e1)) / |n|².
+      const glm::dvec3 a = glm::cross(e2, t.n) / a2, b = glm::cross(t.n, e1) / a2;
+      t.gu = ((uv[1].x - uv[0].x) * W) * a + ((uv[2].x - uv[0].x) * W) * b;
+      t.gv = ((uv[1].y - uv[0].y) * H) * a + ((uv[2].y - uv[0].y) * H) * b;
+      t.tu0 = uv[0].x * W;
+      t.tv0 = uv[0].y * H;
+    }
+    tris.push_back(t);
+  }
+  // Spatial order (Morton code of the centroid in the mesh's box) so that chunks are compact.
+  glm::dvec3 lo = tris[0].p[0], hi = lo;
+  for (const Tri& t : tris)
+    for (const auto& p : t.p) {
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+    }
+  const glm::dvec3 ext = glm::max(hi - lo, glm::dvec3(1e-300));
+  std::vector<std::uint32_t> code(tris.size());
+  for (std::size_t k = 0; k < tris.size(); ++k) {
+    const glm::dvec3 cen = (tris[k].p[0] + tris[k].p[1] + tris[k].p[2]) / 3.0;
+    const glm::dvec3 q = glm::clamp((cen - lo) / ext, 0.0, 1.0) * 1023.0;
+    code[k] = spread_bits10(static_cast<std::uint32_t>(q.x)) | (spread_bits10(static_cast<std::uint32_t>(q.y)) << 1) |
+              (spread_bits10(static_cast<std::uint32_t>(q.z)) << 2);
+  }
+  std::vector<std::uint32_t> order(tris.size());
+  std::iota(order.begin(), order.end(), 0u);
+  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return code[a] < code[b]; });
+  tris_.reserve(tris.size());
+  for (std::uint32_t k : order) tris_.push_back(tris[k]);
+  for (std::uint32_t first = 0; first < tris_.size(); first += kChunkSize) {
+    Chunk ch;
+    ch.first = first;
+    ch.count = std::min<std::uint32_t>(kChunkSize, static_cast<std::uint32_t>(tris_.size()) - first);
+    ch.lo = ch.hi = tris_[first].p[0];
+    for (std::uint32_t k = first; k < first + ch.count; ++k)
+      for (const auto& p : tris_[k].p) {
+        ch.lo = glm::min(ch.lo, p);
+        ch.hi = glm::max(ch.hi, p);
+      }
+    chunks_.push_back(ch);
+  }
+}
+
+void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) const {
+  detail::begin_frame(cam, p, out);
+  const LodRule rule = detail::lod_rule(p);
+  const int div = p.divisor, bw = out.width, bh = out.height;
+  const std::size_t npix = static_cast<std::size_t>(bw) * static_cast<std::size_t>(bh);
+  thread_local Scratch s;
+  s.invz.assign(npix, 0.0);
+  s.id.assign(npix, kNoTri);
+  s.near_cut.assign(npix, 0);
+  s.sx.resize(static_cast<std::size_t>(bw));
+  s.sy.resize(static_cast<std::size_t>(bh));
+  for (int x = 0; x < bw; ++x) s.sx[static_cast<std::size_t>(x)] = sample_pos(x, div, cam.width);
+  for (int y = 0; y < bh; ++y) s.sy[static_cast<std::size_t>(y)] = sample_pos(y, div, cam.height);
+
+  const glm::dvec3 o = cam.pos_m, F = cam.fwd, R = -cam.left, U = cam.up;
+  const double f = cam.focal_px, near = p.near_m, zflag = near * kNearFlagFraction;
+  // Frustum side planes through the camera centre (inward normals), at the image border.
+  const glm::dvec3 planes[5] = {
+      F,                                        // in front of the camera
+      R + (cam.cx / f) * F,                     // right of the left border: x >= −(cx/f)·z
+      -R + ((cam.width - cam.cx) / f) * F,      // left of the right border
+      -U + (cam.cy / f) * F,                    // below the top border: y <= (cy/f)·z
+      U + ((cam.height - cam.cy) / f) * F,      // above the bottom border
+  };
+  CV cv[3], clip_a[4], clip_b[5], tmp[4];
+  PV pv[5];
+  for (const Chunk& ch : chunks_) {
+    bool outside = false;
+    for (const glm::dvec3& pl : planes) {
+      const glm::dvec3 corner(pl.x >= 0.0 ? ch.hi.x : ch.lo.x, pl.y >= 0.0 ? ch.hi.y : ch.lo.y,
+                              pl.z >= 0.0 ? ch.hi.z : ch.lo.z);
+      if (glm::dot(corner - o, pl) < 0.0) {
+        outside = true;
+        break;
+      }
+    }
+    if (outside) continue;
+    for (std::uint32_t k = ch.first; k < ch.first + ch.count; ++k) {
+      const Tri& t = tris_[k];
+      bool all_near = true, any_flag = false;
+      for (int c = 0; c < 3; ++c) {
+        const glm::dvec3 q = t.p[c] - o;
+        cv[c] = CV{glm::dot(q, R), glm::dot(q, U), glm::dot(q, F)};
+        all_near = all_near && cv[c].z >= near;
+        any_flag = any_flag || cv[c].z >= zflag;
+      }
+      if (!any_flag) continue;  // wholly behind the camera or nearer than near/1024
+      const bool front = glm::dot(o - t.p[0], t.n) > 0.0;
+      const std::uint32_t tag = front ? k : (k | kBackBit);
+      const auto project = [&](const CV* poly, int n) {
+        for (int c = 0; c < n; ++c) {
+          const double iz = 1.0 / poly[c].z;
+          pv[c] = PV{cam.cx + f * poly[c].x * iz, cam.cy - f * poly[c].y * iz, iz};
+        }
+      };
+      if (all_near) {
+        project(cv, 3);
+        raster_poly(pv, 3, tag, true, div, bw, bh, s);
+        continue;
+      }
+      const int na = clip_poly(cv, 3, near, true, clip_a);
+      if (na >= 3) {
+        project(clip_a, na);
+        raster_poly(pv, na, tag, true, div, bw, bh, s);
+      }
+      const int nt = clip_poly(cv, 3, near, false, tmp);
+      const int nb = nt >= 3 ? clip_poly(tmp, nt, zflag, true, clip_b) : 0;
+      if (nb >= 3) {
+        project(clip_b, nb);
+        raster_poly(pv, nb, 0, false, div, bw, bh, s);
+      }
+    }
+  }
+
+  // Resolve: classify every buffer pixel and shade the visible front faces exactly.
+  const double far_iz = 1.0 / p.far_m;
+  const glm::dvec3 ddx = -cam.left, ddy = -cam.up;
+  ViewCounters c;
+  for (int y = 0; y < bh; ++y) {
+    for (int x = 0; x < bw; ++x) {
+      const std::size_t idx = static_cast<std::size_t>(y) * static_cast<std::size_t>(bw) + static_cast<std::size_t>(x);
+      const std::uint32_t id = s.id[idx];
+      if (id == kNoTri) {
+        if (s.near_cut[idx]) ++c.clipped;
+        else ++c.sky;
+        continue;
+      }
+      if (s.invz[idx] < far_iz) {
+        ++c.clipped;
+        continue;
+      }
+      if (id & kBackBit) {
+        ++c.backfacing;
+        continue;
+      }
+      const Tri& t = tris_[id];
+      if (!t.textured) {
+        ++c.untextured;
+        continue;
+      }
+      const glm::dvec3 d = cam.ray_dir(s.sx[static_cast<std::size_t>(x)], s.sy[static_cast<std::size_t>(y)]);
+      const double dn = glm::dot(d, t.n);
+      if (!(dn < 0.0)) {  // edge-on within rounding
+        ++c.backfacing;
+        continue;
+      }
+      const glm::dvec3 op = o - t.p[0];
+      const double tt = -glm::dot(op, t.n) / dn;
+      const glm::dvec3 q = op + tt * d;  // hit point relative to p0
+      std::int64_t u, v;
+      if (!detail::texel_index(t.tu0 + glm::dot(t.gu, q), extent_.width, u) ||
+          !detail::texel_index(t.tv0 + glm::dot(t.gv, q), extent_.height, v)) {
+        ++c.outside_texture;
+        continue;
+      }
+      const double lod = plane_footprint_lod(d, tt, t.n, ddx, ddy, t.gu, t.gv, rule);
+      out.samples.push_back(ViewSample{u, v, static_cast<float>(lod), static_cast<std::uint32_t>(idx)});
+    }
+  }
+  out.counters = c;
+}
+
+}  // namespace vtsim

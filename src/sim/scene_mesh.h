@@ -1,0 +1,47 @@
+#pragma once
+// Mesh scene: triangles with unique UVs into one virtual texture, rasterised at the feedback
+// buffer's sample positions with a depth buffer (docs/view.md). Visibility comes from the
+// rasteriser (near-plane clipping, 1/z depth test, back faces kept as occluders); each visible
+// sample is then shaded exactly: its ray meets the triangle's plane, whose affine texel map gives
+// the texel and, through ray differentials, dT/dx and dT/dy per full-resolution pixel.
+#include <cstdint>
+#include <vector>
+
+#include "sim/mesh.h"
+#include "sim/scene.h"
+
+namespace vtsim {
+
+// Render cost O(visible chunks' triangles + covered samples); chunks of 64 spatially sorted
+// triangles are frustum-culled by their bounding boxes. The depth buffer is per-thread scratch
+// (thread_local, reused, so no allocation after warm-up): render is thread-safe.
+// Back faces (seen from behind, per triangle: the camera is behind its plane) are rasterised as
+// occluders and never sampled: a camera inside a closed wall sees nothing, as on a solid.
+class MeshScene final : public IScene {
+ public:
+  // texel = floor(uv · (W, H)) for the texture extent; throws InputError("mesh", ...) for an empty
+  // mesh, indices out of range, non-finite data or more than 2^31 − 1 triangles.
+  MeshScene(const Mesh& mesh, TextureExtent extent);
+  TextureExtent texture() const override { return extent_; }
+  void render(const Camera& cam, const ViewParams& params, ViewBuffer& out) const override;
+
+  std::size_t triangle_count() const { return tris_.size(); }
+
+ private:
+  struct Tri {
+    glm::dvec3 p[3];      // corners, world metres
+    glm::dvec3 n;         // (p1 − p0) × (p2 − p0): the front side
+    glm::dvec3 gu, gv;    // gradients of the level-0 texel coordinates, texels per metre
+    double tu0 = 0.0, tv0 = 0.0;  // texel coordinates at p[0]
+    bool textured = false;
+  };
+  struct Chunk {
+    glm::dvec3 lo, hi;    // bounding box, world metres
+    std::uint32_t first = 0, count = 0;
+  };
+  TextureExtent extent_;
+  std::vector<Tri> tris_;
+  std::vector<Chunk> chunks_;
+};
+
+}  // namespace vtsim
