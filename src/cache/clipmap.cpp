@@ -48,6 +48,7 @@ Clipmap::Clipmap(const ClipmapParams& p) : p_(p) {
     throw std::invalid_argument("clipmap: clipsize must be a positive multiple of the tile size");
   if (p.layers < 1 || p.layers > 16) throw std::invalid_argument("clipmap: layers must be 1..16");
   n_ = p.clipsize / p.tile_size;
+  if ((p.tile_size & (p.tile_size - 1)) == 0) tile_shift_ = std::countr_zero(static_cast<unsigned>(p.tile_size));
   full_mask_ = p.layers == 32 ? 0xFFFFFFFFu : (1u << p.layers) - 1u;
   std::int64_t w = p.extent.width, h = p.extent.height;
   first_pyramid_ = -1;
@@ -70,6 +71,7 @@ Clipmap::Clipmap(const ClipmapParams& p) : p_(p) {
       L.cy = L.tiles_y / 2;
     }
     L.slots.resize(static_cast<std::size_t>(L.wx * L.wy));
+    if (!L.stack) set_window(L, 0, 0);
     L.missing = static_cast<std::uint64_t>(L.wx * L.wy) * static_cast<std::uint64_t>(p.layers);
     levels_.push_back(std::move(L));
     if (w == 1 && h == 1) break;
@@ -87,19 +89,20 @@ bool Clipmap::in_window(const Level& L, std::int64_t tx, std::int64_t ty) const 
   return L.placed && tx >= L.ox && tx < L.ox + L.wx && ty >= L.oy && ty < L.oy + L.wy;
 }
 
-bool Clipmap::valid_tile(const Level& L, std::int64_t tx, std::int64_t ty) const {
-  if (!in_window(L, tx, ty)) return false;
-  const std::int64_t b = p_.invalid_border_tiles;
-  if (b > 0 && L.stack) {
-    // The invalid border (seed 000 §4-6) lies along window edges that can move; an edge on the
-    // texture's edge never receives new tiles.
-    if (L.ox > 0 && tx < L.ox + b) return false;
-    if (L.ox + L.wx < L.tiles_x && tx >= L.ox + L.wx - b) return false;
-    if (L.oy > 0 && ty < L.oy + b) return false;
-    if (L.oy + L.wy < L.tiles_y && ty >= L.oy + L.wy - b) return false;
-  }
-  const Slot& s = L.slots[slot_index(L, tx, ty)];
-  return s.tx == tx && s.ty == ty && s.mask == full_mask_;
+void Clipmap::set_window(Level& L, std::int64_t ox, std::int64_t oy) {
+  L.ox = ox;
+  L.oy = oy;
+  L.sx0 = floor_mod(ox, L.wx);
+  L.sy0 = floor_mod(oy, L.wy);
+  const std::int64_t T = p_.tile_size, b = L.stack ? p_.invalid_border_tiles : 0;
+  // The invalid border (seed 000 §4-6) lies along window edges that can move; an edge on the
+  // texture's edge never receives new tiles.
+  const std::int64_t tx0 = ox + (ox > 0 ? b : 0), tx1 = ox + L.wx - (ox + L.wx < L.tiles_x ? b : 0);
+  const std::int64_t ty0 = oy + (oy > 0 ? b : 0), ty1 = oy + L.wy - (oy + L.wy < L.tiles_y ? b : 0);
+  L.vx0 = tx0 * T;
+  L.vx1 = std::min(L.texels_x, tx1 * T);
+  L.vy0 = ty0 * T;
+  L.vy1 = std::min(L.texels_y, ty1 * T);
 }
 
 Clipmap::Window Clipmap::window(int level) const {
@@ -156,8 +159,7 @@ int Clipmap::update_windows(std::int64_t gu, std::int64_t gv, int finest_active)
     L.cx = cx;
     L.cy = cy;
     if (!L.placed || ox != L.ox || oy != L.oy) {
-      L.ox = ox;
-      L.oy = oy;
+      set_window(L, ox, oy);
       L.placed = true;
       recount(L);
       ++stats_.window_moves;
@@ -247,20 +249,28 @@ bool Clipmap::resident(TileKey key) const {
 }
 
 int Clipmap::resident_level(std::int64_t u, std::int64_t v, int desired_level) const {
-  const std::int64_t T = p_.tile_size, m = p_.filter_margin_texels;
+  const std::int64_t m = p_.filter_margin_texels;
   for (int l = std::max(desired_level, clamp_); l < num_levels(); ++l) {
     const Level& L = levels_[static_cast<std::size_t>(l)];
+    if (!L.placed) continue;
     const std::int64_t ul = u >> l, vl = v >> l;
+    // The footprint, clamped at the texture's edges (clamp addressing), must lie in the valid
+    // rectangle; a complete level needs nothing more, others need every footprint tile resident.
     const std::int64_t x0 = std::max<std::int64_t>(0, ul - m), x1 = std::min(L.texels_x - 1, ul + m);
     const std::int64_t y0 = std::max<std::int64_t>(0, vl - m), y1 = std::min(L.texels_y - 1, vl + m);
-    const std::int64_t tx0 = x0 / T, tx1 = x1 / T, ty0 = y0 / T, ty1 = y1 / T;
-    bool ok = true;
-    for (std::int64_t ty = ty0; ok && ty <= ty1; ++ty)
-      for (std::int64_t tx = tx0; ok && tx <= tx1; ++tx) ok = valid_tile(L, tx, ty);
-    if (ok) {
-      if (mark_sampled_) L.slots[slot_index(L, ul / T, vl / T)].sampled = true;
-      return l;
+    if (x0 < L.vx0 || x1 >= L.vx1 || y0 < L.vy0 || y1 >= L.vy1) continue;
+    if (L.missing != 0) {
+      const std::int64_t tx0 = tile_of(x0), tx1 = tile_of(x1), ty0 = tile_of(y0), ty1 = tile_of(y1);
+      bool ok = true;
+      for (std::int64_t ty = ty0; ok && ty <= ty1; ++ty)
+        for (std::int64_t tx = tx0; ok && tx <= tx1; ++tx) {
+          const Slot& s = L.slots[window_slot(L, tx, ty)];
+          ok = s.tx == tx && s.ty == ty && s.mask == full_mask_;
+        }
+      if (!ok) continue;
     }
+    if (mark_sampled_) L.slots[window_slot(L, tile_of(ul), tile_of(vl))].sampled = true;
+    return l;
   }
   return num_levels();
 }

@@ -139,12 +139,25 @@ class Clipmap final : public IResidency {
     bool stack = false;
     bool placed = false;
     std::uint64_t missing = 0;                // (tile, layer) pairs of the window not resident
+    // Derived on every window move (set_window): the texel rectangle [vx0, vx1) × [vy0, vy1)
+    // that may be sampled (window minus invalid border, within the level), and the slot of the
+    // window's origin tile, so slot lookups need no division.
+    std::int64_t vx0 = 0, vx1 = 0, vy0 = 0, vy1 = 0;
+    std::int64_t sx0 = 0, sy0 = 0;
     std::vector<Slot> slots;
   };
 
   std::size_t slot_index(const Level& L, std::int64_t tx, std::int64_t ty) const;
+  // Slot of a tile known to lie in the window (no division).
+  std::size_t window_slot(const Level& L, std::int64_t tx, std::int64_t ty) const {
+    std::int64_t sx = L.sx0 + (tx - L.ox), sy = L.sy0 + (ty - L.oy);
+    if (sx >= L.wx) sx -= L.wx;
+    if (sy >= L.wy) sy -= L.wy;
+    return static_cast<std::size_t>(sy * L.wx + sx);
+  }
+  void set_window(Level& L, std::int64_t ox, std::int64_t oy);
+  std::int64_t tile_of(std::int64_t texel) const { return tile_shift_ >= 0 ? texel >> tile_shift_ : texel / p_.tile_size; }
   bool in_window(const Level& L, std::int64_t tx, std::int64_t ty) const;
-  bool valid_tile(const Level& L, std::int64_t tx, std::int64_t ty) const;  // for sampling
   void recount(Level& L);
   // Centre (hysteresis) and origin a stack level would take for ground texel (gu, gv).
   void target_window(const Level& L, int level, std::int64_t gu, std::int64_t gv, std::int64_t& cx,
@@ -156,6 +169,7 @@ class Clipmap final : public IResidency {
   int n_ = 0;
   int first_pyramid_ = 0;
   int clamp_ = 0;
+  int tile_shift_ = -1;  // log2(tile size) when it is a power of two
   std::uint32_t full_mask_ = 1;
   bool mark_sampled_ = false;
   Stats stats_;

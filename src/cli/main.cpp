@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   vtsim::cli::register_trace_commands(app);
   vtsim::cli::register_capacity_commands(app);
+  vtsim::cli::register_replay_commands(app);
   vtsim::cli::register_view_commands(app);
   try {
     app.parse(argc, argv);

@@ -32,7 +32,6 @@ struct Camera {
 // Throws InputError (where = "pose.q", "pose.pos_m", "vfov_deg", "image size") for a non-finite
 // position, a zero or non-finite quaternion (it is normalised otherwise), a field of view outside
 // [0.01, 179] degrees or an image side outside [1, kMaxImageSide].
-inline constexpr int kMaxImageSide = 32768;  // keeps buffer pixel indices (uint32) exact
 Camera make_camera(const Pose& pose, int width, int height);           // vfov from the pose
 Camera make_camera(const Pose& pose, int width, int height, double vfov_deg);
 

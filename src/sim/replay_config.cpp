@@ -154,6 +154,8 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
         .add(cfg::real<C>("throttle.deadline_ms", &C::deadline_ms, 0.001, 1e7, "clamp levels whose backlog takes longer, ms"))
         .add(cfg::real<C>("throttle.relax_factor", &C::relax_factor, 0.0, 1.0, "relax when the finer backlog fits deadline × this"))
         .add(cfg::integer<C>("throttle.relax_frames", &C::relax_frames, 1, 100000, "... for this many consecutive frames"))
+        .add(cfg::real<C>("throttle.drain_horizon_s", &C::drain_horizon_s, 0.0, 1e6,
+                          "an over-deadline backlog not back under it within this long clamps, s"))
         .add(cfg::real<C>("metrics.cut_m", &C::cut_m, 0.0, 1e12, "a frame-to-frame jump longer than this is a cut, m"))
         .add(cfg::real<C>("metrics.turn_deg_per_s", &C::turn_deg_per_s, 0.0, 1e6, "faster rotation is a fast turn, deg/s"))
         .add(cfg::real<C>("metrics.sharp_margin", &C::sharp_margin, 0.0, 1.0,
@@ -221,6 +223,7 @@ void validate(ReplayConfig& c) {
   c.throttle_params.deadline_ms = c.deadline_ms;
   c.throttle_params.relax_factor = c.relax_factor;
   c.throttle_params.relax_frames = c.relax_frames;
+  c.throttle_params.drain_horizon_s = c.drain_horizon_s;
 }
 
 }  // namespace vtsim

@@ -82,7 +82,8 @@ struct ReplayConfig {
   std::string throttle = "deadline";      // none | deadline | ... (stream/throttle_registry.cpp)
   double deadline_ms = 250.0;
   double relax_factor = 0.5;
-  int relax_frames = 30;
+  int relax_frames = 15;
+  double drain_horizon_s = 1.0;           // an over-deadline backlog that drains slower than this outruns
   // [metrics]
   double cut_m = 50.0;                    // a frame-to-frame jump longer than this is a cut
   double turn_deg_per_s = 180.0;          // faster rotation is a fast turn

@@ -11,6 +11,10 @@
 
 namespace vtsim {
 
+// Largest image side a trace may declare: 32768 keeps every pixel index of a full-resolution
+// image within uint32 (the feedback buffer's pixel field).
+inline constexpr int kMaxImageSide = 32768;
+
 struct Pose {
   double t_s = 0.0;              // seconds from the trace start
   glm::dvec3 pos_m{0.0};         // camera centre, world metres

@@ -56,7 +56,6 @@ inline constexpr double kQuatNormTolerance = 1e-3;   // beyond this a quaternion
 inline constexpr double kMaxAbsCoordinate_m = 1e10;  // ~1500 Earth radii: keeps squared distances
                                                      // finite and planet-scale worlds legal
 inline constexpr double kMaxAbsTime_s = 1e10;        // ~317 years: fits int64 nanosecond ticks
-inline constexpr int kMaxImageSide = 65536;          // pixels
 
 // Reads a native trace. Throws InputError("path:line", ...) on any malformed input; repairs per
 // TraceRepairs (counted in *report when given).

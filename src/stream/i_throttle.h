@@ -15,7 +15,9 @@ namespace vtsim {
 struct ThrottleParams {
   double deadline_ms = 250.0;   // a level whose backlog takes longer than this to serve is clamped
   double relax_factor = 0.5;    // relax one level once the finer backlog fits in deadline × this ...
-  int relax_frames = 30;        // ... for this many consecutive frames (hysteresis)
+  int relax_frames = 15;        // ... for this many consecutive frames (hysteresis)
+  double drain_horizon_s = 1.0; // a backlog over the deadline that will not drain below it within
+                                // this long is the camera outrunning updates, not a transient
   // Virtual-texture residency policies (issue 5) read the pool fields below.
   double high_water = 0.95;     // pool occupancy above which the feedback bias rises
   double low_water = 0.75;      // pool occupancy below which it falls
@@ -33,6 +35,7 @@ struct ThrottleInput {
   // Bytes each level still misses, as if unclamped (resident excluded; in flight included).
   std::vector<std::uint64_t> missing_bytes_by_level;
   double service_Bps = 0.0;     // bytes/s the pipeline can bring into VRAM (its bottleneck); 0 = unlimited
+  bool discontinuity = false;   // first frame or a cut: the backlog jumps for reasons other than speed
   // Virtual texturing: physical pool state.
   double pool_occupancy = 0.0;  // fraction of pool slots holding pages used in the last frames
   double pool_pressure = 0.0;   // wanted pages / pool slots (> 1: oversubscribed)
