@@ -127,6 +127,7 @@ bool LineReader::next(std::string_view& line) {
   }
   if (!got_any) return false;
   ++line_no_;
+  if (line_no_ == 1 && line_.compare(0, 3, "\xEF\xBB\xBF") == 0) line_.erase(0, 3);  // UTF-8 BOM
   if (!line_.empty() && line_.back() == '\r') line_.pop_back();
   if (line_.size() > limits_.max_line_bytes)
     throw InputError(where(), fmt::format("line longer than {} bytes", limits_.max_line_bytes));

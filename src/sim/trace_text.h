@@ -14,8 +14,8 @@
 
 namespace vtsim::trace_text {
 
-// Reads a file line by line through a fixed buffer. Accepts "\n" and "\r\n" terminators and a
-// missing final terminator. Rejects (InputError naming the file, and the line where there is one):
+// Reads a file line by line through a fixed buffer. Accepts "\n" and "\r\n" terminators, a
+// missing final terminator, and skips a UTF-8 byte-order mark at the start. Rejects (InputError naming the file, and the line where there is one):
 // a path that is not a regular file (a FIFO would block, a directory cannot be read), a file
 // larger than limits.max_file_bytes, a line longer than limits.max_line_bytes, a NUL byte
 // (binary data), and bytes that are not UTF-8. Not thread-safe; one reader per file.
