@@ -75,6 +75,7 @@ LineReader::LineReader(std::string path, const TraceReadLimits& limits)
     throw InputError(path_, fmt::format("file is {} bytes, more than the limit of {} bytes",
                                         st.st_size, limits_.max_file_bytes));
   }
+  file_bytes_ = static_cast<std::uint64_t>(st.st_size);
   buf_.resize(kReadChunk);
 }
 
