@@ -4,6 +4,7 @@
 #include <sys/wait.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -25,6 +26,7 @@ struct Run {
 // Runs `vtsim ARGS` through the shell (arguments are test-controlled paths without spaces).
 Run vtsim_run(const ScratchDir& dir, const std::string& args) {
   const std::string err_path = dir.file("stderr.txt");
+  std::filesystem::remove(err_path);  // a fresh file, not a truncated one (see write_file)
   const std::string cmd = std::string(VTSIM_CLI) + " " + args + " 2>" + err_path;
   Run r;
   FILE* p = popen(cmd.c_str(), "r");

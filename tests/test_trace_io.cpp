@@ -115,6 +115,9 @@ TEST_CASE("native reader accepts CRLF, comments, blank lines and a name") {
   CHECK(t.poses[1].t_s == 0.25);
   CHECK(t.poses[1].pos_m.x == 1000.0);
   CHECK(t.poses[1].vfov_deg == 45.5);
+  // A UTF-8 byte-order mark (Windows editors) is skipped.
+  write_file(dir.file("bom.csv"), "\xEF\xBB\xBF" + kHead + kRow0);
+  CHECK(load_trace(dir.file("bom.csv")).poses.size() == 1);
   // No final newline is fine too.
   write_file(dir.file("nofinal.csv"), kHead + kRow0 + "0.5,1,2,3,1,0,0,0,60");
   CHECK(load_trace(dir.file("nofinal.csv")).poses.size() == 2);

@@ -4,6 +4,7 @@
 // the checked-in standard traces are exactly what the generators produce.
 #include <doctest/doctest.h>
 
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -67,14 +68,17 @@ void fuzz(const std::string& seed_text, const std::string& path, int rounds, std
   Rng r{seed};
   int ok = 0, refused = 0;
   for (int i = 0; i < rounds; ++i) {
-    write_file(path, mutate(seed_text, r));
+    // A fresh name each round: rewriting one file in place makes ext4 flush it on every close.
+    const std::string file = path + "." + std::to_string(i);
+    write_file(file, mutate(seed_text, r));
     try {
-      const Trace t = load(path);
+      const Trace t = load(file);
       validate_trace(t, "fuzz");  // whatever loads satisfies the invariants
       ++ok;
     } catch (const InputError&) {
       ++refused;
     }
+    std::filesystem::remove(file);
   }
   // Both outcomes occur (the mutations are neither all harmless nor all fatal).
   CHECK(ok > 0);

@@ -1,5 +1,6 @@
 #pragma once
-// Camera traces: timed camera poses. Conventions (docs/conventions.md):
+// Camera traces: timed camera poses. Conventions (docs/architecture.md; formats, importers and
+// generators in docs/traces.md and src/sim/trace_*.h):
 //  - world: right-handed, z up, metres (x east, y north); double everywhere;
 //  - camera body frame "FLU": +x forward (the view direction), +y left, +z up. The identity
 //    orientation looks horizontally along world +x with the image's up along world +z.

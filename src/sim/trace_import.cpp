@@ -92,6 +92,7 @@ SourceTrace parse_tum(const std::string& path, const TraceReadOptions& ro) {
   static constexpr std::string_view kNames[] = {"timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"};
   trace_text::LineReader in(path, ro.limits);
   SourceTrace s;
+  s.trace.poses.reserve(in.expected_lines(64));  // TUM lines are ~65 bytes, EuRoC ~170
   TimedSink sink(s, ro.strict);
   std::vector<std::string_view> f;
   std::string_view line;
@@ -121,6 +122,7 @@ SourceTrace parse_euroc(const std::string& path, const TraceReadOptions& ro) {
   static constexpr std::string_view kNames[] = {"timestamp_ns", "px", "py", "pz", "qw", "qx", "qy", "qz"};
   trace_text::LineReader in(path, ro.limits);
   SourceTrace s;
+  s.trace.poses.reserve(in.expected_lines(64));  // TUM lines are ~65 bytes, EuRoC ~170
   TimedSink sink(s, ro.strict);
   std::vector<std::string_view> f;
   std::string_view line;

@@ -88,6 +88,7 @@ Trace load_trace(const std::string& path, const TraceReadOptions& options, Trace
   std::string_view line;
   if (!in.next(line)) throw InputError(at_line(path, 1), "empty file (no header, no poses)");
   parse_magic(line, in.where(), trace);
+  trace.poses.reserve(in.expected_lines(100));  // a generated pose line is 60-140 bytes
 
   bool have_header = false, have_name = false;
   std::vector<std::string_view> f;

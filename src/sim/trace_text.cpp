@@ -75,6 +75,7 @@ LineReader::LineReader(std::string path, const TraceReadLimits& limits)
     throw InputError(path_, fmt::format("file is {} bytes, more than the limit of {} bytes",
                                         st.st_size, limits_.max_file_bytes));
   }
+  file_bytes_ = static_cast<std::uint64_t>(st.st_size);
   buf_.resize(kReadChunk);
 }
 
@@ -127,6 +128,7 @@ bool LineReader::next(std::string_view& line) {
   }
   if (!got_any) return false;
   ++line_no_;
+  if (line_no_ == 1 && line_.compare(0, 3, "\xEF\xBB\xBF") == 0) line_.erase(0, 3);  // UTF-8 BOM
   if (!line_.empty() && line_.back() == '\r') line_.pop_back();
   if (line_.size() > limits_.max_line_bytes)
     throw InputError(where(), fmt::format("line longer than {} bytes", limits_.max_line_bytes));

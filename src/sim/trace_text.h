@@ -2,6 +2,7 @@
 // Shared reading layer for untrusted text traces: the file and line limits, line splitting and
 // number parsing, so that every format rejects the same bad input with the same words
 // (docs/traces.md, "Errors and repairs"). Internal to src/sim/trace_*.cpp.
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -14,8 +15,8 @@
 
 namespace vtsim::trace_text {
 
-// Reads a file line by line through a fixed buffer. Accepts "\n" and "\r\n" terminators and a
-// missing final terminator. Rejects (InputError naming the file, and the line where there is one):
+// Reads a file line by line through a fixed buffer. Accepts "\n" and "\r\n" terminators, a
+// missing final terminator, and skips a UTF-8 byte-order mark at the start. Rejects (InputError naming the file, and the line where there is one):
 // a path that is not a regular file (a FIFO would block, a directory cannot be read), a file
 // larger than limits.max_file_bytes, a line longer than limits.max_line_bytes, a NUL byte
 // (binary data), and bytes that are not UTF-8. Not thread-safe; one reader per file.
@@ -33,6 +34,12 @@ class LineReader {
   std::string where() const { return at_line(path_, line_no_); }
   const std::string& path() const { return path_; }
   std::uint64_t bytes_read() const { return bytes_read_; }
+  std::uint64_t file_bytes() const { return file_bytes_; }  // size when opened
+
+  // A capacity guess for the poses of this file: one per `bytes_per_line`, at most 2^24.
+  std::size_t expected_lines(std::size_t bytes_per_line) const {
+    return static_cast<std::size_t>(std::min<std::uint64_t>(file_bytes_ / bytes_per_line, std::uint64_t{1} << 24));
+  }
 
  private:
   void fill();
@@ -46,6 +53,7 @@ class LineReader {
   std::string line_;
   std::int64_t line_no_ = 0;
   std::uint64_t bytes_read_ = 0;
+  std::uint64_t file_bytes_ = 0;
 };
 
 std::string_view trim(std::string_view s);  // spaces and tabs at both ends
