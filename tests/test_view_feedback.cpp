@@ -104,7 +104,7 @@ TEST_CASE("aggregate_feedback rejects bad arguments") {
   CHECK_THROWS_AS(aggregate_feedback(vb, 128, 21, out), std::invalid_argument);
 }
 
-TEST_CASE("pop-in statistics: blurry fraction, mean deficit, visible pops") {
+TEST_CASE("pop-in statistics: blurry fraction / mean deficit / visible pops") {
   ViewBuffer vb;
   // Desired levels 0, 1, 2, 3 (lod 0.5, 1.5, ...) at texels along u.
   for (int i = 0; i < 4; ++i)
@@ -159,7 +159,7 @@ TEST_CASE("resident_levels asks the residency with each sample's desired level")
   CHECK_THROWS_AS(resident_levels(vb, Broken(200), lv), std::invalid_argument);
 }
 
-TEST_CASE("add_level_seams: keeps the touched set, adds only sample-free tiles, recovers horizon levels") {
+TEST_CASE("add_level_seams: keeps the touched set / adds only sample-free tiles / recovers horizon levels") {
   const auto scene = make_scene(SceneConfig{});
   const int levels = mip_level_count(scene->texture());
   const Camera cam = make_camera(pose_from_angles({4096, 4096, 1.5}, 30, -2), 1920, 1080);

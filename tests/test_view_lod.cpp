@@ -25,7 +25,7 @@ TEST_CASE("fast_log2 is exact at powers of two and within 1e-11 elsewhere") {
   }
 }
 
-TEST_CASE("lod_from_lengths2: Heckbert max, anisotropic ratio clamp, bias, finite clamps") {
+TEST_CASE("lod_from_lengths2: Heckbert max / anisotropic ratio clamp / bias / finite clamps") {
   LodRule iso;
   CHECK(lod_from_lengths2(16.0, 4.0, iso) == 2.0);   // max(|dx|, |dy|) = 4 texels -> 2
   CHECK(lod_from_lengths2(1.0, 64.0, iso) == 3.0);
