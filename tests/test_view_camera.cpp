@@ -30,7 +30,7 @@ TEST_CASE("camera axes follow the FLU convention and yaw/pitch/roll") {
   CHECK(near3(rolled.left, {0, 0, 1}));  // right side down: left points up
 }
 
-TEST_CASE("pixel rays: square pixels, centre on the axis, one pixel = one unit of left/up") {
+TEST_CASE("pixel rays: square pixels / centre on the axis / one pixel = one unit of left/up") {
   const Camera c = make_camera(pose_from_angles({1, 2, 3}, 37, -12, 5, 50), 1280, 720);
   CHECK(c.vfov_deg() == doctest::Approx(50.0));
   CHECK(c.hfov_deg() == doctest::Approx(2.0 * std::atan(1280.0 / 720.0 * std::tan(25.0 * M_PI / 180.0)) * 180.0 / M_PI));

@@ -1,5 +1,6 @@
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <map>
 #include <stdexcept>
 
@@ -103,7 +104,7 @@ TEST_CASE("aggregate_feedback rejects bad arguments") {
   CHECK_THROWS_AS(aggregate_feedback(vb, 128, 21, out), std::invalid_argument);
 }
 
-TEST_CASE("pop-in statistics: blurry fraction, mean deficit, visible pops") {
+TEST_CASE("pop-in statistics: blurry fraction / mean deficit / visible pops") {
   ViewBuffer vb;
   // Desired levels 0, 1, 2, 3 (lod 0.5, 1.5, ...) at texels along u.
   for (int i = 0; i < 4; ++i)
@@ -156,4 +157,56 @@ TEST_CASE("resident_levels asks the residency with each sample's desired level")
   };
   CHECK_THROWS_AS(resident_levels(vb, Broken(21), lv), std::invalid_argument);
   CHECK_THROWS_AS(resident_levels(vb, Broken(200), lv), std::invalid_argument);
+}
+
+TEST_CASE("add_level_seams: keeps the touched set / adds only sample-free tiles / recovers horizon levels") {
+  const auto scene = make_scene(SceneConfig{});
+  const int levels = mip_level_count(scene->texture());
+  const Camera cam = make_camera(pose_from_angles({4096, 4096, 1.5}, 30, -2), 1920, 1080);
+  ViewParams p1, p8;
+  p1.divisor = 1;
+  p8.divisor = 8;
+  ViewBuffer b1, b8;
+  scene->render(cam, p1, b1);
+  scene->render(cam, p8, b8);
+  std::vector<TileUse> ref, plain, seams;
+  aggregate_feedback(b1, 128, levels, ref);
+  aggregate_feedback(b8, 128, levels, plain);
+  seams = plain;
+  const std::size_t added = add_level_seams(b8, 128, levels, seams);
+  CHECK(added == seams.size() - plain.size());
+  CHECK(added > 0);
+  CHECK(std::is_sorted(seams.begin(), seams.end(), [](const TileUse& a, const TileUse& b) { return a.key < b.key; }));
+  std::map<std::uint64_t, std::uint32_t> in_seams;
+  for (const TileUse& t : seams) in_seams[t.key.bits] = t.samples;
+  CHECK(in_seams.size() == seams.size());  // no duplicates
+  for (const TileUse& t : plain) CHECK(in_seams.at(t.key.bits) == t.samples);
+  // Weighted miss against divisor 1, before and after.
+  const auto missed = [&](const std::vector<TileUse>& ts) {
+    std::map<std::uint64_t, int> have;
+    for (const TileUse& t : ts) have[t.key.bits] = 1;
+    double miss = 0, total = 0;
+    for (const TileUse& t : ref) {
+      total += t.samples;
+      if (!have.count(t.key.bits)) miss += t.samples;
+    }
+    return miss / total;
+  };
+  CHECK(missed(plain) > 0.01);  // the low camera's horizon rows: one coarse level per row
+  CHECK(missed(seams) < missed(plain) / 3);
+  // Idempotent: a second call adds nothing new.
+  CHECK(add_level_seams(b8, 128, levels, seams) == 0);
+  // Divisor 1 buffers: neighbours are adjacent full-resolution pixels, so every added tile is one
+  // the screen touches within a pixel of a sample; nothing is added across a silhouette.
+  SceneConfig town;
+  town.kind = SceneKind::town;
+  const auto t = make_scene(town);
+  ViewBuffer tb;
+  t->render(make_camera(pose_from_angles({30, 8, 1.7}, 0, -3), 640, 360), p8, tb);
+  std::vector<TileUse> tt;
+  aggregate_feedback(tb, 128, levels, tt);
+  const std::size_t before = tt.size();
+  add_level_seams(tb, 128, levels, tt);
+  CHECK(tt.size() >= before);
+  CHECK_THROWS_AS(add_level_seams(tb, 0, levels, tt), std::invalid_argument);
 }

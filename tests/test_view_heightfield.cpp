@@ -191,7 +191,7 @@ TEST_CASE("heightfield: a flat field renders what the plane renders") {
   CHECK(worst < 1e-5);
 }
 
-TEST_CASE("heightfield: a ridge hides the ground behind it; degenerate views stay finite") {
+TEST_CASE("heightfield: a ridge hides the ground behind it / degenerate views stay finite") {
   Heightfield hf;
   hf.nx = hf.ny = 65;
   hf.spacing_m = 4.0;  // 256 m
@@ -233,7 +233,7 @@ TEST_CASE("heightfield: a ridge hides the ground behind it; degenerate views sta
   }
 }
 
-TEST_CASE("heightfield: generated noise is deterministic; height_at matches the posts") {
+TEST_CASE("heightfield: generated noise is deterministic / height_at matches the posts") {
   const Heightfield a = generate_heightfield(129, 8.0, 100.0, 5.0, 42, 0, 0);
   const Heightfield b = generate_heightfield(129, 8.0, 100.0, 5.0, 42, 0, 0);
   const Heightfield c = generate_heightfield(129, 8.0, 100.0, 5.0, 43, 0, 0);
@@ -257,7 +257,7 @@ TEST_CASE("heightfield: generated noise is deterministic; height_at matches the 
   CHECK_THROWS_AS(generate_heightfield(10, 1.0, std::nan(""), 0.0, 1, 0, 0), InputError);
 }
 
-TEST_CASE("heightfield: images load as heights; bad files are rejected") {
+TEST_CASE("heightfield: images load as heights / bad files are rejected") {
   const std::string png = test::temp_path("hm.png");
   {
     std::vector<std::uint16_t> px(4 * 3);

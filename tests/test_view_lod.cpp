@@ -8,7 +8,7 @@
 
 using namespace vtsim;
 
-TEST_CASE("fast_log2 is exact at powers of two and within 2e-9 elsewhere") {
+TEST_CASE("fast_log2 is exact at powers of two and within 1e-11 elsewhere") {
   for (int e = -128; e <= 128; ++e) CHECK(fast_log2(std::ldexp(1.0, e)) == static_cast<double>(e));
   double worst = 0.0;
   // Dense sweep over the mantissa around the reduction boundary and a few decades.
@@ -16,14 +16,16 @@ TEST_CASE("fast_log2 is exact at powers of two and within 2e-9 elsewhere") {
     const double x = std::ldexp(1.0 + k / 200000.0, (k % 61) - 30);
     worst = std::max(worst, std::fabs(fast_log2(x) - std::log2(x)));
   }
-  CHECK(worst < 2e-9);
-  // Monotone across the sqrt(2) switch.
-  const double s = 1.4142135623730951;
-  CHECK(fast_log2(std::nextafter(s, 0.0)) <= fast_log2(s));
-  CHECK(fast_log2(s) <= fast_log2(std::nextafter(s, 2.0)));
+  CHECK(worst < 1e-11);
+  // Monotone across table cells and binades.
+  for (int i = 1; i <= 256; ++i) {
+    const double s = 1.0 + i / 256.0;
+    CHECK(fast_log2(std::nextafter(s, 0.0)) <= fast_log2(s));
+    CHECK(fast_log2(s) <= fast_log2(std::nextafter(s, 4.0)));
+  }
 }
 
-TEST_CASE("lod_from_lengths2: Heckbert max, anisotropic ratio clamp, bias, finite clamps") {
+TEST_CASE("lod_from_lengths2: Heckbert max / anisotropic ratio clamp / bias / finite clamps") {
   LodRule iso;
   CHECK(lod_from_lengths2(16.0, 4.0, iso) == 2.0);   // max(|dx|, |dy|) = 4 texels -> 2
   CHECK(lod_from_lengths2(1.0, 64.0, iso) == 3.0);

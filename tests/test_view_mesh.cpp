@@ -59,7 +59,7 @@ Mesh ground_and_wall(double wall_half_width) {
 
 }  // namespace
 
-TEST_CASE("OBJ: v, vt, f forms, negative indices, polygons as fans, ignored statements") {
+TEST_CASE("OBJ: v / vt / f forms / negative indices / polygons as fans / ignored statements") {
   ObjStats st;
   const Mesh m = parse_obj(
       "mtllib x.mtl\no thing\n"
@@ -123,7 +123,7 @@ TEST_CASE("OBJ: malformed input names the file and line") {
   expect_error("# only a comment\n", "t.obj", "no (non-degenerate) faces");
 }
 
-TEST_CASE("OBJ: limits on gigantic inputs, unreadable files") {
+TEST_CASE("OBJ: limits on gigantic inputs / unreadable files") {
   ObjLimits lim;
   lim.max_triangles = 3;
   CHECK_THROWS_WITH_AS(parse_obj("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 2 0\nv 1 2 0\nf 1 2 3 4 5 6\n", "t.obj",
@@ -201,7 +201,7 @@ TEST_CASE("mesh: divisor 8 reproduces divisor 1 exactly at the same full-resolut
   CHECK(b8.samples.size() > 10000);
 }
 
-TEST_CASE("mesh: a wall hides the ground behind it; its back hides it too") {
+TEST_CASE("mesh: a wall hides the ground behind it / its back hides it too") {
   const MeshScene scene(ground_and_wall(1000.0), kTex);
   ViewParams vp;
   vp.divisor = 2;
@@ -264,7 +264,7 @@ TEST_CASE("mesh: a narrow wall occludes exactly the tiles behind it (frustum and
   CHECK(vb.counters.sky == 320u * 240u);
 }
 
-TEST_CASE("mesh: camera inside a closed box sees only back faces; near plane cuts; untextured faces") {
+TEST_CASE("mesh: camera inside a closed box sees only back faces / near plane cuts / untextured faces") {
   Mesh box;
   // Unit-ish box [0,4]³ with outward faces.
   const double a = 0, b = 4;

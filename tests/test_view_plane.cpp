@@ -87,7 +87,7 @@ SceneConfig plane_cfg() { return SceneConfig{}; }  // 8192 m at 128 texels/m, or
 
 }  // namespace
 
-TEST_CASE("plane: every sample matches the long-double closed form (heights, pitches, sizes, divisors)") {
+TEST_CASE("plane: every sample matches the long-double closed form (heights / pitches / sizes / divisors)") {
   const auto scene = make_scene(plane_cfg());
   const int levels = mip_level_count(scene->texture());
   struct Case {
@@ -188,7 +188,7 @@ TEST_CASE("plane: divisor 8 reproduces divisor 1 exactly at the same full-resolu
   }
 }
 
-TEST_CASE("plane: degenerate views give finite, documented results") {
+TEST_CASE("plane: degenerate views give finite / documented results") {
   const auto scene = make_scene(plane_cfg());
   ViewParams vp;
   vp.divisor = 4;
@@ -239,7 +239,7 @@ TEST_CASE("plane: degenerate views give finite, documented results") {
   }
 }
 
-TEST_CASE("plane: near and far clip at view depth; bias shifts every LOD") {
+TEST_CASE("plane: near and far clip at view depth / bias shifts every LOD") {
   const auto scene = make_scene(plane_cfg());
   const Camera cam = make_camera(pose_from_angles({4096, 4096, 1.7}, 0, -30), 640, 480);
   ViewParams vp;

@@ -9,7 +9,7 @@
 
 using namespace vtsim;
 
-TEST_CASE("town: deterministic, every face owns a disjoint texel rectangle inside the texture") {
+TEST_CASE("town: deterministic / every face owns a disjoint texel rectangle inside the texture") {
   SceneConfig cfg;
   cfg.kind = SceneKind::town;
   const Mesh a = generate_town(cfg);
@@ -57,7 +57,7 @@ TEST_CASE("town: deterministic, every face owns a disjoint texel rectangle insid
   CHECK(overlaps == 0);
 }
 
-TEST_CASE("town: renders ground, walls and roofs; bad parameters are rejected") {
+TEST_CASE("town: renders ground / walls and roofs / bad parameters are rejected") {
   SceneConfig cfg;
   cfg.kind = SceneKind::town;
   const auto town = make_scene(cfg);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <climits>
 #include <stdexcept>
 #include <string>
 
@@ -115,6 +116,82 @@ void aggregate_feedback(const ViewBuffer& vb, int tile_size_texels, int num_leve
     table.keys[h] = kEmpty;
   }
   std::sort(out.begin(), out.end(), [](const TileUse& a, const TileUse& b) { return a.key < b.key; });
+}
+
+std::size_t add_level_seams(const ViewBuffer& vb, int tile_size_texels, int num_levels, std::vector<TileUse>& out) {
+  if (tile_size_texels < 1 || tile_size_texels > (1 << 24))
+    throw std::invalid_argument("add_level_seams: tile size must be in [1, 2^24] texels");
+  if (num_levels < 1 || num_levels > 64) throw std::invalid_argument("add_level_seams: num_levels must be in [1, 64]");
+  thread_local std::vector<std::uint64_t> cand;
+  cand.clear();
+  // Neighbouring pairs emit the same tiles again and again: a small direct-mapped filter of keys
+  // already emitted keeps the candidate list (and its sort) short.
+  std::uint64_t recent[256];
+  std::fill(std::begin(recent), std::end(recent), kEmpty);
+  const std::int64_t ts = tile_size_texels;
+  const std::vector<ViewSample>& sm = vb.samples;
+  const auto emit = [&](const ViewSample& s, int lo, int hi) {
+    if (s.u < 0 || s.v < 0)
+      throw std::invalid_argument("add_level_seams: sample texel (" + std::to_string(s.u) + ", " +
+                                  std::to_string(s.v) + ") is negative");
+    for (int l = lo; l <= hi; ++l) {
+      const std::int64_t tx = (s.u >> l) / ts, ty = (s.v >> l) / ts;
+      if (!TileKey::fits(0, static_cast<std::uint32_t>(l), tx, ty))
+        throw std::invalid_argument("add_level_seams: tile does not fit a TileKey");
+      const std::uint64_t key = TileKey(0, static_cast<std::uint32_t>(l), tx, ty).bits;
+      std::uint64_t& slot = recent[mix64(key) & 255];
+      if (slot == key) continue;
+      slot = key;
+      cand.push_back(key);
+    }
+  };
+  thread_local std::vector<std::int8_t> lv;
+  lv.resize(sm.size());
+  for (std::size_t i = 0; i < sm.size(); ++i) lv[i] = static_cast<std::int8_t>(desired_level(sm[i].lod, num_levels));
+  const auto pair = [&](std::size_t ia, std::size_t ib) {
+    const int la = lv[ia], lb = lv[ib];
+    if (la == lb) return;
+    const ViewSample& a = sm[ia];
+    const ViewSample& b = sm[ib];
+    const int lo = la < lb ? la : lb, hi = la < lb ? lb : la;
+    // Continuity: adjacent samples of one surface are divisor pixels apart, at most ~2^(hi+1)
+    // texels per pixel; a factor 2 more margin.
+    const std::int64_t du = a.u > b.u ? a.u - b.u : b.u - a.u, dv = a.v > b.v ? a.v - b.v : b.v - a.v;
+    const int shift = hi + 2;
+    const std::int64_t bound = shift < 48 ? (std::int64_t{vb.divisor} << shift) : INT64_MAX;
+    if (du > bound || dv > bound) return;
+    emit(a, lo, hi);
+    emit(b, lo, hi);
+  };
+  const std::uint64_t w = static_cast<std::uint64_t>(vb.width > 0 ? vb.width : 1);
+  std::uint64_t row_end = 0;  // first pixel of the row after sample i's
+  std::size_t j = 0;          // first sample at or after the pixel below sample i
+  for (std::size_t i = 0; i < sm.size(); ++i) {
+    const std::uint64_t p = sm[i].pixel;
+    if (p >= row_end) row_end = (p / w + 1) * w;  // one division per row
+    if (i + 1 < sm.size() && sm[i + 1].pixel == p + 1 && p + 1 < row_end) pair(i, i + 1);
+    const std::uint64_t below = p + w;
+    while (j < sm.size() && sm[j].pixel < below) ++j;
+    if (j < sm.size() && sm[j].pixel == below) pair(i, j);
+  }
+  if (cand.empty()) return 0;
+  std::sort(cand.begin(), cand.end());
+  cand.erase(std::unique(cand.begin(), cand.end()), cand.end());
+  // Merge: append the candidates out lacks, then restore the order.
+  const std::size_t before = out.size();
+  std::size_t k = 0;
+  for (std::uint64_t key : cand) {
+    while (k < before && out[k].key.bits < key) ++k;
+    if (k < before && out[k].key.bits == key) continue;
+    TileUse t;
+    t.key.bits = key;
+    t.samples = 0;
+    out.push_back(t);
+  }
+  const std::size_t added = out.size() - before;
+  if (added > 0)  // std::sort, not inplace_merge: no temporary buffer, so no allocation
+    std::sort(out.begin(), out.end(), [](const TileUse& a, const TileUse& b) { return a.key < b.key; });
+  return added;
 }
 
 }  // namespace vtsim

@@ -23,4 +23,15 @@ struct TileUse {
 // [1, 64], or a sample whose tile does not fit a TileKey (negative texel, beyond 2^27 tiles).
 void aggregate_feedback(const ViewBuffer& vb, int tile_size_texels, int num_levels, std::vector<TileUse>& out);
 
+// Conservative completion of a low-resolution buffer's tile set ("level seams", docs/view.md).
+// Where two neighbouring buffer samples (left/right or up/down) have desired levels l1 < l2, the
+// full-resolution pixels between them take every level in [l1, l2] — most visibly near the
+// horizon, where each full-resolution row has its own coarse level. For such a pair on one
+// continuous surface (level-0 texel distance at most 4·divisor·2^l2 on both axes; farther apart
+// it is a silhouette and nothing is added), each sample's texel is added at every level of
+// [l1, l2]. `out` must be aggregate_feedback's sorted output for the same buffer; added tiles
+// carry samples = 0 and `out` stays sorted. Returns the number of tiles added. Cost O(samples).
+// Throws std::invalid_argument like aggregate_feedback.
+std::size_t add_level_seams(const ViewBuffer& vb, int tile_size_texels, int num_levels, std::vector<TileUse>& out);
+
 }  // namespace vtsim

@@ -118,30 +118,34 @@ HeightfieldScene::HeightfieldScene(Heightfield hf, const GroundTexture& tex) : h
   cells_y_ = hf_.ny - 1;
   // Level 0: one node per cell, its highest corner; level l+1 halves with ceil up to 1×1.
   int w = cells_x_, h = cells_y_;
-  std::vector<float> lvl(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
-  const auto post = [&](int i, int j) { return hf_.z_m[static_cast<std::size_t>(j) * hf_.nx + i]; };
-  for (int j = 0; j < h; ++j)
-    for (int i = 0; i < w; ++i)
-      lvl[static_cast<std::size_t>(j) * w + i] =
-          std::max(std::max(post(i, j), post(i + 1, j)), std::max(post(i, j + 1), post(i + 1, j + 1)));
-  max_.push_back(std::move(lvl));
-  level_w_.push_back(w);
-  level_h_.push_back(h);
-  while (w > 1 || h > 1) {
-    const int pw = w, ph = h;
-    const std::vector<float>& prev = max_.back();
+  const auto post = [&](int i, int j) {
+    return hf_.z_m[static_cast<std::size_t>(j) * static_cast<std::size_t>(hf_.nx) + static_cast<std::size_t>(i)];
+  };
+  while (true) {
+    level_off_[levels_] = max_.size();
+    level_w_[levels_] = w;
+    level_h_[levels_] = h;
+    max_.resize(max_.size() + static_cast<std::size_t>(w) * static_cast<std::size_t>(h),
+                -std::numeric_limits<float>::infinity());
+    float* m = max_.data() + level_off_[levels_];
+    if (levels_ == 0) {
+      for (int j = 0; j < h; ++j)
+        for (int i = 0; i < w; ++i)
+          m[static_cast<std::size_t>(j) * static_cast<std::size_t>(w) + static_cast<std::size_t>(i)] =
+              std::max(std::max(post(i, j), post(i + 1, j)), std::max(post(i, j + 1), post(i + 1, j + 1)));
+    } else {
+      const float* prev = max_.data() + level_off_[levels_ - 1];
+      const int pw = level_w_[levels_ - 1], ph = level_h_[levels_ - 1];
+      for (int j = 0; j < ph; ++j)
+        for (int i = 0; i < pw; ++i) {
+          float& v = m[static_cast<std::size_t>(j / 2) * static_cast<std::size_t>(w) + static_cast<std::size_t>(i / 2)];
+          v = std::max(v, prev[static_cast<std::size_t>(j) * static_cast<std::size_t>(pw) + static_cast<std::size_t>(i)]);
+        }
+    }
+    ++levels_;
+    if (w == 1 && h == 1) break;
     w = (w + 1) / 2;
     h = (h + 1) / 2;
-    std::vector<float> next(static_cast<std::size_t>(w) * static_cast<std::size_t>(h),
-                            -std::numeric_limits<float>::infinity());
-    for (int j = 0; j < ph; ++j)
-      for (int i = 0; i < pw; ++i) {
-        float& m = next[static_cast<std::size_t>(j / 2) * w + i / 2];
-        m = std::max(m, prev[static_cast<std::size_t>(j) * pw + i]);
-      }
-    max_.push_back(std::move(next));
-    level_w_.push_back(w);
-    level_h_.push_back(h);
   }
 }
 
@@ -166,99 +170,108 @@ struct HeightfieldScene::Hit {
   bool clipped = false;    // some hit lay nearer than t_near (the near plane cut it away)
 };
 
-// Front-to-back traversal of the max quadtree with an explicit stack. Children are pushed so that
-// they pop in the order the ray enters them (for direction signs (sx, sy) that is
-// (near x, near y), (far x, near y), (near x, far y), (far x, far y): a ray never crosses both
-// "middle" quadrants), so the first leaf hit at or beyond t_near is the nearest.
+// Maximum-mipmap ray march (Tevs, Ihrke, Seidel 2008): the ray walks the quadtree's nodes in the
+// order it crosses them, like a 2-D DDA at a variable level. A node whose highest post lies below
+// the ray over the ray's stretch inside it is stepped over whole (and the walk climbs a level when
+// it leaves the parent); otherwise the walk descends into the child the ray is in, down to the
+// cells, whose two triangles are intersected. Node indices advance by integer steps, so the walk
+// terminates whatever the rounding; the first cell hit at or beyond t_near is the nearest hit.
 HeightfieldScene::Hit HeightfieldScene::cast(const glm::dvec3& o, const glm::dvec3& d, double t_near) const {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  constexpr double kEps = 1e-9;  // cell-unit tolerance: a ray through a shared edge hits one side
   const double s = hf_.spacing_m;
   const double X = (o.x - hf_.x0_m) / s, Y = (o.y - hf_.y0_m) / s, oz = o.z;
   const double dX = d.x / s, dY = d.y / s, dz = d.z;
-  const bool flat_x = dX == 0.0, flat_y = dY == 0.0;
-  const double ix = flat_x ? 0.0 : 1.0 / dX, iy = flat_y ? 0.0 : 1.0 / dY;
-  const int fa = dX < 0.0 ? 1 : 0, fb = dY < 0.0 ? 1 : 0;
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  constexpr double kEps = 1e-9;  // cell-unit tolerance: a ray through a shared edge hits one side
-  struct Node {
-    int l, i, j;
-  };
-  Node stack[4 * 40];  // at most 3 siblings wait per level (< 32 levels) plus 4
-  int sp = 0;
-  stack[sp++] = Node{static_cast<int>(max_.size()) - 1, 0, 0};
+  const double ix = dX != 0.0 ? 1.0 / dX : 0.0, iy = dY != 0.0 ? 1.0 / dY : 0.0;
   Hit hit;
+  // Where the ray (t >= 0) is over the grid's footprint [0, cells_x] × [0, cells_y].
+  double t = 0.0, t_end = kInf;
+  const auto slab = [&](double p, double id, double dp, double hi) {
+    if (dp == 0.0) {
+      if (p < 0.0 || p > hi) t = kInf;
+      return;
+    }
+    double a = (0.0 - p) * id, b = (hi - p) * id;
+    if (a > b) std::swap(a, b);
+    t = std::max(t, a);
+    t_end = std::min(t_end, b);
+  };
+  slab(X, ix, dX, cells_x_);
+  slab(Y, iy, dY, cells_y_);
+  if (!(t <= t_end)) return hit;
+  const int sx = dX > 0.0 ? 1 : -1, sy = dY > 0.0 ? 1 : -1;
+  const int top = levels_ - 1;
+  const float* maxp = max_.data();
+  int l = top, ni = 0, nj = 0;
   const float* posts = hf_.z_m.data();
   const int nx = hf_.nx;
-  while (sp > 0) {
-    const Node nd = stack[--sp];
-    const double xlo = static_cast<double>(nd.i << nd.l);
-    const double xhi = static_cast<double>(std::min((nd.i + 1) << nd.l, cells_x_));
-    const double ylo = static_cast<double>(nd.j << nd.l);
-    const double yhi = static_cast<double>(std::min((nd.j + 1) << nd.l, cells_y_));
-    double t0 = 0.0, t1 = kInf;
-    if (flat_x) {
-      if (X < xlo || X > xhi) continue;
-    } else {
-      double a = (xlo - X) * ix, b = (xhi - X) * ix;
-      if (a > b) std::swap(a, b);
-      t0 = std::max(t0, a);
-      t1 = std::min(t1, b);
-    }
-    if (flat_y) {
-      if (Y < ylo || Y > yhi) continue;
-    } else {
-      double a = (ylo - Y) * iy, b = (yhi - Y) * iy;
-      if (a > b) std::swap(a, b);
-      t0 = std::max(t0, a);
-      t1 = std::min(t1, b);
-    }
-    if (t0 > t1) continue;
-    const double zmin = dz >= 0.0 ? oz + t0 * dz : oz + t1 * dz;
-    if (zmin > static_cast<double>(max_[static_cast<std::size_t>(nd.l)]
-                                       [static_cast<std::size_t>(nd.j) * level_w_[static_cast<std::size_t>(nd.l)] + nd.i]))
-      continue;
-    if (nd.l > 0) {
-      const int cl = nd.l - 1, cw = level_w_[static_cast<std::size_t>(cl)], ch = level_h_[static_cast<std::size_t>(cl)];
-      const int order[4][2] = {{fa, fb}, {1 - fa, fb}, {fa, 1 - fb}, {1 - fa, 1 - fb}};
-      for (int k = 3; k >= 0; --k) {
-        const int ci = 2 * nd.i + order[k][0], cj = 2 * nd.j + order[k][1];
-        if (ci < cw && cj < ch) stack[sp++] = Node{cl, ci, cj};
-      }
-      continue;
-    }
-    // Leaf: the cell's two triangles, z = h00 + b·fx + c·fy in cell-local coordinates.
-    const std::size_t base = static_cast<std::size_t>(nd.j) * nx + nd.i;
-    const double h00 = posts[base], h10 = posts[base + 1], h01 = posts[base + nx], h11 = posts[base + nx + 1];
-    const double X0 = X - nd.i, Y0 = Y - nd.j;
-    const double tri[2][2] = {{h10 - h00, h11 - h10}, {h11 - h01, h01 - h00}};
-    double best = kInf;
-    int best_k = -1;
-    for (int k = 0; k < 2; ++k) {
-      const double b = tri[k][0], c = tri[k][1];
-      const double den = dz - b * dX - c * dY;  // d·n with n = (−b/s, −c/s, 1)
-      if (den == 0.0) continue;
-      const double t = (h00 + b * X0 + c * Y0 - oz) / den;
-      if (!(t > 0.0)) continue;
-      const double fx = X0 + t * dX, fy = Y0 + t * dY;
-      if (!(fx >= -kEps && fx <= 1.0 + kEps && fy >= -kEps && fy <= 1.0 + kEps)) continue;
-      if (k == 0 ? fx - fy < -kEps : fy - fx < -kEps) continue;
-      if (t < t_near) {
-        hit.clipped = true;
+  while (true) {
+    const int lo_x = ni << l, hi_x = std::min((ni + 1) << l, cells_x_);
+    const int lo_y = nj << l, hi_y = std::min((nj + 1) << l, cells_y_);
+    const double tx = dX > 0.0 ? (hi_x - X) * ix : dX < 0.0 ? (lo_x - X) * ix : kInf;
+    const double ty = dY > 0.0 ? (hi_y - Y) * iy : dY < 0.0 ? (lo_y - Y) * iy : kInf;
+    const double te = std::max(t, std::min(tx, ty));
+    const double zmin = dz >= 0.0 ? oz + t * dz : oz + te * dz;
+    const float node_max = maxp[level_off_[l] + static_cast<std::size_t>(nj) * static_cast<std::size_t>(level_w_[l]) +
+                                static_cast<std::size_t>(ni)];
+    if (zmin <= static_cast<double>(node_max)) {
+      if (l > 0) {  // descend into the child the ray is in at t
+        const int half = 1 << (l - 1);
+        const double px = X + t * dX, py = Y + t * dY;
+        const int cw = level_w_[l - 1], ch = level_h_[l - 1];
+        ni = std::min(2 * ni + (px >= lo_x + half ? 1 : 0), cw - 1);
+        nj = std::min(2 * nj + (py >= lo_y + half ? 1 : 0), ch - 1);
+        --l;
         continue;
       }
-      if (t < best) {
-        best = t;
-        best_k = k;
+      // A cell: its two triangles, z = h00 + b·fx + c·fy in cell-local coordinates.
+      const std::size_t base = static_cast<std::size_t>(nj) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(ni);
+      const double h00 = posts[base], h10 = posts[base + 1], h01 = posts[base + static_cast<std::size_t>(nx)],
+                   h11 = posts[base + static_cast<std::size_t>(nx) + 1];
+      const double X0 = X - ni, Y0 = Y - nj;
+      const double tri[2][2] = {{h10 - h00, h11 - h10}, {h11 - h01, h01 - h00}};
+      double best = kInf;
+      int best_k = -1;
+      for (int k = 0; k < 2; ++k) {
+        const double b = tri[k][0], c = tri[k][1];
+        const double den = dz - b * dX - c * dY;  // d·n with n = (−b/s, −c/s, 1)
+        if (den == 0.0) continue;
+        const double th = (h00 + b * X0 + c * Y0 - oz) / den;
+        if (!(th > 0.0)) continue;
+        const double fx = X0 + th * dX, fy = Y0 + th * dY;
+        if (!(fx >= -kEps && fx <= 1.0 + kEps && fy >= -kEps && fy <= 1.0 + kEps)) continue;
+        if (k == 0 ? fx - fy < -kEps : fy - fx < -kEps) continue;
+        if (th < t_near) {
+          hit.clipped = true;
+          continue;
+        }
+        if (th < best) {
+          best = th;
+          best_k = k;
+        }
+      }
+      if (best_k >= 0) {
+        hit.found = true;
+        hit.t = best;
+        hit.b = tri[best_k][0];
+        hit.c = tri[best_k][1];
+        return hit;
       }
     }
-    if (best_k >= 0) {
-      hit.found = true;
-      hit.t = best;
-      hit.b = tri[best_k][0];
-      hit.c = tri[best_k][1];
+    // Step over the node to its neighbour along the ray; climb when leaving the parent.
+    if (te == kInf || te > t_end) return hit;
+    t = te;
+    const int oi = ni, oj = nj;
+    if (tx <= ty) ni += sx;
+    if (ty <= tx) nj += sy;
+    if (ni < 0 || nj < 0 || ni >= level_w_[l] || nj >= level_h_[l])
       return hit;
+    if (l < top && ((ni >> 1) != (oi >> 1) || (nj >> 1) != (oj >> 1))) {
+      ++l;
+      ni >>= 1;
+      nj >>= 1;
     }
   }
-  return hit;
 }
 
 void HeightfieldScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) const {

@@ -53,9 +53,13 @@ class HeightfieldScene final : public IScene {
   Heightfield hf_;
   GroundTexture tex_;
   int cells_x_ = 0, cells_y_ = 0;
-  // max_[l][j·w_l + i]: highest post over level-l node (i, j) = cells [i·2^l, (i+1)·2^l) × ...
-  std::vector<std::vector<float>> max_;
-  std::vector<int> level_w_, level_h_;
+  // Highest post over level-l node (i, j) = cells [i·2^l, (i+1)·2^l) × [j·2^l, (j+1)·2^l):
+  // max_[level_off_[l] + j·level_w_[l] + i]; level 0 is one node per cell, the top one 1×1.
+  static constexpr int kMaxLevels = 32;
+  std::vector<float> max_;
+  int levels_ = 0;
+  std::size_t level_off_[kMaxLevels] = {};
+  int level_w_[kMaxLevels] = {}, level_h_[kMaxLevels] = {};
 };
 
 }  // namespace vtsim

@@ -67,21 +67,31 @@ int clip_poly(const CV* in, int n, double zc, bool keep_above, CV* out) {
   return m;
 }
 
-// Edge function of s against edge p→q, evaluated from the lexicographically smaller endpoint so
-// that the neighbour triangle (which walks q→p) gets exactly the negated value.
-inline double edge_fn(const PV& p, const PV& q, double sx, double sy) {
+// Edge equation E(s) = A·sx + (B·sy + C) of edge p→q, positive on its left in pixel coordinates
+// (y down). Built from the lexicographically smaller endpoint and negated when the edge runs the
+// other way, so the neighbour triangle that walks q→p gets exactly −E at every sample: no sample
+// on a shared edge is lost or drawn twice (with the ownership rule below).
+struct Edge {
+  double A, B, C;
+  bool own;  // samples with E == 0 belong to this triangle
+};
+inline Edge make_edge(const PV& p, const PV& q) {
   const bool swap = q.X < p.X || (q.X == p.X && q.Y < p.Y);
   const PV& a = swap ? q : p;
   const PV& b = swap ? p : q;
-  const double e = (b.X - a.X) * (sy - a.Y) - (b.Y - a.Y) * (sx - a.X);
-  return swap ? -e : e;
-}
-
-// Top-left style tie rule: a sample exactly on an edge belongs to one of the two triangles
-// sharing it (they walk it in opposite directions).
-inline bool owns_edge(const PV& p, const PV& q) {
+  Edge e;
+  e.A = -(b.Y - a.Y);
+  e.B = b.X - a.X;
+  e.C = -(e.A * a.X + e.B * a.Y);
+  if (swap) {
+    e.A = -e.A;
+    e.B = -e.B;
+    e.C = -e.C;
+  }
+  // Ownership (top-left style): the two triangles sharing an edge walk it in opposite directions.
   const double dy = q.Y - p.Y, dx = q.X - p.X;
-  return dy > 0.0 || (dy == 0.0 && dx < 0.0);
+  e.own = dy > 0.0 || (dy == 0.0 && dx < 0.0);
+  return e;
 }
 
 struct Scratch {
@@ -107,35 +117,45 @@ inline void sample_range(double lo, double hi, int div, int n, int& b0, int& b1)
 }
 
 // Rasterises a convex polygon (fan) at the buffer's samples. Depth mode: nearest 1/z wins and
-// writes `tag`; flag mode (depth == false): marks near_cut only.
+// writes `tag`; flag mode (depth == false): marks near_cut only. Every quantity at a sample is
+// evaluated from the sample's own position (no incremental stepping), so coverage and depth at a
+// full-resolution pixel do not depend on the divisor.
 void raster_poly(const PV* v, int n, std::uint32_t tag, bool depth, int div, int bw, int bh, Scratch& s) {
   for (int k = 1; k + 1 < n; ++k) {
     PV a = v[0], b = v[k], c = v[k + 1];
     double area = (b.X - a.X) * (c.Y - a.Y) - (b.Y - a.Y) * (c.X - a.X);
     if (!(area != 0.0) || !std::isfinite(area)) continue;
-    if (area < 0.0) {
-      std::swap(b, c);
-      area = -area;
-    }
-    const double inv_area = 1.0 / area;
+    // Orient so that the inside is where all three edge functions are positive.
+    if (area < 0.0) std::swap(b, c);
     int x0, x1, y0, y1;
     sample_range(std::min({a.X, b.X, c.X}), std::max({a.X, b.X, c.X}), div, bw, x0, x1);
+    if (x0 > x1) continue;
     sample_range(std::min({a.Y, b.Y, c.Y}), std::max({a.Y, b.Y, c.Y}), div, bh, y0, y1);
-    const bool own_ab = owns_edge(a, b), own_bc = owns_edge(b, c), own_ca = owns_edge(c, a);
+    if (y0 > y1) continue;
+    const Edge e0 = make_edge(a, b), e1 = make_edge(b, c), e2 = make_edge(c, a);
+    // 1/z is affine in the pixel position: iz = (E_bc·iz_a + E_ca·iz_b + E_ab·iz_c) / (2·area).
+    const double sum = e1.A * a.X + e1.B * a.Y + e1.C;  // E_bc at a = twice the area
+    if (!(sum > 0.0)) continue;
+    const double inv = 1.0 / sum;
+    const double P = (e1.A * a.iz + e2.A * b.iz + e0.A * c.iz) * inv;
+    const double Q = (e1.B * a.iz + e2.B * b.iz + e0.B * c.iz) * inv;
+    const double R = (e1.C * a.iz + e2.C * b.iz + e0.C * c.iz) * inv;
     for (int y = y0; y <= y1; ++y) {
       const double sy = s.sy[static_cast<std::size_t>(y)];
+      const double r0 = e0.B * sy + e0.C, r1 = e1.B * sy + e1.C, r2 = e2.B * sy + e2.C, rz = Q * sy + R;
+      const std::size_t rowi = static_cast<std::size_t>(y) * static_cast<std::size_t>(bw);
       for (int x = x0; x <= x1; ++x) {
         const double sx = s.sx[static_cast<std::size_t>(x)];
-        const double e_ab = edge_fn(a, b, sx, sy), e_bc = edge_fn(b, c, sx, sy), e_ca = edge_fn(c, a, sx, sy);
-        if (!(e_ab > 0.0 || (e_ab == 0.0 && own_ab)) || !(e_bc > 0.0 || (e_bc == 0.0 && own_bc)) ||
-            !(e_ca > 0.0 || (e_ca == 0.0 && own_ca)))
+        const double f0 = e0.A * sx + r0, f1 = e1.A * sx + r1, f2 = e2.A * sx + r2;
+        if (!(f0 > 0.0 || (f0 == 0.0 && e0.own)) || !(f1 > 0.0 || (f1 == 0.0 && e1.own)) ||
+            !(f2 > 0.0 || (f2 == 0.0 && e2.own)))
           continue;
-        const std::size_t idx = static_cast<std::size_t>(y) * static_cast<std::size_t>(bw) + static_cast<std::size_t>(x);
+        const std::size_t idx = rowi + static_cast<std::size_t>(x);
         if (!depth) {
           s.near_cut[idx] = 1;
           continue;
         }
-        const double iz = (e_bc * a.iz + e_ca * b.iz + e_ab * c.iz) * inv_area;
+        const double iz = P * sx + rz;
         if (iz > s.invz[idx]) {
           s.invz[idx] = iz;
           s.id[idx] = tag;
