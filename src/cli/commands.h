@@ -15,5 +15,6 @@ struct Exit {
 };
 
 void register_trace_commands(CLI::App& app);
+void register_store_commands(CLI::App& app);
 
 }  // namespace vtsim::cli

@@ -13,6 +13,7 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("vtsim ") + VTSIM_VERSION);
   app.require_subcommand(1);
   vtsim::cli::register_trace_commands(app);
+  vtsim::cli::register_store_commands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -1,0 +1,56 @@
+#include "stream/impl/oiio_memory_image.h"
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imageio.h>
+
+#include "stream/i_codec.h"
+
+namespace vtsim::oiio_mem {
+
+namespace OIIO = OIIO_NAMESPACE;
+
+std::vector<std::uint8_t> encode(const char* ext, const std::uint8_t* pixels, int w, int h, int c,
+                                 const std::vector<std::pair<std::string, std::string>>& str_attrs,
+                                 const std::vector<std::pair<std::string, int>>& int_attrs) {
+  std::vector<unsigned char> buf;
+  OIIO::Filesystem::IOVecOutput vec(buf);
+  const std::string name = std::string("tile.") + ext;
+  auto out = OIIO::ImageOutput::create(name, &vec);
+  if (!out) throw CodecError(std::string(ext) + " encode: " + OIIO::geterror());
+  OIIO::ImageSpec spec(w, h, c, OIIO::TypeDesc::UINT8);
+  for (const auto& [k, v] : str_attrs) spec.attribute(k, v);
+  for (const auto& [k, v] : int_attrs) spec.attribute(k, v);
+  if (!out->open(name, spec) || !out->write_image(OIIO::TypeDesc::UINT8, pixels) || !out->close())
+    throw CodecError(std::string(ext) + " encode: " + out->geterror());
+  return std::vector<std::uint8_t>(buf.begin(), buf.end());
+}
+
+void decode(const char* ext, const std::uint8_t* bytes, std::size_t size, int w, int h, int c,
+            std::uint8_t* out) {
+  OIIO::Filesystem::IOMemReader mem(bytes, size);
+  const std::string name = std::string("tile.") + ext;
+  // OIIO 2.4's format plugins pick the proxy up from the config hint, not only from open()'s
+  // argument; pass it both ways.
+  OIIO::ImageSpec config;
+  void* proxy = &mem;
+  config.attribute("oiio:ioproxy", OIIO::TypeDesc::PTR, &proxy);
+  auto in = OIIO::ImageInput::open(name, &config, &mem);
+  if (!in) {
+    std::string e = OIIO::geterror();
+    throw CodecError(std::string(ext) + " payload does not open" + (e.empty() ? "" : ": " + e));
+  }
+  const OIIO::ImageSpec& s = in->spec();
+  if (s.width != w || s.height != h || s.nchannels != c || s.depth != 1)
+    throw CodecError(std::string(ext) + " payload is " + std::to_string(s.width) + "x" + std::to_string(s.height) +
+                     "x" + std::to_string(s.nchannels) + ", expected " + std::to_string(w) + "x" +
+                     std::to_string(h) + "x" + std::to_string(c));
+  in->threads(1);  // the decode pool owns the parallelism
+  if (!in->read_image(0, 0, 0, c, OIIO::TypeDesc::UINT8, out)) {
+    std::string e = in->geterror();
+    throw CodecError(std::string(ext) + " payload does not decode" + (e.empty() ? "" : ": " + e));
+  }
+  // libjpeg/libpng report some damage only as warnings; OIIO surfaces them as pending errors.
+  if (in->has_error()) throw CodecError(std::string(ext) + " payload is damaged: " + in->geterror());
+}
+
+}  // namespace vtsim::oiio_mem
