@@ -356,7 +356,9 @@ class MipWalker {
 
 Image8 read_image8(const std::string& path, Transfer transfer) {
   namespace OIIO = OIIO_NAMESPACE;
-  auto in = OIIO::ImageInput::open(path);
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);  // texels as stored, alpha not multiplied in
+  auto in = OIIO::ImageInput::open(path, &config);
   if (!in) {
     const std::string e = OIIO::geterror();
     throw InputError(path, "cannot read the image" + (e.empty() ? "" : ": " + e));
@@ -388,6 +390,17 @@ Image8 read_image8(const std::string& path, Transfer transfer) {
     img.texels[i] = quantise(v);
   }
   return img;
+}
+
+void write_image8(const std::string& path, const Image8& image) {
+  namespace OIIO = OIIO_NAMESPACE;
+  auto out = OIIO::ImageOutput::create(path);
+  if (!out) throw InputError(path, "cannot write an image of this type: " + OIIO::geterror());
+  OIIO::ImageSpec spec(static_cast<int>(image.width), static_cast<int>(image.height), static_cast<int>(image.channels),
+                       OIIO::TypeDesc::UINT8);
+  spec.attribute("oiio:UnassociatedAlpha", 1);
+  if (!out->open(path, spec) || !out->write_image(OIIO::TypeDesc::UINT8, image.texels.data()) || !out->close())
+    throw InputError(path, "cannot write the image: " + out->geterror());
 }
 
 std::vector<Image8> build_mip_chain(const Image8& level0, Transfer transfer, std::uint32_t levels) {

@@ -103,6 +103,9 @@ struct Image8 {
 // Throws InputError naming the file.
 Image8 read_image8(const std::string& path, store::Transfer transfer);
 
+// Writes an 8-bit image with OpenImageIO (format from the extension). Throws InputError.
+void write_image8(const std::string& path, const Image8& image);
+
 // Levels 0..levels-1 of an image under ceil halving (level 0 is `level0` itself). Each texel of
 // level l+1 is the area-weighted mean of the (up to 2 x 2) level-l texels it covers, weighted by
 // how many level-0 texels each covers, i.e. the exact mean of its level-0 footprint

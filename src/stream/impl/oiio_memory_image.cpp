@@ -18,6 +18,7 @@ std::vector<std::uint8_t> encode(const char* ext, const std::uint8_t* pixels, in
   auto out = OIIO::ImageOutput::create(name, &vec);
   if (!out) throw CodecError(std::string(ext) + " encode: " + OIIO::geterror());
   OIIO::ImageSpec spec(w, h, c, OIIO::TypeDesc::UINT8);
+  spec.attribute("oiio:UnassociatedAlpha", 1);
   for (const auto& [k, v] : str_attrs) spec.attribute(k, v);
   for (const auto& [k, v] : int_attrs) spec.attribute(k, v);
   if (!out->open(name, spec) || !out->write_image(OIIO::TypeDesc::UINT8, pixels) || !out->close())
@@ -34,6 +35,8 @@ void decode(const char* ext, const std::uint8_t* bytes, std::size_t size, int w,
   OIIO::ImageSpec config;
   void* proxy = &mem;
   config.attribute("oiio:ioproxy", OIIO::TypeDesc::PTR, &proxy);
+  // Texels are data: keep alpha unassociated (PNG's own convention), no (un)premultiplying.
+  config.attribute("oiio:UnassociatedAlpha", 1);
   auto in = OIIO::ImageInput::open(name, &config, &mem);
   if (!in) {
     std::string e = OIIO::geterror();
