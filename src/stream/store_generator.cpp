@@ -1,7 +1,10 @@
 #include "stream/store_generator.h"
 
 #include <algorithm>
+#include <array>
+#include <climits>
 #include <cmath>
+#include <memory>
 
 #include "core/error.h"
 #include "core/tile_key.h"
@@ -27,14 +30,22 @@ inline const double* gradient(std::uint64_t key, std::int64_t ix, std::int64_t i
   return kGrad[h >> 61];
 }
 
-NoiseSample gradient_noise(std::uint64_t key, double x, double y) {
+// The four corner gradients of the lattice cell last used by one octave: neighbouring texels
+// mostly share a cell (an octave of wavelength L changes cell every L texels), so the hashes are
+// computed once per cell rather than once per texel.
+struct CellCache {
+  std::int64_t ix = INT64_MIN, iy = INT64_MIN;
+  const double *g00 = nullptr, *g10 = nullptr, *g01 = nullptr, *g11 = nullptr;
+};
+
+NoiseSample gradient_noise(std::uint64_t key, double x, double y, CellCache& c) {
   const double fx0 = std::floor(x), fy0 = std::floor(y);
   const auto ix = static_cast<std::int64_t>(fx0), iy = static_cast<std::int64_t>(fy0);
+  if (ix != c.ix || iy != c.iy) {
+    c = {ix, iy, gradient(key, ix, iy), gradient(key, ix + 1, iy), gradient(key, ix, iy + 1), gradient(key, ix + 1, iy + 1)};
+  }
   const double fx = x - fx0, fy = y - fy0;
-  const double* g00 = gradient(key, ix, iy);
-  const double* g10 = gradient(key, ix + 1, iy);
-  const double* g01 = gradient(key, ix, iy + 1);
-  const double* g11 = gradient(key, ix + 1, iy + 1);
+  const double *g00 = c.g00, *g10 = c.g10, *g01 = c.g01, *g11 = c.g11;
   const double n00 = g00[0] * fx + g00[1] * fy, n10 = g10[0] * (fx - 1) + g10[1] * fy;
   const double n01 = g01[0] * fx + g01[1] * (fy - 1), n11 = g11[0] * (fx - 1) + g11[1] * (fy - 1);
   const double u = fx * fx * fx * (fx * (fx * 6 - 15) + 10), du = 30 * fx * fx * (fx * (fx - 2) + 1);
@@ -57,17 +68,21 @@ struct Fbm {
 
   Fbm(std::uint64_t seed, std::uint64_t stream, double feature_texels)
       : key(mix64(seed * 0x2545F4914F6CDD1DULL + stream)), feature(feature_texels),
-        octaves(std::max(1, static_cast<int>(std::floor(std::log2(feature_texels / 4.0))) + 1)) {}
+        octaves(std::clamp(static_cast<int>(std::floor(std::log2(feature_texels / 4.0))) + 1, 1, kMaxOctaves)) {}
 
   // Value and gradient per level-0 texel at level-0 position (x, y), band-limited for `level`.
-  NoiseSample at(double x, double y, std::uint32_t level) const {
+  static constexpr int kMaxOctaves = 48;
+  using Cache = std::array<CellCache, kMaxOctaves>;
+
+  NoiseSample at(double x, double y, std::uint32_t level, Cache& cache) const {
     NoiseSample s;
     const double spacing = std::ldexp(1.0, static_cast<int>(level));
     double wavelength = feature, amp = 1.0;
     for (int o = 0; o < octaves; ++o, wavelength *= 0.5, amp *= 0.5) {
       const double w = std::clamp(wavelength / (2.0 * spacing) - 1.0, 0.0, 1.0);
       if (w <= 0.0) break;  // wavelengths only shrink from here
-      const NoiseSample n = gradient_noise(key + static_cast<std::uint64_t>(o), x / wavelength, y / wavelength);
+      const NoiseSample n = gradient_noise(key + static_cast<std::uint64_t>(o), x / wavelength, y / wavelength,
+                                           cache[static_cast<std::size_t>(o)]);
       s.v += w * amp * n.v;
       s.dx += w * amp * n.dx / wavelength;
       s.dy += w * amp * n.dy / wavelength;
@@ -134,6 +149,7 @@ struct Generator {
     out.resize(o.layers.size());
     for (std::size_t l = 0; l < o.layers.size(); ++l)
       out[l].assign(static_cast<std::size_t>(side) * side * (o.layers[l].kind == GenKind::height ? 1 : 3), 0);
+    auto hcache = std::make_unique<Fbm::Cache>(), dcache = std::make_unique<Fbm::Cache>();
     bool need_detail = false;
     for (const auto& L : o.layers) need_detail |= L.kind == GenKind::albedo;
     for (std::uint32_t j = 0; j < side; ++j) {
@@ -142,10 +158,10 @@ struct Generator {
       for (std::uint32_t i = 0; i < side; ++i) {
         const auto lx = static_cast<std::uint64_t>(std::clamp<std::int64_t>(x0 + i, 0, wmax));
         const double px = footprint_centre(lx, level, g.width);
-        const NoiseSample h = height.at(px, py, level);
+        const NoiseSample h = height.at(px, py, level, *hcache);
         const double gx = h.dx * height_scale, gy = h.dy * height_scale;
         const double slope = std::sqrt(gx * gx + gy * gy);
-        const double d = need_detail ? detail.at(px, py, level).v * 1.4 : 0.0;
+        const double d = need_detail ? detail.at(px, py, level, *dcache).v * 1.4 : 0.0;
         const std::size_t t = static_cast<std::size_t>(j) * side + i;
         for (std::size_t l = 0; l < o.layers.size(); ++l) {
           std::uint8_t* p = out[l].data();
