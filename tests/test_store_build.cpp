@@ -2,6 +2,9 @@
 
 #include <cmath>
 #include <filesystem>
+#include <nlohmann/json.hpp>
+#include <sys/wait.h>
+#include <cstdio>
 
 #include "core/error.h"
 #include "store_test_util.h"
@@ -246,4 +249,48 @@ TEST_CASE("the builder's output does not depend on the thread count") {
   o.threads = 3;
   build_store({dir.file("in.png")}, o, dir.file("b.vts"));
   CHECK(test::read_bytes(dir.file("a.vts")) == test::read_bytes(dir.file("b.vts")));
+}
+
+namespace {
+// Runs the CLI; returns {exit code, stdout}.
+std::pair<int, std::string> cli(const std::string& args) {
+  std::string text;
+  FILE* p = ::popen((std::string(VTSIM_CLI) + " " + args + " 2>/dev/null").c_str(), "r");
+  if (!p) return {-1, ""};
+  char buf[4096];
+  while (std::fgets(buf, sizeof buf, p)) text += buf;
+  const int r = ::pclose(p);
+  return {WIFEXITED(r) ? WEXITSTATUS(r) : -1, text};
+}
+}  // namespace
+
+TEST_CASE("vtsim store build / info --json / verify work end to end, bad options exit 2") {
+  test::TempDir dir;
+  write_image8(dir.file("a.png"), test::make_image(250, 130, 3));
+  write_image8(dir.file("b.png"), test::make_image(250, 130, 2));
+  const std::string out = dir.file("c.vts");
+  auto [rc, text] = cli("store build " + dir.file("a.png") + " " + dir.file("b.png") + " -o " + out +
+                        " --tile 64 --border 2 --codec zstd:5,png --layer-names col,ga --transfer srgb,linear");
+  CHECK(rc == 0);
+  CHECK(text.find("wrote " + out) != std::string::npos);
+  auto [rc2, json] = cli("store info --json " + out);
+  REQUIRE(rc2 == 0);
+  const auto j = nlohmann::json::parse(json);
+  CHECK(j["width"] == 250);
+  CHECK(j["tile"] == 64);
+  CHECK(j["border"] == 2);
+  CHECK(j["levels"].size() == 9);
+  CHECK(j["layers"][0]["name"] == "col");
+  CHECK(j["layers"][0]["codec"] == "zstd");
+  CHECK(j["layers"][0]["codec_param"] == 5);
+  CHECK(j["layers"][1]["codec"] == "png");
+  CHECK(j["layers"][1]["channels"] == 2);
+  CHECK(j["layers"][1]["transfer"] == "linear");
+  CHECK(j["compression_ratio"].get<double>() > 1.0);
+  CHECK(cli("store verify " + out).first == 0);
+  CHECK(cli("store build " + dir.file("a.png") + " -o " + dir.file("x.vts") + " --codec webp").first == 2);
+  CHECK(cli("store gen -o " + dir.file("x.vts") + " --size 12xq").first == 2);
+  CHECK(cli("store gen -o " + dir.file("x.vts") + " --size 64x64 --layers rough:zstd").first == 2);
+  CHECK(cli("store info " + dir.file("a.png")).first == 2);  // not a store: bad magic
+  CHECK_FALSE(std::filesystem::exists(dir.file("x.vts")));
 }

@@ -1,6 +1,13 @@
 #include <doctest/doctest.h>
 
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
 #include <cmath>
+#include <filesystem>
+#include <thread>
 
 #include "core/error.h"
 #include "store_test_util.h"
@@ -142,4 +149,24 @@ TEST_CASE("generator options are checked") {
   o.feature_texels = 1;
   CHECK_THROWS_AS(generate_store(o, dir.file("x.vts")), InputError);
   CHECK_FALSE(std::filesystem::exists(dir.file("x.vts")));
+}
+
+TEST_CASE("a generation interrupted by SIGINT exits 130 and leaves no output and no temporary file") {
+  test::TempDir dir;
+  const std::string out = dir.file("big.vts");
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    ::execl(VTSIM_CLI, VTSIM_CLI, "store", "gen", "-o", out.c_str(), "--size", "16384x16384", "--threads", "1",
+            static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  ::kill(pid, SIGINT);
+  int status = 0;
+  REQUIRE(::waitpid(pid, &status, 0) == pid);
+  REQUIRE(WIFEXITED(status));
+  CHECK(WEXITSTATUS(status) == 130);
+  CHECK_FALSE(std::filesystem::exists(out));
+  CHECK(std::filesystem::is_empty(dir.path));
 }

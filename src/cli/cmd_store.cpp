@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <csignal>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <system_error>
@@ -51,6 +52,49 @@ ProgressFn progress_printer(const char* what, bool forced) {
     fmt::print(stderr, "\r{}: {:3d}%{}", what, pct, pct >= 100 ? "\n" : "");
     std::fflush(stderr);
   };
+}
+
+// Ctrl-C / SIGTERM during build or gen: the next progress tick throws, the writer removes its
+// temporary file, and the output is left as it was (exit 130, the shell's code for SIGINT).
+volatile std::sig_atomic_t g_interrupted = 0;
+extern "C" void on_interrupt(int) { g_interrupted = 1; }
+struct Interrupted {};
+
+class InterruptGuard {
+ public:
+  InterruptGuard() {
+    g_interrupted = 0;
+    old_int_ = std::signal(SIGINT, on_interrupt);
+    old_term_ = std::signal(SIGTERM, on_interrupt);
+  }
+  ~InterruptGuard() {
+    std::signal(SIGINT, old_int_);
+    std::signal(SIGTERM, old_term_);
+  }
+  InterruptGuard(const InterruptGuard&) = delete;
+  InterruptGuard& operator=(const InterruptGuard&) = delete;
+
+ private:
+  void (*old_int_)(int) = SIG_DFL;
+  void (*old_term_)(int) = SIG_DFL;
+};
+
+ProgressFn interruptible(ProgressFn inner) {
+  return [inner = std::move(inner)](double f) {
+    if (g_interrupted) throw Interrupted{};
+    if (inner) inner(f);
+  };
+}
+
+template <class F>
+void run_interruptible(const std::string& out, F&& f) {
+  InterruptGuard guard;
+  try {
+    f();
+  } catch (const Interrupted&) {
+    fmt::print(stderr, "\nvtsim: interrupted; {} was not written\n", out);
+    throw Exit{130};
+  }
 }
 
 std::string human_bytes(std::uint64_t b) {
@@ -211,8 +255,10 @@ void register_store_commands(CLI::App& app) {
         else if (s == "linear") b.transfers.push_back(store::Transfer::linear);
         else throw InputError("--transfer", "'" + s + "' is not srgb or linear");
       }
-      const BuildResult r = build_store(o->images, b, o->out, progress_printer("store build", o->progress));
-      print_result(o->out, r);
+      run_interruptible(o->out, [&] {
+        const BuildResult r = build_store(o->images, b, o->out, interruptible(progress_printer("store build", o->progress)));
+        print_result(o->out, r);
+      });
     });
   }
   {  // gen
@@ -247,8 +293,10 @@ void register_store_commands(CLI::App& app) {
       g.feature_texels = o->feature;
       g.threads = o->threads;
       g.layers = parse_gen_layers(o->layers, "--layers");
-      const BuildResult r = generate_store(g, o->out, progress_printer("store gen", o->progress));
-      print_result(o->out, r);
+      run_interruptible(o->out, [&] {
+        const BuildResult r = generate_store(g, o->out, interruptible(progress_printer("store gen", o->progress)));
+        print_result(o->out, r);
+      });
     });
   }
   {  // info
