@@ -161,7 +161,12 @@ TEST_CASE("a generation interrupted by SIGINT exits 130 and leaves no output and
             static_cast<char*>(nullptr));
     ::_exit(127);
   }
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  // Wait until the writer's temporary file exists (the handler is installed before it), so the
+  // signal lands mid-generation even on a slow sanitizer build.
+  for (int i = 0; i < 600 && std::filesystem::is_empty(dir.path); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  CHECK_FALSE(std::filesystem::is_empty(dir.path));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
   ::kill(pid, SIGINT);
   int status = 0;
   REQUIRE(::waitpid(pid, &status, 0) == pid);

@@ -17,7 +17,8 @@ class JpegCodec final : public ICodec {
   bool supports_channels(int c) const override { return c == 1 || c == 3; }
   std::vector<std::uint8_t> encode(const std::uint8_t* pixels, int w, int h, int c) const override {
     if (!supports_channels(c)) throw CodecError("jpeg stores 1 or 3 channels, not " + std::to_string(c));
-    return oiio_mem::encode("jpg", pixels, w, h, c, {{"Compression", "jpeg:" + std::to_string(quality_)}}, {});
+    // An int attribute, not "Compression" = "jpeg:Q": OIIO interns string values globally.
+    return oiio_mem::encode("jpg", pixels, w, h, c, {}, {{"CompressionQuality", quality_}});
   }
   void decode(const std::uint8_t* bytes, std::size_t size, int w, int h, int c,
               std::uint8_t* out) const override {
