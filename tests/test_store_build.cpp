@@ -288,6 +288,10 @@ TEST_CASE("vtsim store build / info --json / verify work end to end, bad options
   CHECK(j["layers"][1]["transfer"] == "linear");
   CHECK(j["compression_ratio"].get<double>() > 1.0);
   CHECK(cli("store verify " + out).first == 0);
+  CHECK(cli("store extract " + out + " --layer 0 --level 1 -o " + dir.file("l1.png")).first == 0);
+  const Image8 l1 = read_image8(dir.file("l1.png"), Transfer::linear);
+  CHECK(l1.texels == build_mip_chain(test::make_image(250, 130, 3), Transfer::srgb, 2)[1].texels);
+  CHECK(cli("store extract " + out + " --level 99 -o " + dir.file("x.png")).first == 2);
   CHECK(cli("store build " + dir.file("a.png") + " -o " + dir.file("x.vts") + " --codec webp").first == 2);
   CHECK(cli("store gen -o " + dir.file("x.vts") + " --size 12xq").first == 2);
   CHECK(cli("store gen -o " + dir.file("x.vts") + " --size 64x64 --layers rough:zstd").first == 2);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <csignal>
+#include <cstring>
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <system_error>
@@ -215,6 +216,33 @@ std::uint64_t verify(const TileStore& s, bool want_direct, std::uint64_t max_rep
   return bad;
 }
 
+// One level of one layer as an image, assembled from the tiles' interiors.
+Image8 extract_level(const TileStore& s, std::uint32_t layer, std::uint32_t level) {
+  if (layer >= s.layer_count()) throw InputError("--layer", fmt::format("{} is out of range 0..{}", layer, s.layer_count() - 1));
+  if (level >= s.level_count()) throw InputError("--level", fmt::format("{} is out of range 0..{}", level, s.level_count() - 1));
+  const auto& g = s.geometry();
+  Image8 img;
+  img.width = g.level_width(level);
+  img.height = g.level_height(level);
+  img.channels = s.layer(layer).channels;
+  if (img.width * img.height > (std::uint64_t{1} << 28))
+    throw InputError("--level", fmt::format("level {} is {}x{} texels; extract a coarser level (at most 2^28 texels)", level,
+                                            img.width, img.height));
+  img.texels.resize(img.width * img.height * img.channels);
+  AlignedBuffer scratch;
+  std::vector<std::uint8_t> t(s.tile_bytes(layer));
+  const std::uint64_t c = img.channels, S = g.stored_side();
+  for (std::uint64_t ty = 0; ty < g.rows[level]; ++ty)
+    for (std::uint64_t tx = 0; tx < g.cols[level]; ++tx) {
+      s.read_tile(TileKey(layer, level, static_cast<std::int64_t>(tx), static_cast<std::int64_t>(ty)), scratch, t.data(), t.size());
+      for (std::uint64_t j = 0; j < g.tile && ty * g.tile + j < img.height; ++j) {
+        const std::uint64_t n = std::min<std::uint64_t>(g.tile, img.width - tx * g.tile);
+        std::memcpy(&img.texels[((ty * g.tile + j) * img.width + tx * g.tile) * c], &t[((j + g.border) * S + g.border) * c], n * c);
+      }
+    }
+  return img;
+}
+
 }  // namespace
 
 void register_store_commands(CLI::App& app) {
@@ -309,6 +337,25 @@ void register_store_commands(CLI::App& app) {
       const TileStore s = TileStore::open(*path);
       if (*json) fmt::print("{}\n", info_json(s).dump(2));
       else print_info(s);
+    });
+  }
+  {  // extract
+    auto* c = store->add_subcommand("extract", "Write one level of one layer as an image (assembled from the tiles)");
+    struct Opts {
+      std::string path, out;
+      std::uint32_t layer = 0, level = 0;
+    };
+    auto o = std::make_shared<Opts>();
+    c->add_option("STORE", o->path, "Tile store (.vts)")->required();
+    c->add_option("-o,--output", o->out, "Image to write (PNG, TIFF, ... by extension)")->required();
+    c->add_option("--layer", o->layer, "Layer index")->capture_default_str();
+    c->add_option("--level", o->level, "Mip level")->capture_default_str();
+    c->callback([o] {
+      const TileStore s = TileStore::open(o->path);
+      const Image8 img = extract_level(s, o->layer, o->level);
+      write_image8(o->out, img);
+      fmt::print("wrote {}: layer {} ('{}') level {}, {}x{}x{}\n", o->out, o->layer, s.layer(o->layer).name, o->level, img.width,
+                 img.height, img.channels);
     });
   }
   {  // verify
