@@ -9,7 +9,7 @@ cd "$here"
 
 PKGS=(build-essential cmake pkg-config git
       libopenimageio-dev libglm-dev doctest-dev libcli11-dev nlohmann-json3-dev
-      libtomlplusplus-dev libfmt-dev libzstd-dev liblz4-dev fio python3 ninja-build)
+      libtomlplusplus-dev libfmt-dev libzstd-dev liblz4-dev libxxhash-dev fio python3 ninja-build)
 
 missing=()
 for p in "${PKGS[@]}"; do

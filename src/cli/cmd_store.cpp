@@ -1,0 +1,386 @@
+// vtsim store …: build, generate, inspect and verify tile stores (docs/store-format.md).
+#include <fmt/core.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <csignal>
+#include <cstring>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <system_error>
+
+#include "cli/commands.h"
+#include "core/error.h"
+#include "stream/store_builder.h"
+#include "stream/store_generator.h"
+#include "stream/tile_store.h"
+
+namespace vtsim::cli {
+namespace {
+
+std::vector<std::string> split_commas(const std::string& s) {
+  std::vector<std::string> out;
+  std::size_t pos = 0;
+  while (pos <= s.size()) {
+    const std::size_t c = std::min(s.find(',', pos), s.size());
+    out.push_back(s.substr(pos, c - pos));
+    pos = c + 1;
+  }
+  return out;
+}
+
+// "WxH" -> width, height. Throws InputError naming the option.
+void parse_size(const std::string& s, std::uint64_t& w, std::uint64_t& h) {
+  const std::size_t x = s.find_first_of("xX");
+  try {
+    std::size_t a = 0, b = 0;
+    if (x == std::string::npos) throw std::invalid_argument("no x");
+    w = std::stoull(s.substr(0, x), &a);
+    h = std::stoull(s.substr(x + 1), &b);
+    if (a != x || b != s.size() - x - 1 || s[0] == '-' || s[x + 1] == '-') throw std::invalid_argument("junk");
+  } catch (const std::exception&) {
+    throw InputError("--size", "'" + s + "' is not WIDTHxHEIGHT in texels (e.g. 16384x8192)");
+  }
+}
+
+// Percentage on stderr, rewritten in place, when stderr is a terminal or --progress was given.
+ProgressFn progress_printer(const char* what, bool forced) {
+  if (!forced && !::isatty(2)) return {};
+  return [what, last = -1](double f) mutable {
+    const int pct = static_cast<int>(f * 100.0);
+    if (pct == last) return;
+    last = pct;
+    fmt::print(stderr, "\r{}: {:3d}%{}", what, pct, pct >= 100 ? "\n" : "");
+    std::fflush(stderr);
+  };
+}
+
+// Ctrl-C / SIGTERM during build or gen: the next progress tick throws, the writer removes its
+// temporary file, and the output is left as it was (exit 130, the shell's code for SIGINT).
+volatile std::sig_atomic_t g_interrupted = 0;
+extern "C" void on_interrupt(int) { g_interrupted = 1; }
+struct Interrupted {};
+
+class InterruptGuard {
+ public:
+  InterruptGuard() {
+    g_interrupted = 0;
+    old_int_ = std::signal(SIGINT, on_interrupt);
+    old_term_ = std::signal(SIGTERM, on_interrupt);
+  }
+  ~InterruptGuard() {
+    std::signal(SIGINT, old_int_);
+    std::signal(SIGTERM, old_term_);
+  }
+  InterruptGuard(const InterruptGuard&) = delete;
+  InterruptGuard& operator=(const InterruptGuard&) = delete;
+
+ private:
+  void (*old_int_)(int) = SIG_DFL;
+  void (*old_term_)(int) = SIG_DFL;
+};
+
+ProgressFn interruptible(ProgressFn inner) {
+  return [inner = std::move(inner)](double f) {
+    if (g_interrupted) throw Interrupted{};
+    if (inner) inner(f);
+  };
+}
+
+template <class F>
+void run_interruptible(const std::string& out, F&& f) {
+  InterruptGuard guard;
+  try {
+    f();
+  } catch (const Interrupted&) {
+    fmt::print(stderr, "\nvtsim: interrupted; {} was not written\n", out);
+    throw Exit{130};
+  }
+}
+
+std::string human_bytes(std::uint64_t b) {
+  if (b >= (std::uint64_t{1} << 30)) return fmt::format("{:.2f} GiB", static_cast<double>(b) / (1 << 30));
+  if (b >= (std::uint64_t{1} << 20)) return fmt::format("{:.2f} MiB", static_cast<double>(b) / (1 << 20));
+  if (b >= 1024) return fmt::format("{:.1f} KiB", static_cast<double>(b) / 1024);
+  return fmt::format("{} B", b);
+}
+
+void print_result(const std::string& out, const BuildResult& r) {
+  fmt::print("wrote {}: {} tiles, {} ({} payload for {} decoded, ratio {:.2f})\n", out, r.tiles, human_bytes(r.file_bytes),
+             human_bytes(r.stored_bytes), human_bytes(r.decoded_bytes),
+             r.stored_bytes ? static_cast<double>(r.decoded_bytes) / static_cast<double>(r.stored_bytes) : 0.0);
+}
+
+nlohmann::json info_json(const TileStore& s) {
+  const auto& h = s.header();
+  const auto& g = h.geom;
+  nlohmann::json j;
+  j["path"] = s.path();
+  j["version"] = fmt::format("{}.{}", h.version_major, h.version_minor);
+  j["width"] = g.width;
+  j["height"] = g.height;
+  j["tile"] = g.tile;
+  j["border"] = g.border;
+  j["stored_side"] = g.stored_side();
+  j["file_bytes"] = h.file_bytes;
+  j["index_bytes"] = h.index_bytes;
+  j["tiles"] = g.tile_count();
+  nlohmann::json levels = nlohmann::json::array();
+  for (std::uint32_t l = 0; l < g.levels; ++l)
+    levels.push_back({{"level", l}, {"width", g.level_width(l)}, {"height", g.level_height(l)}, {"tiles_x", g.cols[l]}, {"tiles_y", g.rows[l]}});
+  j["levels"] = levels;
+  const auto totals = s.totals();
+  nlohmann::json layers = nlohmann::json::array();
+  std::uint64_t stored = 0, decoded = 0, read = 0;
+  for (std::uint32_t i = 0; i < g.layers; ++i) {
+    const auto& L = h.layers[i];
+    const auto& t = totals[i];
+    layers.push_back({{"name", L.name},
+                      {"channels", L.channels},
+                      {"bits", L.bits},
+                      {"codec", std::string(codec_name(L.codec))},
+                      {"codec_param", L.codec_param},
+                      {"transfer", L.transfer == store::Transfer::srgb ? "srgb" : "linear"},
+                      {"tile_bytes", h.tile_bytes(i)},
+                      {"stored_bytes", t.stored_bytes},
+                      {"read_bytes", t.read_bytes},
+                      {"decoded_bytes", t.decoded_bytes},
+                      {"compression_ratio", static_cast<double>(t.decoded_bytes) / static_cast<double>(t.stored_bytes)},
+                      {"mean_stored_bytes_per_tile", static_cast<double>(t.stored_bytes) / static_cast<double>(t.tiles)}});
+    stored += t.stored_bytes;
+    decoded += t.decoded_bytes;
+    read += t.read_bytes;
+  }
+  j["layers"] = layers;
+  j["stored_bytes"] = stored;
+  j["read_bytes"] = read;
+  j["decoded_bytes"] = decoded;
+  j["compression_ratio"] = static_cast<double>(decoded) / static_cast<double>(stored);
+  j["alignment_overhead"] = static_cast<double>(read) / static_cast<double>(stored);
+  return j;
+}
+
+void print_info(const TileStore& s) {
+  const nlohmann::json j = info_json(s);
+  fmt::print("{}: vtsim tile store v{}\n", s.path(), j["version"].get<std::string>());
+  fmt::print("  texture  {} x {} texels, {} levels, tile {} + border {} (stored {} x {})\n", j["width"].get<std::uint64_t>(),
+             j["height"].get<std::uint64_t>(), j["levels"].size(), j["tile"].get<std::uint32_t>(), j["border"].get<std::uint32_t>(),
+             j["stored_side"].get<std::uint32_t>(), j["stored_side"].get<std::uint32_t>());
+  fmt::print("  file     {} ({} bytes), {} tiles, index {}\n", human_bytes(j["file_bytes"]), j["file_bytes"].get<std::uint64_t>(),
+             j["tiles"].get<std::uint64_t>(), human_bytes(j["index_bytes"]));
+  fmt::print("  levels  ");
+  for (const auto& l : j["levels"])
+    fmt::print(" {}:{}x{}", l["level"].get<int>(), l["width"].get<std::uint64_t>(), l["height"].get<std::uint64_t>());
+  fmt::print("\n");
+  for (const auto& L : j["layers"])
+    fmt::print("  layer {:<10} {}ch {} {}:{:<3} stored {:>10} for {:>10} decoded, ratio {:6.2f}, {:.0f} B/tile\n",
+               L["name"].get<std::string>(), L["channels"].get<int>(), L["transfer"].get<std::string>(), L["codec"].get<std::string>(),
+               L["codec_param"].get<int>(), human_bytes(L["stored_bytes"]), human_bytes(L["decoded_bytes"]),
+               L["compression_ratio"].get<double>(), L["mean_stored_bytes_per_tile"].get<double>());
+  fmt::print("  total    stored {} for {} decoded, ratio {:.2f}; 4 KiB-aligned reads {} (x{:.3f})\n", human_bytes(j["stored_bytes"]),
+             human_bytes(j["decoded_bytes"]), j["compression_ratio"].get<double>(), human_bytes(j["read_bytes"]),
+             j["alignment_overhead"].get<double>());
+}
+
+// Reads every record in file order (O_DIRECT when the filesystem allows), checks each checksum
+// and decode. Returns the number of bad tiles.
+std::uint64_t verify(const TileStore& s, bool want_direct, std::uint64_t max_report, const ProgressFn& progress) {
+  DirectOpen f = open_for_read(s.path(), want_direct);
+  if (!f.warning.empty()) fmt::print(stderr, "vtsim: warning: {}\n", f.warning);
+  const auto& g = s.geometry();
+  std::vector<std::uint64_t> order(s.index().size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](auto a, auto b) { return s.index()[a].offset < s.index()[b].offset; });
+  AlignedBuffer rec, out;
+  std::uint64_t bad = 0;
+  for (std::size_t n = 0; n < order.size(); ++n) {
+    const TileKey k = g.key_of_slot(order[n]);
+    const TileLocation loc = s.locate(k);
+    rec.reserve(loc.read_bytes);
+    out.reserve(loc.decoded_bytes);
+    try {
+      std::size_t got = 0;
+      try {
+        got = f.file.pread_full(rec.data(), loc.read_bytes, loc.offset);
+      } catch (const std::system_error& e) {
+        throw InputError(s.path() + ": " + store::describe(k), e.what());
+      }
+      if (got < loc.stored_bytes) throw InputError(s.path() + ": " + store::describe(k), "short read");
+      s.verify_and_decode(k, rec.data(), got, out.data(), out.size());
+    } catch (const InputError& e) {
+      if (bad < max_report) fmt::print("BAD {}\n", e.what());
+      ++bad;
+    }
+    if (progress && (n % 256 == 0 || n + 1 == order.size())) progress(static_cast<double>(n + 1) / static_cast<double>(order.size()));
+  }
+  return bad;
+}
+
+// One level of one layer as an image, assembled from the tiles' interiors.
+Image8 extract_level(const TileStore& s, std::uint32_t layer, std::uint32_t level) {
+  if (layer >= s.layer_count()) throw InputError("--layer", fmt::format("{} is out of range 0..{}", layer, s.layer_count() - 1));
+  if (level >= s.level_count()) throw InputError("--level", fmt::format("{} is out of range 0..{}", level, s.level_count() - 1));
+  const auto& g = s.geometry();
+  Image8 img;
+  img.width = g.level_width(level);
+  img.height = g.level_height(level);
+  img.channels = s.layer(layer).channels;
+  if (img.width * img.height > (std::uint64_t{1} << 28))
+    throw InputError("--level", fmt::format("level {} is {}x{} texels; extract a coarser level (at most 2^28 texels)", level,
+                                            img.width, img.height));
+  img.texels.resize(img.width * img.height * img.channels);
+  AlignedBuffer scratch;
+  std::vector<std::uint8_t> t(s.tile_bytes(layer));
+  const std::uint64_t c = img.channels, S = g.stored_side();
+  for (std::uint64_t ty = 0; ty < g.rows[level]; ++ty)
+    for (std::uint64_t tx = 0; tx < g.cols[level]; ++tx) {
+      s.read_tile(TileKey(layer, level, static_cast<std::int64_t>(tx), static_cast<std::int64_t>(ty)), scratch, t.data(), t.size());
+      for (std::uint64_t j = 0; j < g.tile && ty * g.tile + j < img.height; ++j) {
+        const std::uint64_t n = std::min<std::uint64_t>(g.tile, img.width - tx * g.tile);
+        std::memcpy(&img.texels[((ty * g.tile + j) * img.width + tx * g.tile) * c], &t[((j + g.border) * S + g.border) * c], n * c);
+      }
+    }
+  return img;
+}
+
+}  // namespace
+
+void register_store_commands(CLI::App& app) {
+  auto* store = app.add_subcommand("store", "Build, generate, inspect and verify on-disk tile stores (.vts)");
+  store->require_subcommand(1);
+
+  {  // build
+    auto* c = store->add_subcommand("build", "Build a tile store from images (one image per layer)");
+    struct Opts {
+      std::vector<std::string> images;
+      std::string out, codecs = "zstd", names, transfers = "srgb";
+      std::uint32_t tile = 128, border = 4, levels = 0;
+      unsigned threads = 0;
+      bool progress = false;
+    };
+    auto o = std::make_shared<Opts>();
+    c->add_option("IMAGE", o->images, "Images OpenImageIO reads (PNG, JPEG, TIFF, EXR...), one per layer")->required();
+    c->add_option("-o,--output", o->out, "Output store (.vts)")->required();
+    c->add_option("--tile", o->tile, "Payload tile side T in texels")->capture_default_str();
+    c->add_option("--border", o->border, "Border B in texels on each side (stored side T+2B)")->capture_default_str();
+    c->add_option("--levels", o->levels, "Number of levels (0 = down to 1x1)")->capture_default_str();
+    c->add_option("--codec", o->codecs, "Codec per layer, comma-separated: raw, zstd[:1-22], lz4[:0|3-12], png[:0-9], jpeg[:1-100]")
+        ->capture_default_str();
+    c->add_option("--layer-names", o->names, "Layer names, comma-separated (default: image file names)");
+    c->add_option("--transfer", o->transfers, "srgb or linear per layer (mip filtering in linear light for srgb)")->capture_default_str();
+    c->add_option("--threads", o->threads, "Encode threads (0 = all cores); the file does not depend on it");
+    c->add_flag("--progress", o->progress, "Show progress even when stderr is not a terminal");
+    c->callback([o] {
+      BuildOptions b;
+      b.tile = o->tile;
+      b.border = o->border;
+      b.levels = o->levels;
+      b.threads = o->threads;
+      for (const auto& s : split_commas(o->codecs)) b.codecs.push_back(parse_codec_spec(s, "--codec"));
+      if (!o->names.empty()) b.layer_names = split_commas(o->names);
+      for (const auto& s : split_commas(o->transfers)) {
+        if (s == "srgb") b.transfers.push_back(store::Transfer::srgb);
+        else if (s == "linear") b.transfers.push_back(store::Transfer::linear);
+        else throw InputError("--transfer", "'" + s + "' is not srgb or linear");
+      }
+      run_interruptible(o->out, [&] {
+        const BuildResult r = build_store(o->images, b, o->out, interruptible(progress_printer("store build", o->progress)));
+        print_result(o->out, r);
+      });
+    });
+  }
+  {  // gen
+    auto* c = store->add_subcommand("gen", "Generate a procedural terrain store of any size (deterministic)");
+    struct Opts {
+      std::string out, size, layers = "albedo:zstd,normal:lz4";
+      std::uint32_t tile = 128, border = 4, levels = 0;
+      std::uint64_t seed = 1;
+      double feature = 4096;
+      unsigned threads = 0;
+      bool progress = false;
+    };
+    auto o = std::make_shared<Opts>();
+    c->add_option("-o,--output", o->out, "Output store (.vts)")->required();
+    c->add_option("--size", o->size, "Level-0 size WIDTHxHEIGHT in texels")->required();
+    c->add_option("--tile", o->tile, "Payload tile side T in texels")->capture_default_str();
+    c->add_option("--border", o->border, "Border B in texels")->capture_default_str();
+    c->add_option("--levels", o->levels, "Number of levels (0 = down to 1x1)")->capture_default_str();
+    c->add_option("--layers", o->layers, "Layers name:codec[:param], comma-separated; names albedo*, normal*, height*")
+        ->capture_default_str();
+    c->add_option("--seed", o->seed, "Noise seed")->capture_default_str();
+    c->add_option("--feature", o->feature, "Wavelength of the largest terrain features, level-0 texels")->capture_default_str();
+    c->add_option("--threads", o->threads, "Worker threads (0 = all cores); the file does not depend on it");
+    c->add_flag("--progress", o->progress, "Show progress even when stderr is not a terminal");
+    c->callback([o] {
+      GenOptions g;
+      parse_size(o->size, g.width, g.height);
+      g.tile = o->tile;
+      g.border = o->border;
+      g.levels = o->levels;
+      g.seed = o->seed;
+      g.feature_texels = o->feature;
+      g.threads = o->threads;
+      g.layers = parse_gen_layers(o->layers, "--layers");
+      run_interruptible(o->out, [&] {
+        const BuildResult r = generate_store(g, o->out, interruptible(progress_printer("store gen", o->progress)));
+        print_result(o->out, r);
+      });
+    });
+  }
+  {  // info
+    auto* c = store->add_subcommand("info", "Sizes, levels, layers, codecs and compression of a store");
+    auto path = std::make_shared<std::string>();
+    auto json = std::make_shared<bool>(false);
+    c->add_option("STORE", *path, "Tile store (.vts)")->required();
+    c->add_flag("--json", *json, "Print JSON");
+    c->callback([path, json] {
+      const TileStore s = TileStore::open(*path);
+      if (*json) fmt::print("{}\n", info_json(s).dump(2));
+      else print_info(s);
+    });
+  }
+  {  // extract
+    auto* c = store->add_subcommand("extract", "Write one level of one layer as an image (assembled from the tiles)");
+    struct Opts {
+      std::string path, out;
+      std::uint32_t layer = 0, level = 0;
+    };
+    auto o = std::make_shared<Opts>();
+    c->add_option("STORE", o->path, "Tile store (.vts)")->required();
+    c->add_option("-o,--output", o->out, "Image to write (PNG, TIFF, ... by extension)")->required();
+    c->add_option("--layer", o->layer, "Layer index")->capture_default_str();
+    c->add_option("--level", o->level, "Mip level")->capture_default_str();
+    c->callback([o] {
+      const TileStore s = TileStore::open(o->path);
+      const Image8 img = extract_level(s, o->layer, o->level);
+      write_image8(o->out, img);
+      fmt::print("wrote {}: layer {} ('{}') level {}, {}x{}x{}\n", o->out, o->layer, s.layer(o->layer).name, o->level, img.width,
+                 img.height, img.channels);
+    });
+  }
+  {  // verify
+    auto* c = store->add_subcommand("verify", "Check every tile's checksum and that it decodes; list bad tiles (exit 1 if any)");
+    struct Opts {
+      std::string path;
+      bool buffered = false, progress = false;
+      std::uint64_t max_report = 100;
+    };
+    auto o = std::make_shared<Opts>();
+    c->add_option("STORE", o->path, "Tile store (.vts)")->required();
+    c->add_flag("--buffered", o->buffered, "Read through the page cache instead of O_DIRECT");
+    c->add_option("--max-report", o->max_report, "List at most this many bad tiles")->capture_default_str();
+    c->add_flag("--progress", o->progress, "Show progress even when stderr is not a terminal");
+    c->callback([o] {
+      const TileStore s = TileStore::open(o->path);
+      const std::uint64_t bad = verify(s, !o->buffered, o->max_report, progress_printer("store verify", o->progress));
+      const std::uint64_t n = s.index().size();
+      if (bad) {
+        fmt::print("{}: {} of {} tiles are bad\n", o->path, bad, n);
+        throw Exit{kExitFailure};
+      }
+      fmt::print("{}: all {} tiles verified (checksum and decode)\n", o->path, n);
+    });
+  }
+}
+
+}  // namespace vtsim::cli

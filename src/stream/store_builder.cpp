@@ -1,0 +1,502 @@
+#include "stream/store_builder.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <exception>
+#include <filesystem>
+#include <thread>
+
+#include "core/error.h"
+
+namespace vtsim {
+
+using namespace store;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string u(std::uint64_t v) { return std::to_string(v); }
+
+std::string errno_text() { return std::strerror(errno); }
+
+void write_all(int fd, const std::uint8_t* p, std::size_t n, std::uint64_t offset, const std::string& path) {
+  while (n > 0) {
+    const ssize_t r = ::pwrite(fd, p, n, static_cast<off_t>(offset));
+    if (r < 0) {
+      if (errno == EINTR) continue;
+      throw InputError(path, "write failed: " + errno_text());
+    }
+    p += r;
+    n -= static_cast<std::size_t>(r);
+    offset += static_cast<std::uint64_t>(r);
+  }
+}
+
+void validate_spec(const StoreSpec& s) {
+  if (s.tile < 1 || s.tile > kMaxTileSize) throw InputError("--tile", u(s.tile) + " is out of range 1.." + u(kMaxTileSize));
+  if (s.border > kMaxBorder || s.tile + 2 * s.border > kMaxStoredSide)
+    throw InputError("--border", u(s.border) + " is out of range (border <= " + u(kMaxBorder) + ", tile + 2*border <= " +
+                                     u(kMaxStoredSide) + ")");
+  const std::uint64_t max_extent = static_cast<std::uint64_t>(TileKey::kMaxCoord + 1) * s.tile;
+  if (s.width < 1 || s.height < 1 || s.width > max_extent || s.height > max_extent)
+    throw InputError("--size", u(s.width) + "x" + u(s.height) + " is out of range (1.." + u(max_extent) + " a side at tile " +
+                                   u(s.tile) + ")");
+  const std::uint32_t full = full_level_count(s.width, s.height);
+  if (s.levels > full)
+    throw InputError("--levels", u(s.levels) + " is more than the " + u(full) + " levels down to 1x1 of " + u(s.width) + "x" + u(s.height));
+  if (s.layers.empty() || s.layers.size() > kMaxLayers)
+    throw InputError("--layers", u(s.layers.size()) + " layers; a store has 1.." + u(kMaxLayers));
+  for (std::size_t i = 0; i < s.layers.size(); ++i) {
+    const LayerSpec& L = s.layers[i];
+    const std::string where = "layer " + u(i) + " ('" + L.name + "')";
+    if (L.name.size() >= kLayerNameBytes || L.name.find('\0') != std::string::npos)
+      throw InputError("--layer-names", where + ": a name is at most " + u(kLayerNameBytes - 1) + " bytes without NUL");
+    if (L.channels < 1 || L.channels > kMaxChannels)
+      throw InputError(where, u(L.channels) + " channels; a layer has 1.." + u(kMaxChannels));
+    if (!decoder_for(L.codec.id).supports_channels(static_cast<int>(L.channels)))
+      throw InputError("--codec", where + ": " + std::string(codec_name(L.codec.id)) + " cannot store " + u(L.channels) + " channels");
+    for (std::size_t j = 0; j < i; ++j)
+      if (s.layers[j].name == L.name) throw InputError("--layer-names", "layer name '" + L.name + "' is used twice");
+  }
+}
+
+}  // namespace
+
+// ---- StoreWriter -------------------------------------------------------------------------------
+
+StoreWriter::StoreWriter(const std::string& out_path, const StoreSpec& spec) : out_path_(out_path) {
+  validate_spec(spec);
+  const std::uint32_t levels = spec.levels ? spec.levels : full_level_count(spec.width, spec.height);
+  header_.geom = Geometry::make(spec.width, spec.height, spec.tile, spec.border, levels,
+                                static_cast<std::uint32_t>(spec.layers.size()));
+  for (const LayerSpec& L : spec.layers) {
+    LayerInfo info;
+    info.name = L.name;
+    info.channels = L.channels;
+    info.codec = L.codec.id;
+    info.codec_param = L.codec.param;
+    info.transfer = L.transfer;
+    header_.layers.push_back(info);
+    codecs_.push_back(make_codec(L.codec.id, L.codec.param, "--codec"));
+  }
+  const std::uint64_t n = header_.geom.tile_count();
+  header_.index_offset = kHeaderBlockBytes;
+  header_.index_bytes = n * kIndexEntryBytes;
+  header_.data_offset = round_up(header_.index_offset + header_.index_bytes, kAlign);
+  index_.resize(static_cast<std::size_t>(n));
+  written_.assign(static_cast<std::size_t>(n), 0);
+  end_ = buf_start_ = header_.data_offset;
+
+  const fs::path out(out_path);
+  const fs::path dir = out.has_parent_path() ? out.parent_path() : fs::path(".");
+  std::string tmpl = dir.string();
+  tmpl.append("/.").append(out.filename().string()).append(".tmp-XXXXXX");
+  fd_ = ::mkstemp(tmpl.data());
+  if (fd_ < 0) throw InputError(out_path, "cannot create a temporary file in " + dir.string() + ": " + errno_text());
+  tmp_path_ = tmpl;
+  ::fchmod(fd_, 0644);
+}
+
+StoreWriter::~StoreWriter() {
+  if (fd_ >= 0) ::close(fd_);
+  if (!committed_ && !tmp_path_.empty()) ::unlink(tmp_path_.c_str());
+}
+
+EncodedTile StoreWriter::encode(TileKey k, const std::uint8_t* texels) const {
+  EncodedTile t;
+  t.key = k;
+  const int side = static_cast<int>(header_.geom.stored_side());
+  const std::uint32_t layer = k.layer();
+  const std::uint32_t want = tile_bytes(layer);
+  try {
+    t.payload = codecs_[layer]->encode(texels, side, side, static_cast<int>(header_.layers[layer].channels));
+  } catch (const CodecError& e) {
+    throw InputError(out_path_ + ": " + describe(k), std::string("encode failed: ") + e.what());
+  }
+  t.codec = header_.layers[layer].codec;
+  if (t.payload.size() >= want) {  // incompressible: raw is smaller or equal, and cheapest to decode
+    t.payload.assign(texels, texels + want);
+    t.codec = CodecId::raw;
+  }
+  return t;
+}
+
+void StoreWriter::append(const EncodedTile& t) {
+  const Geometry& g = header_.geom;
+  if (!g.contains(t.key)) throw InputError(out_path_ + ": " + describe(t.key), "is outside the store");
+  const std::uint64_t slot = g.slot(t.key);
+  if (written_[slot]) throw InputError(out_path_ + ": " + describe(t.key), "written twice");
+  const std::uint32_t want = tile_bytes(t.key.layer());
+  if (t.payload.empty() || t.payload.size() > want || (t.codec == CodecId::raw && t.payload.size() != want))
+    throw InputError(out_path_ + ": " + describe(t.key), "payload of " + u(t.payload.size()) + " bytes is out of range");
+  IndexEntry& e = index_[slot];
+  e.offset = end_;
+  e.stored_bytes = static_cast<std::uint32_t>(t.payload.size());
+  e.decoded_bytes = want;
+  e.checksum = checksum64(t.payload.data(), t.payload.size());
+  e.codec = t.codec;
+  buffer_.insert(buffer_.end(), t.payload.begin(), t.payload.end());
+  buffer_.resize(static_cast<std::size_t>(round_up(buffer_.size(), kAlign)), 0);  // zero padding
+  end_ = buf_start_ + buffer_.size();
+  written_[slot] = 1;
+  ++tiles_written_;
+  stored_bytes_ += e.stored_bytes;
+  decoded_bytes_ += e.decoded_bytes;
+  if (buffer_.size() >= (std::size_t{8} << 20)) flush_buffer();
+}
+
+void StoreWriter::flush_buffer() {
+  write_all(fd_, buffer_.data(), buffer_.size(), buf_start_, tmp_path_);
+  buf_start_ += buffer_.size();
+  buffer_.clear();
+}
+
+void StoreWriter::commit() {
+  if (committed_) return;
+  const std::uint64_t n = header_.geom.tile_count();
+  if (tiles_written_ != n) {
+    for (std::uint64_t s = 0; s < n; ++s)
+      if (!written_[s])
+        throw InputError(out_path_, u(n - tiles_written_) + " tiles were never written, first " + describe(header_.geom.key_of_slot(s)));
+  }
+  flush_buffer();
+  std::vector<std::uint8_t> idx(static_cast<std::size_t>(header_.index_bytes));
+  for (std::uint64_t s = 0; s < n; ++s) encode_index_entry(index_[s], idx.data() + s * kIndexEntryBytes);
+  header_.index_checksum = checksum64(idx.data(), idx.size());
+  header_.file_bytes = end_;
+  // Zero the gap between the index end and data_offset so the file has no unwritten holes.
+  idx.resize(static_cast<std::size_t>(header_.data_offset - header_.index_offset), 0);
+  write_all(fd_, idx.data(), idx.size(), header_.index_offset, tmp_path_);
+  const std::vector<std::uint8_t> head = encode_header(header_);
+  write_all(fd_, head.data(), head.size(), 0, tmp_path_);
+  if (::ftruncate(fd_, static_cast<off_t>(end_)) != 0) throw InputError(tmp_path_, "ftruncate failed: " + errno_text());
+  if (::fsync(fd_) != 0) throw InputError(tmp_path_, "fsync failed: " + errno_text());
+  ::close(fd_);
+  fd_ = -1;
+  if (::rename(tmp_path_.c_str(), out_path_.c_str()) != 0)
+    throw InputError(out_path_, "cannot rename " + tmp_path_ + " into place: " + errno_text());
+  committed_ = true;
+  const fs::path out(out_path_);
+  const std::string dir = out.has_parent_path() ? out.parent_path().string() : ".";
+  const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dfd >= 0) {  // make the rename itself durable
+    ::fsync(dfd);
+    ::close(dfd);
+  }
+}
+
+// ---- parallel, ordered encoding ----------------------------------------------------------------
+
+void encode_in_order(StoreWriter& writer, std::uint64_t count, unsigned threads,
+                     const std::function<void(std::uint64_t, std::vector<EncodedTile>&)>& produce,
+                     const ProgressFn& progress) {
+  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  // A window of items is produced in parallel, then appended in order: bounded memory (window
+  // tiles) and a file that does not depend on scheduling.
+  const std::uint64_t window = std::uint64_t{threads} * 16;
+  std::vector<std::vector<EncodedTile>> results;
+  for (std::uint64_t begin = 0; begin < count; begin += window) {
+    const std::uint64_t end = std::min(count, begin + window);
+    results.assign(static_cast<std::size_t>(end - begin), {});
+    std::atomic<std::uint64_t> next{begin};
+    std::exception_ptr failure;
+    std::atomic<bool> failed{false};
+    auto work = [&] {
+      for (std::uint64_t i; !failed.load(std::memory_order_relaxed) && (i = next.fetch_add(1)) < end;) {
+        try {
+          produce(i, results[static_cast<std::size_t>(i - begin)]);
+        } catch (...) {
+          if (!failed.exchange(true)) failure = std::current_exception();
+        }
+      }
+    };
+    if (threads == 1 || end - begin == 1) {
+      work();
+    } else {
+      std::vector<std::thread> pool;
+      const unsigned n = static_cast<unsigned>(std::min<std::uint64_t>(threads, end - begin));
+      for (unsigned t = 0; t < n; ++t) pool.emplace_back(work);
+      for (auto& t : pool) t.join();
+    }
+    if (failure) std::rethrow_exception(failure);
+    for (auto& r : results)
+      for (auto& t : r) writer.append(t);
+    if (progress) progress(static_cast<double>(end) / static_cast<double>(count));
+  }
+}
+
+// ---- images and mips ---------------------------------------------------------------------------
+
+namespace {
+
+// sRGB transfer (IEC 61966-2-1).
+float srgb_to_linear(float s) { return s <= 0.04045f ? s / 12.92f : std::pow((s + 0.055f) / 1.055f, 2.4f); }
+float linear_to_srgb(float l) { return l <= 0.0031308f ? l * 12.92f : 1.055f * std::pow(l, 1.0f / 2.4f) - 0.055f; }
+
+const float* srgb_lut() {
+  static const auto lut = [] {
+    std::vector<float> t(256);
+    for (int i = 0; i < 256; ++i) t[static_cast<std::size_t>(i)] = srgb_to_linear(static_cast<float>(i) / 255.0f);
+    return t;
+  }();
+  return lut.data();
+}
+
+// Colour channels carry the transfer curve; alpha (channel 1 of 2, channel 3 of 4) is linear.
+bool is_colour(std::uint32_t ch, std::uint32_t channels) { return channels <= 2 ? ch == 0 : ch < 3; }
+
+std::uint8_t quantise(float v) {
+  const float c = std::clamp(v, 0.0f, 1.0f) * 255.0f + 0.5f;
+  return static_cast<std::uint8_t>(c);
+}
+
+struct FloatImage {
+  std::uint64_t width = 0, height = 0;
+  std::uint32_t channels = 0;
+  std::vector<float> v;  // linear values in [0, 1]
+};
+
+// Level-0 texels covered by texel i of level l: [i*2^l, min((i+1)*2^l, extent0)).
+std::uint64_t footprint(std::uint64_t i, std::uint32_t l, std::uint64_t extent0) {
+  const std::uint64_t b = i << l, e = std::min((i + 1) << l, extent0);
+  return e - b;
+}
+
+// Level l+1 from level l (given by `get(x, y, ch)` in linear light), area-weighted (see header).
+template <class Get>
+FloatImage downsample(std::uint64_t w, std::uint64_t h, std::uint32_t c, std::uint32_t l, std::uint64_t w0,
+                      std::uint64_t h0, Get get) {
+  FloatImage out;
+  out.width = (w + 1) / 2;
+  out.height = (h + 1) / 2;
+  out.channels = c;
+  out.v.resize(static_cast<std::size_t>(out.width * out.height * c));
+  for (std::uint64_t y = 0; y < out.height; ++y) {
+    const std::uint64_t y0 = 2 * y, y1 = std::min(2 * y + 1, h - 1);
+    const double wy0 = static_cast<double>(footprint(y0, l, h0));
+    const double wy1 = y1 != y0 ? static_cast<double>(footprint(y1, l, h0)) : 0.0;
+    for (std::uint64_t x = 0; x < out.width; ++x) {
+      const std::uint64_t x0 = 2 * x, x1 = std::min(2 * x + 1, w - 1);
+      const double wx0 = static_cast<double>(footprint(x0, l, w0));
+      const double wx1 = x1 != x0 ? static_cast<double>(footprint(x1, l, w0)) : 0.0;
+      const double norm = 1.0 / ((wx0 + wx1) * (wy0 + wy1));
+      float* o = &out.v[static_cast<std::size_t>((y * out.width + x) * c)];
+      for (std::uint32_t ch = 0; ch < c; ++ch) {
+        double s = wx0 * wy0 * get(x0, y0, ch);
+        if (wx1 > 0) s += wx1 * wy0 * get(x1, y0, ch);
+        if (wy1 > 0) s += wx0 * wy1 * get(x0, y1, ch);
+        if (wx1 > 0 && wy1 > 0) s += wx1 * wy1 * get(x1, y1, ch);
+        o[ch] = static_cast<float>(s * norm);
+      }
+    }
+  }
+  return out;
+}
+
+Image8 quantise_image(const FloatImage& f, Transfer transfer) {
+  Image8 q;
+  q.width = f.width;
+  q.height = f.height;
+  q.channels = f.channels;
+  q.texels = std::vector<std::uint8_t>(f.v.size());
+  for (std::size_t i = 0; i < f.v.size(); ++i) {
+    const auto ch = static_cast<std::uint32_t>(i % f.channels);
+    const float v = f.v[i];
+    q.texels[i] = quantise(transfer == Transfer::srgb && is_colour(ch, f.channels) ? linear_to_srgb(v) : v);
+  }
+  return q;
+}
+
+// Walks the mip chain one level at a time, keeping only the current level (8-bit, what is
+// stored) and its float form (what the next level is filtered from).
+class MipWalker {
+ public:
+  MipWalker(Image8 level0, Transfer transfer)
+      : q_(std::move(level0)), transfer_(transfer), w0_(q_.width), h0_(q_.height) {}
+  const Image8& current() const { return q_; }
+  void advance() {
+    const std::uint32_t c = q_.channels;
+    FloatImage next;
+    if (level_ == 0) {
+      const float* lut = srgb_lut();
+      const bool srgb = transfer_ == Transfer::srgb;
+      next = downsample(q_.width, q_.height, c, 0, w0_, h0_, [&](std::uint64_t x, std::uint64_t y, std::uint32_t ch) {
+        const std::uint8_t v = q_.at(x, y)[ch];
+        return static_cast<double>(srgb && is_colour(ch, c) ? lut[v] : static_cast<float>(v) / 255.0f);
+      });
+    } else {
+      const FloatImage& f = f_;
+      next = downsample(f.width, f.height, c, level_, w0_, h0_, [&](std::uint64_t x, std::uint64_t y, std::uint32_t ch) {
+        return static_cast<double>(f.v[static_cast<std::size_t>((y * f.width + x) * c + ch)]);
+      });
+    }
+    f_ = std::move(next);
+    q_ = quantise_image(f_, transfer_);
+    ++level_;
+  }
+
+ private:
+  Image8 q_;
+  FloatImage f_;
+  Transfer transfer_;
+  std::uint64_t w0_, h0_;
+  std::uint32_t level_ = 0;
+};
+
+}  // namespace
+
+Image8 read_image8(const std::string& path, Transfer transfer) {
+  namespace OIIO = OIIO_NAMESPACE;
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);  // texels as stored, alpha not multiplied in
+  auto in = OIIO::ImageInput::open(path, &config);
+  if (!in) {
+    const std::string e = OIIO::geterror();
+    throw InputError(path, "cannot read the image" + (e.empty() ? "" : ": " + e));
+  }
+  const OIIO::ImageSpec& s = in->spec();
+  if (s.width < 1 || s.height < 1 || s.depth != 1 || s.nchannels < 1)
+    throw InputError(path, "is not a 2D image (" + std::to_string(s.width) + "x" + std::to_string(s.height) + "x" +
+                               std::to_string(s.depth) + ", " + std::to_string(s.nchannels) + " channels)");
+  Image8 img;
+  img.width = static_cast<std::uint64_t>(s.width);
+  img.height = static_cast<std::uint64_t>(s.height);
+  img.channels = static_cast<std::uint32_t>(std::min(s.nchannels, 4));
+  const int c = static_cast<int>(img.channels);
+  const std::size_t n = static_cast<std::size_t>(img.width * img.height * img.channels);
+  img.texels.resize(n);
+  if (s.format == OIIO::TypeDesc::UINT8) {
+    if (!in->read_image(0, 0, 0, c, OIIO::TypeDesc::UINT8, img.texels.data()))
+      throw InputError(path, "cannot read the image: " + in->geterror());
+    return img;
+  }
+  std::vector<float> f(n);
+  if (!in->read_image(0, 0, 0, c, OIIO::TypeDesc::FLOAT, f.data()))
+    throw InputError(path, "cannot read the image: " + in->geterror());
+  const bool linear_source = s.format.is_floating_point();
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto ch = static_cast<std::uint32_t>(i % img.channels);
+    float v = std::isfinite(f[i]) ? std::clamp(f[i], 0.0f, 1.0f) : 0.0f;
+    if (linear_source && transfer == Transfer::srgb && is_colour(ch, img.channels)) v = linear_to_srgb(v);
+    img.texels[i] = quantise(v);
+  }
+  return img;
+}
+
+void write_image8(const std::string& path, const Image8& image) {
+  namespace OIIO = OIIO_NAMESPACE;
+  auto out = OIIO::ImageOutput::create(path);
+  if (!out) throw InputError(path, "cannot write an image of this type: " + OIIO::geterror());
+  OIIO::ImageSpec spec(static_cast<int>(image.width), static_cast<int>(image.height), static_cast<int>(image.channels),
+                       OIIO::TypeDesc::UINT8);
+  spec.attribute("oiio:UnassociatedAlpha", 1);
+  if (!out->open(path, spec) || !out->write_image(OIIO::TypeDesc::UINT8, image.texels.data()) || !out->close())
+    throw InputError(path, "cannot write the image: " + out->geterror());
+}
+
+std::vector<Image8> build_mip_chain(const Image8& level0, Transfer transfer, std::uint32_t levels) {
+  std::vector<Image8> out;
+  MipWalker walk(level0, transfer);
+  for (std::uint32_t l = 0; l < levels; ++l) {
+    if (l > 0) walk.advance();
+    out.push_back(walk.current());
+  }
+  return out;
+}
+
+void extract_tile(const Image8& level, std::uint32_t tile, std::uint32_t border, std::uint64_t tx, std::uint64_t ty,
+                  std::uint8_t* out) {
+  const std::uint32_t side = tile + 2 * border, c = level.channels;
+  const auto x0 = static_cast<std::int64_t>(tx * tile) - border, y0 = static_cast<std::int64_t>(ty * tile) - border;
+  const auto wmax = static_cast<std::int64_t>(level.width) - 1, hmax = static_cast<std::int64_t>(level.height) - 1;
+  for (std::uint32_t j = 0; j < side; ++j) {
+    const auto y = static_cast<std::uint64_t>(std::clamp<std::int64_t>(y0 + j, 0, hmax));
+    std::uint8_t* row = out + static_cast<std::size_t>(j) * side * c;
+    for (std::uint32_t i = 0; i < side; ++i) {
+      const auto x = static_cast<std::uint64_t>(std::clamp<std::int64_t>(x0 + i, 0, wmax));
+      std::memcpy(row + static_cast<std::size_t>(i) * c, level.at(x, y), c);
+    }
+  }
+}
+
+BuildResult build_store(const std::vector<std::string>& images, const BuildOptions& o, const std::string& out_path,
+                        const ProgressFn& progress) {
+  if (images.empty()) throw InputError("IMAGE", "at least one image (one per layer) is needed");
+  if (images.size() > kMaxLayers) throw InputError("IMAGE", u(images.size()) + " images; a store has at most " + u(kMaxLayers) + " layers");
+  auto per_layer = [&](std::size_t given, const char* opt) {
+    if (given != 0 && given != 1 && given != images.size())
+      throw InputError(opt, u(given) + " values for " + u(images.size()) + " images (give one, or one per image)");
+  };
+  per_layer(o.codecs.size(), "--codec");
+  per_layer(o.transfers.size(), "--transfer");
+  if (!o.layer_names.empty() && o.layer_names.size() != images.size())
+    throw InputError("--layer-names", u(o.layer_names.size()) + " names for " + u(images.size()) + " images");
+
+  StoreSpec spec;
+  spec.tile = o.tile;
+  spec.border = o.border;
+  spec.levels = o.levels;
+  std::vector<Image8> level0;
+  for (std::size_t i = 0; i < images.size(); ++i) {
+    LayerSpec L;
+    L.name = o.layer_names.empty() ? fs::path(images[i]).stem().string().substr(0, kLayerNameBytes - 1) : o.layer_names[i];
+    L.codec = o.codecs.empty() ? CodecSpec{CodecId::zstd, default_codec_param(CodecId::zstd)}
+                               : o.codecs[o.codecs.size() == 1 ? 0 : i];
+    L.transfer = o.transfers.empty() ? Transfer::srgb : o.transfers[o.transfers.size() == 1 ? 0 : i];
+    level0.push_back(read_image8(images[i], L.transfer));
+    L.channels = level0.back().channels;
+    if (i > 0 && (level0[i].width != level0[0].width || level0[i].height != level0[0].height))
+      throw InputError(images[i], u(level0[i].width) + "x" + u(level0[i].height) + " differs from " + images[0] + " (" +
+                                      u(level0[0].width) + "x" + u(level0[0].height) + "): every layer has the same size");
+    spec.layers.push_back(L);
+  }
+  spec.width = level0[0].width;
+  spec.height = level0[0].height;
+
+  StoreWriter writer(out_path, spec);
+  const Geometry& g = writer.geometry();
+  std::vector<MipWalker> walkers;
+  for (std::size_t i = 0; i < level0.size(); ++i) walkers.emplace_back(std::move(level0[i]), spec.layers[i].transfer);
+  level0.clear();
+
+  const std::uint64_t total = g.tile_count();
+  std::uint64_t done = 0;
+  for (std::uint32_t l = 0; l < g.levels; ++l) {
+    if (l > 0)
+      for (auto& w : walkers) w.advance();
+    const std::uint64_t cols = g.cols[l], tiles = cols * g.rows[l];
+    // Records go in (level, y, x, layer) order: the layers of one tile sit side by side on disk.
+    encode_in_order(
+        writer, tiles, o.threads,
+        [&](std::uint64_t i, std::vector<EncodedTile>& out) {
+          const std::uint64_t x = i % cols, y = i / cols;
+          for (std::uint32_t layer = 0; layer < g.layers; ++layer) {
+            std::vector<std::uint8_t> texels(writer.tile_bytes(layer));
+            extract_tile(walkers[layer].current(), g.tile, g.border, x, y, texels.data());
+            out.push_back(writer.encode(TileKey(layer, l, static_cast<std::int64_t>(x), static_cast<std::int64_t>(y)), texels.data()));
+          }
+        },
+        [&](double f) {
+          if (progress) progress((static_cast<double>(done) + f * static_cast<double>(tiles * g.layers)) / static_cast<double>(total));
+        });
+    done += tiles * g.layers;
+  }
+  writer.commit();
+  BuildResult r;
+  r.tiles = total;
+  r.file_bytes = writer.header().file_bytes;
+  r.stored_bytes = writer.stored_bytes();
+  r.decoded_bytes = writer.decoded_bytes();
+  return r;
+}
+
+}  // namespace vtsim

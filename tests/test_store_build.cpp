@@ -1,0 +1,300 @@
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <sys/wait.h>
+#include <cstdio>
+
+#include "core/error.h"
+#include "store_test_util.h"
+#include "stream/store_builder.h"
+#include "stream/tile_store.h"
+
+using namespace vtsim;
+using store::CodecId;
+using store::Transfer;
+
+namespace {
+
+// Every stored texel of every tile of `layer`, at every level, equals the clamp-addressed texel
+// of the level image (true neighbours inside, clamp-to-edge outside). Returns tiles checked.
+std::uint64_t check_tiles_against_levels(const TileStore& s, std::uint32_t layer, const std::vector<Image8>& levels) {
+  const auto& g = s.geometry();
+  const std::int64_t T = g.tile, B = g.border, S = g.stored_side();
+  const std::uint32_t c = s.layer(layer).channels;
+  AlignedBuffer scratch;
+  std::vector<std::uint8_t> out(s.tile_bytes(layer));
+  std::uint64_t tiles = 0;
+  for (std::uint32_t l = 0; l < g.levels; ++l) {
+    REQUIRE(levels[l].width == g.level_width(l));
+    REQUIRE(levels[l].height == g.level_height(l));
+    for (std::uint64_t ty = 0; ty < g.rows[l]; ++ty)
+      for (std::uint64_t tx = 0; tx < g.cols[l]; ++tx) {
+        const TileKey k(layer, l, std::int64_t(tx), std::int64_t(ty));
+        s.read_tile(k, scratch, out.data(), out.size());
+        std::uint64_t bad = 0;
+        for (std::int64_t j = 0; j < S; ++j)
+          for (std::int64_t i = 0; i < S; ++i) {
+            const std::uint8_t* want = test::clamped(levels[l], std::int64_t(tx) * T - B + i, std::int64_t(ty) * T - B + j);
+            bad += std::memcmp(&out[std::size_t((j * S + i) * c)], want, c) != 0;
+          }
+        CAPTURE(store::describe(k));
+        CHECK(bad == 0);
+        ++tiles;
+      }
+  }
+  return tiles;
+}
+
+// Bilinear sample at continuous level coordinates (u, v) (texel k's centre at k + 0.5) from a
+// fetch(x, y, ch) function.
+template <class Fetch>
+double bilinear(double u, double v, std::uint32_t ch, Fetch fetch) {
+  const double x = u - 0.5, y = v - 0.5;
+  const auto x0 = std::int64_t(std::floor(x)), y0 = std::int64_t(std::floor(y));
+  const double fx = x - double(x0), fy = y - double(y0);
+  return (1 - fx) * (1 - fy) * fetch(x0, y0, ch) + fx * (1 - fy) * fetch(x0 + 1, y0, ch) +
+         (1 - fx) * fy * fetch(x0, y0 + 1, ch) + fx * fy * fetch(x0 + 1, y0 + 1, ch);
+}
+
+}  // namespace
+
+TEST_CASE("mip filtering is the exact mean of each texel's level-0 footprint under ceil halving") {
+  // 5 x 1, linear: level 1 texels cover [0,2) [2,4) [4,5); level 2 [0,4) [4,5); level 3 [0,5).
+  Image8 img;
+  img.width = 5;
+  img.height = 1;
+  img.channels = 1;
+  img.texels = {0, 10, 20, 30, 250};
+  const auto levels = build_mip_chain(img, Transfer::linear, 4);
+  REQUIRE(levels.size() == 4);
+  CHECK(levels[1].texels == std::vector<std::uint8_t>{5, 25, 250});
+  CHECK(levels[2].texels == std::vector<std::uint8_t>{15, 250});
+  CHECK(levels[3].texels == std::vector<std::uint8_t>{62});  // (0+10+20+30+250)/5, not (15+250)/2
+  // 3 x 3 in both axes: the corner texel of level 1 covers one texel, an edge texel two.
+  Image8 sq;
+  sq.width = sq.height = 3;
+  sq.channels = 1;
+  sq.texels = {0, 20, 100, 40, 60, 200, 90, 30, 255};
+  const auto l2 = build_mip_chain(sq, Transfer::linear, 3);
+  CHECK(l2[1].texels == std::vector<std::uint8_t>{30, 150, 60, 255});
+  CHECK(l2[2].texels == std::vector<std::uint8_t>{88});  // 795 / 9 = 88.3
+}
+
+TEST_CASE("sRGB layers are filtered in linear light, alpha and linear layers as stored") {
+  Image8 img;
+  img.width = 2;
+  img.height = 1;
+  img.channels = 4;
+  img.texels = {0, 0, 255, 0, 255, 255, 255, 200};
+  const auto s = build_mip_chain(img, Transfer::srgb, 2);
+  // mean of 0 and 1 in linear light is 0.5 -> sRGB 0.7354 -> 188; alpha 100 is linear.
+  CHECK(s[1].texels == std::vector<std::uint8_t>{188, 188, 255, 100});
+  const auto l = build_mip_chain(img, Transfer::linear, 2);
+  CHECK(l[1].texels == std::vector<std::uint8_t>{128, 128, 255, 100});
+}
+
+TEST_CASE("built tiles hold true neighbours in their borders at every level (1000 x 600, tile 128, border 4)") {
+  test::TempDir dir;
+  const Image8 rgb = test::make_image(1000, 600, 3, 1), grey = test::make_image(1000, 600, 1, 2);
+  write_image8(dir.file("albedo.png"), rgb);
+  write_image8(dir.file("mask.png"), grey);
+  BuildOptions o;
+  o.tile = 128;
+  o.border = 4;
+  o.codecs = {{CodecId::zstd, 3}, {CodecId::lz4, 0}};
+  o.transfers = {Transfer::srgb, Transfer::linear};
+  const std::string out = dir.file("t.vts");
+  const BuildResult r = build_store({dir.file("albedo.png"), dir.file("mask.png")}, o, out);
+  const TileStore s = TileStore::open(out);
+  CHECK(r.tiles == s.geometry().tile_count());
+  CHECK(s.level_count() == 11);  // 1000 -> 500 -> ... -> 1
+  CHECK(s.layer(0).name == "albedo");
+  CHECK(s.layer(1).name == "mask");
+  CHECK(s.layer(1).channels == 1);
+  const auto lv0 = build_mip_chain(rgb, Transfer::srgb, s.level_count());
+  const auto lv1 = build_mip_chain(grey, Transfer::linear, s.level_count());
+  CHECK(check_tiles_against_levels(s, 0, lv0) == s.geometry().tiles_per_layer);
+  CHECK(check_tiles_against_levels(s, 1, lv1) == s.geometry().tiles_per_layer);
+}
+
+TEST_CASE("odd sizes, border 0 and a coarsest level other than 1x1 build correctly") {
+  test::TempDir dir;
+  for (auto [w, h, t, b, levels] : {std::tuple{37u, 23u, 8u, 2u, 0u}, std::tuple{37u, 23u, 8u, 0u, 3u}, std::tuple{1u, 1u, 4u, 4u, 0u},
+                                    std::tuple{129u, 2u, 128u, 1u, 0u}}) {
+    CAPTURE(w);
+    CAPTURE(b);
+    const Image8 img = test::make_image(w, h, 4, w + b);
+    write_image8(dir.file("in.png"), img);
+    BuildOptions o;
+    o.tile = t;
+    o.border = b;
+    o.levels = levels;
+    o.codecs = {{CodecId::png, 6}};
+    o.threads = 2;
+    build_store({dir.file("in.png")}, o, dir.file("o.vts"));
+    const TileStore s = TileStore::open(dir.file("o.vts"));
+    CHECK(s.level_count() == (levels ? levels : store::full_level_count(w, h)));
+    check_tiles_against_levels(s, 0, build_mip_chain(img, Transfer::srgb, s.level_count()));
+  }
+}
+
+TEST_CASE("bilinear sampling inside one tile, border included, matches the full level image: no bleeding (seed 004)") {
+  test::TempDir dir;
+  const Image8 img = test::make_image(300, 200, 3, 9);
+  write_image8(dir.file("in.png"), img);
+  BuildOptions o;
+  o.tile = 32;
+  o.border = 4;
+  build_store({dir.file("in.png")}, o, dir.file("o.vts"));
+  const TileStore s = TileStore::open(dir.file("o.vts"));
+  const auto levels = build_mip_chain(img, Transfer::srgb, s.level_count());
+  const auto& g = s.geometry();
+  AlignedBuffer scratch;
+  std::vector<std::uint8_t> tile(s.tile_bytes(0));
+  std::uint64_t samples = 0;
+  for (std::uint32_t l = 0; l < 3; ++l) {
+    const Image8& lv = levels[l];
+    // Sample points straddling every vertical and horizontal tile edge, up to half a texel past it.
+    for (std::uint64_t e = 1; e < g.cols[l]; ++e)
+      for (double d : {-0.5, -0.25, 0.0, 0.3, 0.5})
+        for (double v : {0.5, 17.25, double(lv.height) - 0.7}) {
+          const double u = double(e * g.tile) + d;
+          // The tile that owns the sample point, sampled with its own stored texels only.
+          const auto tx = std::uint64_t(std::floor(u)) / g.tile, ty = std::uint64_t(std::floor(v)) / g.tile;
+          s.read_tile(TileKey(0, l, std::int64_t(tx), std::int64_t(ty)), scratch, tile.data(), tile.size());
+          const std::int64_t ox = std::int64_t(tx * g.tile) - g.border, oy = std::int64_t(ty * g.tile) - g.border;
+          const std::int64_t S = g.stored_side();
+          for (std::uint32_t ch = 0; ch < 3; ++ch) {
+            const double from_tile = bilinear(u, v, ch, [&](std::int64_t x, std::int64_t y, std::uint32_t c) {
+              const std::int64_t i = x - ox, j = y - oy;
+              REQUIRE(i >= 0);
+              REQUIRE(j >= 0);
+              REQUIRE(i < S);
+              REQUIRE(j < S);
+              return double(tile[std::size_t((j * S + i) * 3 + c)]);
+            });
+            const double from_level = bilinear(u, v, ch, [&](std::int64_t x, std::int64_t y, std::uint32_t c) {
+              return double(test::clamped(lv, x, y)[c]);
+            });
+            CHECK(from_tile == from_level);
+            ++samples;
+          }
+        }
+  }
+  CHECK(samples > 100);
+}
+
+TEST_CASE("an interrupted build leaves no output and no temporary file; an existing store survives") {
+  test::TempDir dir;
+  write_image8(dir.file("in.png"), test::make_image(300, 300, 3));
+  BuildOptions o;
+  o.tile = 32;
+  const std::string out = dir.file("out.vts");
+  struct Abort {};
+  auto fail_halfway = [](double f) {
+    if (f >= 0.5) throw Abort{};
+  };
+  CHECK_THROWS_AS(build_store({dir.file("in.png")}, o, out, fail_halfway), Abort);
+  CHECK_FALSE(std::filesystem::exists(out));
+  // Only the input is left in the directory.
+  CHECK(std::distance(std::filesystem::directory_iterator(dir.path), std::filesystem::directory_iterator()) == 1);
+
+  build_store({dir.file("in.png")}, o, out);
+  const auto before = test::read_bytes(out);
+  o.tile = 64;
+  CHECK_THROWS_AS(build_store({dir.file("in.png")}, o, out, fail_halfway), Abort);
+  CHECK(test::read_bytes(out) == before);
+  CHECK(std::distance(std::filesystem::directory_iterator(dir.path), std::filesystem::directory_iterator()) == 2);
+}
+
+TEST_CASE("bad builder inputs are errors naming the file or option") {
+  test::TempDir dir;
+  write_image8(dir.file("a.png"), test::make_image(64, 64, 4));
+  write_image8(dir.file("b.png"), test::make_image(64, 32, 3));
+  const std::string out = dir.file("o.vts");
+  auto where = [&](const std::vector<std::string>& imgs, const BuildOptions& o) {
+    try {
+      build_store(imgs, o, out);
+    } catch (const InputError& e) {
+      return e.where();
+    }
+    return std::string("no error");
+  };
+  BuildOptions o;
+  CHECK(where({dir.file("a.png"), dir.file("b.png")}, o) == dir.file("b.png"));  // sizes differ
+  CHECK(where({dir.file("missing.png")}, o) == dir.file("missing.png"));
+  o.codecs = {{CodecId::jpeg, 90}};
+  CHECK(where({dir.file("a.png")}, o) == "--codec");  // jpeg has no alpha
+  o.codecs = {};
+  o.tile = 0;
+  CHECK(where({dir.file("a.png")}, o) == "--tile");
+  o.tile = 64;
+  o.levels = 8;  // 64 x 64 has 7 levels
+  CHECK(where({dir.file("a.png")}, o) == "--levels");
+  o.levels = 0;
+  o.layer_names = {"x", "y"};
+  CHECK(where({dir.file("a.png")}, o) == "--layer-names");
+  CHECK_FALSE(std::filesystem::exists(out));
+}
+
+TEST_CASE("the builder's output does not depend on the thread count") {
+  test::TempDir dir;
+  write_image8(dir.file("in.png"), test::make_image(200, 120, 3));
+  BuildOptions o;
+  o.tile = 16;
+  o.threads = 1;
+  build_store({dir.file("in.png")}, o, dir.file("a.vts"));
+  o.threads = 3;
+  build_store({dir.file("in.png")}, o, dir.file("b.vts"));
+  CHECK(test::read_bytes(dir.file("a.vts")) == test::read_bytes(dir.file("b.vts")));
+}
+
+namespace {
+// Runs the CLI; returns {exit code, stdout}.
+std::pair<int, std::string> cli(const std::string& args) {
+  std::string text;
+  FILE* p = ::popen((std::string(VTSIM_CLI) + " " + args + " 2>/dev/null").c_str(), "r");
+  if (!p) return {-1, ""};
+  char buf[4096];
+  while (std::fgets(buf, sizeof buf, p)) text += buf;
+  const int r = ::pclose(p);
+  return {WIFEXITED(r) ? WEXITSTATUS(r) : -1, text};
+}
+}  // namespace
+
+TEST_CASE("vtsim store build / info --json / verify work end to end, bad options exit 2") {
+  test::TempDir dir;
+  write_image8(dir.file("a.png"), test::make_image(250, 130, 3));
+  write_image8(dir.file("b.png"), test::make_image(250, 130, 2));
+  const std::string out = dir.file("c.vts");
+  auto [rc, text] = cli("store build " + dir.file("a.png") + " " + dir.file("b.png") + " -o " + out +
+                        " --tile 64 --border 2 --codec zstd:5,png --layer-names col,ga --transfer srgb,linear");
+  CHECK(rc == 0);
+  CHECK(text.find("wrote " + out) != std::string::npos);
+  auto [rc2, json] = cli("store info --json " + out);
+  REQUIRE(rc2 == 0);
+  const auto j = nlohmann::json::parse(json);
+  CHECK(j["width"] == 250);
+  CHECK(j["tile"] == 64);
+  CHECK(j["border"] == 2);
+  CHECK(j["levels"].size() == 9);
+  CHECK(j["layers"][0]["name"] == "col");
+  CHECK(j["layers"][0]["codec"] == "zstd");
+  CHECK(j["layers"][0]["codec_param"] == 5);
+  CHECK(j["layers"][1]["codec"] == "png");
+  CHECK(j["layers"][1]["channels"] == 2);
+  CHECK(j["layers"][1]["transfer"] == "linear");
+  CHECK(j["compression_ratio"].get<double>() > 1.0);
+  CHECK(cli("store verify " + out).first == 0);
+  CHECK(cli("store extract " + out + " --layer 0 --level 1 -o " + dir.file("l1.png")).first == 0);
+  const Image8 l1 = read_image8(dir.file("l1.png"), Transfer::linear);
+  CHECK(l1.texels == build_mip_chain(test::make_image(250, 130, 3), Transfer::srgb, 2)[1].texels);
+  CHECK(cli("store extract " + out + " --level 99 -o " + dir.file("x.png")).first == 2);
+  CHECK(cli("store build " + dir.file("a.png") + " -o " + dir.file("x.vts") + " --codec webp").first == 2);
+  CHECK(cli("store gen -o " + dir.file("x.vts") + " --size 12xq").first == 2);
+  CHECK(cli("store gen -o " + dir.file("x.vts") + " --size 64x64 --layers rough:zstd").first == 2);
+  CHECK(cli("store info " + dir.file("a.png")).first == 2);  // not a store: bad magic
+  CHECK_FALSE(std::filesystem::exists(dir.file("x.vts")));
+}
