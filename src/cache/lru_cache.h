@@ -109,7 +109,7 @@ class LruCache {
 
   // Promoting lookup: the entry becomes most-recent. Counts a hit or a miss.
   Value* get(TileKey key) {
-    const std::uint32_t n = slots_[find_slot(key)].node;
+    const std::uint32_t n = slots_[find_slot(key, tag_of(key))].node;
     if (n == kNil) {
       ++stats_.misses;
       return nullptr;
@@ -121,17 +121,17 @@ class LruCache {
 
   // Non-promoting lookups: order and counters unchanged.
   const Value* peek(TileKey key) const {
-    const std::uint32_t n = slots_[find_slot(key)].node;
+    const std::uint32_t n = slots_[find_slot(key, tag_of(key))].node;
     return n == kNil ? nullptr : &nodes_[n].value;
   }
   Value* peek(TileKey key) {
-    const std::uint32_t n = slots_[find_slot(key)].node;
+    const std::uint32_t n = slots_[find_slot(key, tag_of(key))].node;
     return n == kNil ? nullptr : &nodes_[n].value;
   }
-  bool contains(TileKey key) const { return slots_[find_slot(key)].node != kNil; }
+  bool contains(TileKey key) const { return slots_[find_slot(key, tag_of(key))].node != kNil; }
   // Bytes charged for key, or 0 when absent (an entry may also weigh 0 bytes: use contains()).
   std::uint64_t bytes_of(TileKey key) const {
-    const std::uint32_t n = slots_[find_slot(key)].node;
+    const std::uint32_t n = slots_[find_slot(key, tag_of(key))].node;
     return n == kNil ? 0 : nodes_[n].bytes;
   }
 
@@ -139,22 +139,31 @@ class LruCache {
   // entries (reason kEvicted) until it fits; a present key's old value leaves first (kReplaced).
   // Rejects, changing nothing, an entry larger than the capacity. bytes() never exceeds
   // capacity(), at any point of the call. If allocating room for a new high of entries throws
-  // (std::bad_alloc, std::length_error past 2^32-2 entries) nothing has changed.
+  // (std::bad_alloc, std::length_error past 2^31-1 entries) nothing has changed.
   LruInsert insert(TileKey key, Value value, std::uint64_t bytes) {
     check_not_in_hook("insert");
     if (bytes > capacity_) {
       ++stats_.rejected;
       return LruInsert::kRejected;
     }
+    const std::uint32_t tag = tag_of(key);
+    std::size_t slot = find_slot(key, tag);
     bool replaced = false;
-    if (const std::uint32_t old = slots_[find_slot(key)].node; old != kNil) {
+    if (const std::uint32_t old = slots_[slot].node; old != kNil) {
       remove_node(old, LruRemoval::kReplaced);
       replaced = true;
     }
     // Allocate before evicting, so a failed allocation leaves the cache as it was.
-    if ((size_ + 1) * kMaxLoadDen > slots_.size() * kMaxLoadNum) rehash(slots_.size() * 2);
+    bool moved = replaced;
+    if ((size_ + 1) * kMaxLoadDen > slots_.size() * kMaxLoadNum) {
+      rehash(slots_.size() * 2);
+      moved = true;
+    }
     if (free_ == kNil) grow_slab();
-    while (bytes > capacity_ - bytes_) remove_node(nodes_[0].prev, LruRemoval::kEvicted);
+    while (bytes > capacity_ - bytes_) {
+      remove_node(nodes_[0].prev, LruRemoval::kEvicted);
+      moved = true;
+    }
 
     const std::uint32_t n = free_;
     Node& node = nodes_[n];
@@ -163,10 +172,9 @@ class LruCache {
     node.bytes = bytes;
     node.value = std::move(value);
     link_front(n);
-    // The slot may have moved since the probe above (a removal's backward shift, a rehash).
-    Slot& s = slots_[find_slot(key)];
-    s.key = key.bits;
-    s.node = n;
+    // A removal's backward shift or a rehash may have shortened the probe sequence: probe again.
+    if (moved) slot = find_slot(key, tag);
+    slots_[slot] = Slot{tag, n};
     ++size_;
     bytes_ += bytes;
     ++stats_.inserts;
@@ -177,7 +185,7 @@ class LruCache {
   // Removes key through the hook (reason kErased). Returns whether it was present.
   bool erase(TileKey key) {
     check_not_in_hook("erase");
-    const std::uint32_t n = slots_[find_slot(key)].node;
+    const std::uint32_t n = slots_[find_slot(key, tag_of(key))].node;
     if (n == kNil) return false;
     remove_node(n, LruRemoval::kErased);
     return true;
@@ -203,7 +211,7 @@ class LruCache {
   // the entry count exceeds it.
   void reserve(std::size_t entries) {
     check_not_in_hook("reserve");
-    if (entries >= kMaxEntries) throw std::length_error("LruCache::reserve: more than 2^32-2 entries");
+    if (entries > kMaxEntries) throw std::length_error("LruCache::reserve: more than 2^31-1 entries");
     std::size_t want = slots_.size();
     while (entries * kMaxLoadDen > want * kMaxLoadNum) want *= 2;
     if (want != slots_.size()) rehash(want);
@@ -235,8 +243,8 @@ class LruCache {
 
  private:
   static constexpr std::uint32_t kNil = std::numeric_limits<std::uint32_t>::max();
-  // Node indices are 32-bit, node 0 is the sentinel and kNil marks empty slots.
-  static constexpr std::size_t kMaxEntries = std::size_t{kNil} - 1;
+  // Homes are taken from a 32-bit tag, so the table stays within 2^32 slots, half full at most.
+  static constexpr std::size_t kMaxEntries = (std::size_t{1} << 31) - 1;
   static constexpr std::size_t kMinSlots = 16;
   // Linear probing stays short up to half full: expected probes 1.5 (hit) and 2.5 (miss) at load
   // 1/2 (Knuth, TAOCP vol. 3 §6.4), against 2.5 and 8.5 at 3/4.
@@ -249,8 +257,10 @@ class LruCache {
     std::uint32_t next = 0;  // towards the least-recent end; in the free list, the next free node
     Value value{};
   };
+  // 8 bytes: 8 slots a cache line. The tag (low 32 bits of mix64 of the key) gives the home slot
+  // and filters probes without touching nodes; only a tag match reads the node's key.
   struct Slot {
-    std::uint64_t key = 0;
+    std::uint32_t tag = 0;
     std::uint32_t node = kNil;  // kNil: empty
   };
 
@@ -270,12 +280,19 @@ class LruCache {
       throw std::logic_error(std::string("LruCache::") + what + " called from the removal hook");
   }
 
-  std::size_t home(std::uint64_t key_bits) const { return static_cast<std::size_t>(mix64(key_bits)) & mask_; }
+  static std::uint32_t tag_of(TileKey key) { return static_cast<std::uint32_t>(mix64(key.bits)); }
 
   // The slot holding key, or the empty slot that ends its probe sequence.
-  std::size_t find_slot(TileKey key) const {
-    std::size_t i = home(key.bits);
-    while (slots_[i].node != kNil && slots_[i].key != key.bits) i = (i + 1) & mask_;
+  std::size_t find_slot(TileKey key, std::uint32_t tag) const {
+    for (std::size_t i = tag & mask_;; i = (i + 1) & mask_) {
+      const Slot s = slots_[i];
+      if (s.node == kNil || (s.tag == tag && nodes_[s.node].key == key)) return i;
+    }
+  }
+  // The slot pointing at node n (which is in the table): compares node indices, not keys.
+  std::size_t slot_of_node(std::uint32_t n) const {
+    std::size_t i = tag_of(nodes_[n].key) & mask_;
+    while (slots_[i].node != n) i = (i + 1) & mask_;
     return i;
   }
 
@@ -285,10 +302,10 @@ class LruCache {
     std::size_t j = hole;
     for (;;) {
       j = (j + 1) & mask_;
-      if (slots_[j].node == kNil) break;
-      const std::size_t h = home(slots_[j].key);
-      if (((j - h) & mask_) >= ((j - hole) & mask_)) {
-        slots_[hole] = slots_[j];
+      const Slot s = slots_[j];
+      if (s.node == kNil) break;
+      if (((j - s.tag) & mask_) >= ((j - hole) & mask_)) {
+        slots_[hole] = s;
         hole = j;
       }
     }
@@ -300,7 +317,7 @@ class LruCache {
     const std::size_t m = new_slots - 1;
     for (const Slot& s : slots_) {
       if (s.node == kNil) continue;
-      std::size_t i = static_cast<std::size_t>(mix64(s.key)) & m;
+      std::size_t i = s.tag & m;
       while (fresh[i].node != kNil) i = (i + 1) & m;
       fresh[i] = s;
     }
@@ -309,7 +326,7 @@ class LruCache {
   }
 
   void grow_slab() {
-    if (nodes_.size() > kMaxEntries) throw std::length_error("LruCache: more than 2^32-2 entries");
+    if (nodes_.size() > kMaxEntries) throw std::length_error("LruCache: more than 2^31-1 entries");
     nodes_.emplace_back();
     const auto n = static_cast<std::uint32_t>(nodes_.size() - 1);
     nodes_[n].next = free_;
@@ -338,7 +355,7 @@ class LruCache {
   // it (also when the hook throws).
   void remove_node(std::uint32_t n, LruRemoval reason) {
     Node& node = nodes_[n];
-    erase_slot(find_slot(node.key));
+    erase_slot(slot_of_node(n));
     unlink(n);
     --size_;
     bytes_ -= node.bytes;
