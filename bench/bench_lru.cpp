@@ -186,7 +186,7 @@ std::uint64_t replay(C& c, const std::vector<TileKey>& keys, std::size_t from, s
 int main(int argc, char** argv) {
   vb::Harness h("lru", argc, argv);
   const std::uint64_t capacity = h.pick<std::uint64_t>(1ull << 30, 128ull << 20);  // 1 GiB / 128 MiB
-  const std::size_t n_ops = h.pick<std::size_t>(2'000'000, 200'000);
+  const std::size_t n_ops = h.pick<std::size_t>(2'000'000, 500'000);
   const std::size_t n_warm = n_ops / 4;
   const std::size_t zipf_universe = h.pick<std::size_t>(1u << 20, 1u << 17);
   const double target = 3.0;

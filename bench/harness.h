@@ -102,8 +102,13 @@ struct Result {
   Summary ours;
   std::optional<std::string> reference;  // reference side's name, when compared
   Summary ref;
-  double ratio = 0;  // how many times better than the reference: ref/ours for lower-is-better
-                     // metrics, ours/ref for higher-is-better (> 1: ours wins); 0 without reference
+  // How many times better than the reference (> 1: ours wins): per repetition pair (the two
+  // sides' i-th repetitions, measured back to back) ref/ours for lower-is-better metrics, ours/ref
+  // for higher-is-better ones; `ratio` is the median of those pair ratios, which cancels load
+  // that drifts between pairs on a shared machine. 0 without a reference.
+  double ratio = 0;
+  double ratio_of_medians = 0;  // the same from the two medians, for comparison
+  std::vector<double> pair_ratios;
   bool meets_target = true;
 };
 
@@ -136,7 +141,7 @@ inline Summary summarize(std::vector<double> samples) {
 struct Options {
   bool quick = false;      // --quick or VTSIM_BENCH_QUICK=1: fewer repetitions, smaller inputs
   std::string json_path;   // --json PATH: write the results there
-  int reps = 0;            // --reps N (0: 15, or 5 in quick mode)
+  int reps = 0;            // --reps N (0: 15, or 7 in quick mode)
   int warmup = 1;          // --warmup N untimed repetitions per side before the timed ones
   std::string filter;      // --filter S: run only cases whose name contains S
   bool strict = false;     // --strict: exit 1 when a case misses its target ratio
@@ -146,7 +151,7 @@ inline const char* usage_text() {
   return "options:\n"
          "  --quick         fewer repetitions and smaller inputs (also VTSIM_BENCH_QUICK=1)\n"
          "  --json PATH     write results as JSON (schema vtsim-bench/1, docs/bench.md)\n"
-         "  --reps N        timed repetitions per side (default 15; quick 5)\n"
+         "  --reps N        timed repetitions per side (default 15; quick 7)\n"
          "  --warmup N      untimed repetitions per side first (default 1)\n"
          "  --filter S      only cases whose name contains S\n"
          "  --strict        exit 1 if a case misses its target ratio\n"
@@ -192,7 +197,7 @@ inline Options parse_options(const std::string& benchmark, int argc, char** argv
       fail("unknown option '" + a + "'");
     }
   }
-  if (o.reps == 0) o.reps = o.quick ? 5 : 15;
+  if (o.reps == 0) o.reps = o.quick ? 7 : 15;
   return o;
 }
 
@@ -344,9 +349,13 @@ class Harness {
         ref["name"] = *r.reference;
         e["reference"] = ref;
         e["ratio"] = r.ratio;
+        e["ratio_of_medians"] = r.ratio_of_medians;
+        e["pair_ratios"] = r.pair_ratios;
       } else {
         e["reference"] = nullptr;
         e["ratio"] = nullptr;
+        e["ratio_of_medians"] = nullptr;
+        e["pair_ratios"] = nullptr;
       }
       e["target_ratio"] = r.spec.target_ratio > 0 ? nlohmann::json(r.spec.target_ratio) : nlohmann::json(nullptr);
       e["meets_target"] = r.meets_target;
@@ -414,7 +423,11 @@ class Harness {
       r.reference = ref->name;
       r.ref = summarize(b);
       const bool hib = higher_is_better(c.metric);
-      r.ratio = hib ? r.ours.median / r.ref.median : r.ref.median / r.ours.median;
+      for (std::size_t i = 0; i < a.size(); ++i) r.pair_ratios.push_back(hib ? a[i] / b[i] : b[i] / a[i]);
+      std::vector<double> sorted = r.pair_ratios;
+      std::sort(sorted.begin(), sorted.end());
+      r.ratio = percentile_sorted(sorted, 0.5);
+      r.ratio_of_medians = hib ? r.ours.median / r.ref.median : r.ref.median / r.ours.median;
     }
     r.meets_target = c.target_ratio <= 0 || (ref && r.ratio >= c.target_ratio);
     if (shortest_ns < 1e6)
