@@ -60,18 +60,19 @@ enum class LruInsert : std::uint8_t {
 // Complexity: get, peek, contains, erase: expected O(1). insert: expected O(1) plus O(1) per entry
 // it evicts, amortised over table growth, which happens only while the entry count reaches a new
 // high: no allocation in steady state. clear: O(size). set_capacity: O(evicted). Iteration:
-// O(size). Memory: (4 + sizeof(Node)) bytes per table slot (Node = key, bytes, two 32-bit links,
-// Value: 32 bytes for an 8-byte Value); the table is a power of two kept between 1/8 and 1/4 full,
-// so 4-8 slots (150-290 bytes with an 8-byte Value) per entry: 0.4-0.8% of 38 KB decoded tiles.
+// O(size). Memory: sizeof(Node) bytes per table slot (Node = key, bytes, two 32-bit links, Value:
+// 32 bytes for an 8-byte Value); the table is a power of two kept between 1/8 and 1/4 full, so
+// 4-8 slots (128-256 bytes with an 8-byte Value) per entry: 0.3-0.7% of a 38 KB decoded tile.
 // Keep Value small (a handle).
 //
 // Layout: open addressing with linear probing over a power-of-two table (deletion by backward
-// shift, so there are no tombstones and probe lengths never degrade). The slab of nodes is
-// indexed like the table (slot i holds node i + 1; node 0 is the sentinel of the intrusive doubly
-// linked recency list, linked by 32-bit node indices): a lookup computes the addresses of a
-// slot's 4-byte tag and of its node from the hash alone, so both loads issue at once, against
-// four dependent loads in a std::unordered_map + std::list LRU. A backward shift moves a node and
-// repoints its two list neighbours. docs/cache.md gives the measurements behind each choice.
+// shift, so there are no tombstones and probe lengths never degrade) whose slots are the nodes
+// themselves: the slab of nodes is indexed like the table (slot i holds node i + 1; node 0 is the
+// sentinel of the intrusive doubly linked recency list, linked by 32-bit node indices). A lookup
+// computes its node's address from the hash alone and finds key, links and value in one cache
+// line, where a std::unordered_map + std::list LRU makes four dependent loads (bucket, node
+// before, node, list node) before it can relink. A backward shift moves a node and repoints its
+// two list neighbours. docs/cache.md gives the measurements behind each choice.
 //
 // Thread-safety: none. One owner (the frame loop) calls it; const members are safe to call
 // concurrently only while nobody mutates.
@@ -103,9 +104,10 @@ class LruCache {
   using Hook = std::function<void(TileKey key, Value& value, std::uint64_t bytes, LruRemoval reason)>;
 
   explicit LruCache(std::uint64_t capacity_bytes, Hook hook = {})
-      : capacity_(capacity_bytes), hook_(std::move(hook)), tags_(kMinSlots, kEmpty), nodes_(kMinSlots + 1) {
+      : capacity_(capacity_bytes), hook_(std::move(hook)), nodes_(kMinSlots + 1) {
+    nodes_[0].prev = 0;  // the sentinel: an empty list
     mask_ = kMinSlots - 1;
-    shift_ = 32 - 4;  // log2(kMinSlots) = 4
+    shift_ = 64 - 4;  // log2(kMinSlots) = 4
   }
   LruCache(const LruCache&) = delete;
   LruCache& operator=(const LruCache&) = delete;
@@ -158,25 +160,23 @@ class LruCache {
       ++stats_.rejected;
       return LruInsert::kRejected;
     }
-    const std::uint32_t tag = tag_of(key);
-    Probe p = probe(key, tag);
+    Probe p = probe(key);
     const bool replaced = p.found;
     if (replaced) remove_slot(p.slot, LruRemoval::kReplaced);
     bool moved = replaced;
     // Grow before evicting, so a failed allocation leaves the cache as it was (a replacement
     // freed a slot, so it never grows).
-    if ((size_ + 1) * kMaxLoadDen > tags_.size() * kMaxLoadNum) {
-      if (tags_.size() > kMaxSlots / 2) throw std::length_error("LruCache: more than 2^29 entries");
-      rehash(tags_.size() * 2);
+    if ((size_ + 1) * kMaxLoadDen > slots() * kMaxLoadNum) {
+      if (slots() > kMaxSlots / 2) throw std::length_error("LruCache: more than 2^29 entries");
+      rehash(slots() * 2);
       moved = true;
     }
     // A removal's backward shift or a rehash may have shortened the probe sequence: probe again.
-    if (moved) p = probe(key, tag);
+    if (moved) p = probe(key);
     // Place the entry at the front first: the evictions' backward shifts then keep it reachable
     // (moving it if need be, links and all) and no second probe is needed. Its bytes are charged
     // after the evictions, so they never pick it: it is the tail only when it is alone, and then
     // bytes() is 0 and the loop has stopped (hooks cannot reorder the list: get() is refused).
-    tags_[p.slot] = tag;
     const std::uint32_t n = static_cast<std::uint32_t>(p.slot) + 1;
     Node& node = nodes_[n];
     node.key = key;
@@ -189,7 +189,7 @@ class LruCache {
     } catch (...) {
       // A hook threw: the entry is not inserted after all. It leaves without a hook call, as it
       // was never charged; the value passed in is destroyed.
-      const Probe q = probe(key, tag);
+      const Probe q = probe(key);
       unlink(static_cast<std::uint32_t>(q.slot) + 1);
       erase_slot(q.slot);
       --size_;
@@ -204,7 +204,7 @@ class LruCache {
   // Removes key through the hook (reason kErased). Returns whether it was present.
   bool erase(TileKey key) {
     check_not_in_hook("erase");
-    const Probe p = probe(key, tag_of(key));
+    const Probe p = probe(key);
     if (!p.found) return false;
     remove_slot(p.slot, LruRemoval::kErased);
     return true;
@@ -231,9 +231,9 @@ class LruCache {
   void reserve(std::size_t entries) {
     check_not_in_hook("reserve");
     if (entries > kMaxSlots / 4) throw std::length_error("LruCache::reserve: more than 2^29 entries");
-    std::size_t want = tags_.size();
+    std::size_t want = slots();
     while (entries * kMaxLoadDen > want * kMaxLoadNum) want *= 2;
-    if (want != tags_.size()) rehash(want);
+    if (want != slots()) rehash(want);
   }
 
   std::size_t size() const { return size_; }
@@ -244,7 +244,7 @@ class LruCache {
   void reset_stats() { stats_ = {}; }
 
   // Diagnostics (O(table)): how far entries sit from their home slot; a lookup reads
-  // displacement + 1 tags.
+  // displacement + 1 nodes.
   struct ProbeStats {
     double mean_displacement = 0;  // slots, over entries
     std::size_t max_displacement = 0;
@@ -252,11 +252,11 @@ class LruCache {
   };
   ProbeStats probe_stats() const {
     ProbeStats ps;
-    ps.slots = tags_.size();
+    ps.slots = slots();
     std::uint64_t sum = 0;
-    for (std::size_t i = 0; i < tags_.size(); ++i) {
-      if (tags_[i] == kEmpty) continue;
-      const std::size_t d = (i - (tags_[i] >> shift_)) & mask_;
+    for (std::size_t i = 0; i < slots(); ++i) {
+      if (nodes_[i + 1].prev == kVacant) continue;
+      const std::size_t d = (i - home(nodes_[i + 1].key)) & mask_;
       sum += d;
       ps.max_displacement = std::max(ps.max_displacement, d);
     }
@@ -281,11 +281,11 @@ class LruCache {
   }
 
  private:
-  static constexpr std::uint32_t kEmpty = 0;  // tag of an empty slot (real tags are never 0)
-  static constexpr std::uint32_t kNone = 0;   // find(): absent (node 0 is the sentinel)
+  static constexpr std::uint32_t kVacant = 0xFFFFFFFFu;  // Node::prev of an empty slot
+  static constexpr std::uint32_t kNone = 0;               // find(): absent (node 0 is the sentinel)
   static constexpr std::size_t kMinSlots = 16;
-  // Node indices (slot + 1) are 32-bit and homes come from 32-bit tags: at most 2^31 slots
-  // (2^29 entries at the maximum load).
+  // Node indices (slot + 1) are 32-bit and kVacant is reserved: at most 2^31 slots (2^29
+  // entries at the maximum load).
   static constexpr std::size_t kMaxSlots = std::size_t{1} << 31;
   // At most 1/4 full: the first probe ends a miss ~80% of the time (Knuth, TAOCP vol. 3 §6.4:
   // expected probes 1.17 hit / 1.39 miss at load 1/4, against 1.5 / 2.5 at 1/2), so the probe
@@ -296,7 +296,8 @@ class LruCache {
   struct Node {
     TileKey key;
     std::uint64_t bytes = 0;
-    std::uint32_t prev = 0;  // towards the most-recent end (0: this is the most recent)
+    std::uint32_t prev = kVacant;  // towards the most-recent end (0: this is the most recent);
+                                   // kVacant: the slot is empty
     std::uint32_t next = 0;  // towards the least-recent end (0: this is the least recent)
     Value value{};
   };
@@ -321,27 +322,29 @@ class LruCache {
       throw std::logic_error(std::string("LruCache::") + what + " called from the removal hook");
   }
 
-  // Fibonacci hashing (Knuth, TAOCP vol. 3 §6.4, multiplicative hashing by 2^64/phi): the high 32
-  // bits of key * 0x9E37...15, 0 mapped to 1 so that 0 marks empty slots; the home slot is the
-  // tag's top log2(slots) bits. One multiply instead of mix64's two plus shifts, on the critical
-  // path of every lookup; and the keys of a tile window (arithmetic progressions in x and y) land
-  // spread by the three-distance theorem: mean displacement 0.01-0.2 slots on grid key sets
-  // against 0.2-0.5 for mix64 (docs/cache.md; tested in tests/test_lru_cache.cpp).
-  static std::uint32_t tag_of(TileKey key) {
-    const auto t = static_cast<std::uint32_t>((key.bits * 0x9E3779B97F4A7C15ULL) >> 32);
-    return t == kEmpty ? 1u : t;
+  // Fibonacci hashing (Knuth, TAOCP vol. 3 §6.4, multiplicative hashing by 2^64/phi): the home
+  // slot is the top log2(slots) bits of key * 0x9E37...15. One multiply instead of mix64's two
+  // plus shifts, on the critical path of every lookup; and the keys of a tile window (arithmetic
+  // progressions in x and y) land spread by the three-distance theorem: mean displacement
+  // 0-0.01 slots on window and grid key sets against 0.07-0.17 for mix64 (docs/cache.md; tested
+  // in tests/test_lru_cache.cpp).
+  std::size_t home(TileKey key) const {
+    return static_cast<std::size_t>((key.bits * 0x9E3779B97F4A7C15ULL) >> shift_);
   }
+  std::size_t slots() const { return mask_ + 1; }
 
-  Probe probe(TileKey key, std::uint32_t tag) const {
-    for (std::size_t i = tag >> shift_;; i = (i + 1) & mask_) {
-      const std::uint32_t t = tags_[i];
-      if (t == kEmpty) return {i, false};
-      if (t == tag && nodes_[i + 1].key == key) return {i, true};
+  // The slot holding key, or the empty slot that ends its probe sequence. Reads nodes only: a hit
+  // in its home slot costs one cache line.
+  Probe probe(TileKey key) const {
+    for (std::size_t i = home(key);; i = (i + 1) & mask_) {
+      const Node& nd = nodes_[i + 1];
+      if (nd.prev == kVacant) return {i, false};
+      if (nd.key == key) return {i, true};
     }
   }
   // Node index holding key, or kNone.
   std::uint32_t find(TileKey key) const {
-    const Probe p = probe(key, tag_of(key));
+    const Probe p = probe(key);
     return p.found ? static_cast<std::uint32_t>(p.slot) + 1 : kNone;
   }
 
@@ -354,11 +357,9 @@ class LruCache {
     Value value = std::move(node.value);
     unlink(static_cast<std::uint32_t>(slot) + 1);
     if (reason != LruRemoval::kErased && reason != LruRemoval::kReplaced) {
-      // Tail removals come in runs: fetch what the next one touches (the new tail's tag line and
-      // its list neighbour) while this one finishes. A hint only; nothing depends on it.
-      const std::uint32_t next_victim = nodes_[0].prev;
-      __builtin_prefetch(&tags_[(next_victim - 1) & mask_]);
-      __builtin_prefetch(&nodes_[nodes_[next_victim].prev]);
+      // Tail removals come in runs: fetch the new tail's list neighbour, which the next one
+      // unlinks, while this one finishes. A hint only; nothing depends on it.
+      __builtin_prefetch(&nodes_[nodes_[nodes_[0].prev].prev]);
     }
     erase_slot(slot);
     --size_;
@@ -380,10 +381,9 @@ class LruCache {
     std::size_t j = hole;
     for (;;) {
       j = (j + 1) & mask_;
-      const std::uint32_t t = tags_[j];
-      if (t == kEmpty) break;
-      if (((j - (t >> shift_)) & mask_) >= ((j - hole) & mask_)) {
-        tags_[hole] = t;
+      const Node& nd = nodes_[j + 1];
+      if (nd.prev == kVacant) break;
+      if (((j - home(nd.key)) & mask_) >= ((j - hole) & mask_)) {
         const auto to = static_cast<std::uint32_t>(hole) + 1;
         Node& dst = nodes_[to];
         dst = std::move(nodes_[j + 1]);
@@ -392,36 +392,34 @@ class LruCache {
         hole = j;
       }
     }
-    tags_[hole] = kEmpty;
+    nodes_[hole + 1].prev = kVacant;
     nodes_[hole + 1].value = Value{};  // a moved-from value may still hold resources
   }
 
   // Moves every entry into a table of new_slots slots, keeping the recency order.
   void rehash(std::size_t new_slots) {
-    std::vector<std::uint32_t> tags(new_slots, kEmpty);
     std::vector<Node> nodes(new_slots + 1);
     std::vector<std::uint32_t> where(nodes_.size(), 0);  // old node index -> new (sentinel 0 -> 0)
     const std::size_t m = new_slots - 1;
-    int shift = 32;
+    int shift = 64;
     for (std::size_t n = new_slots; n > 1; n >>= 1) --shift;
-    for (std::size_t s = 0; s < tags_.size(); ++s) {
-      if (tags_[s] == kEmpty) continue;
-      std::size_t i = tags_[s] >> shift;
-      while (tags[i] != kEmpty) i = (i + 1) & m;
-      tags[i] = tags_[s];
+    // Place (marking the new slots taken) before moving anything: only allocation above throws.
+    for (std::size_t s = 0; s < slots(); ++s) {
+      if (nodes_[s + 1].prev == kVacant) continue;
+      std::size_t i = static_cast<std::size_t>((nodes_[s + 1].key.bits * 0x9E3779B97F4A7C15ULL) >> shift);
+      while (nodes[i + 1].prev != kVacant) i = (i + 1) & m;
+      nodes[i + 1].prev = 0;
       where[s + 1] = static_cast<std::uint32_t>(i) + 1;
     }
-    // Nothing below throws: the cache changes only from here on.
     nodes[0].prev = where[nodes_[0].prev];
     nodes[0].next = where[nodes_[0].next];
-    for (std::size_t s = 0; s < tags_.size(); ++s) {
-      if (tags_[s] == kEmpty) continue;
+    for (std::size_t s = 0; s < slots(); ++s) {
+      if (nodes_[s + 1].prev == kVacant) continue;
       Node& dst = nodes[where[s + 1]];
       dst = std::move(nodes_[s + 1]);
       dst.prev = where[dst.prev];
       dst.next = where[dst.next];
     }
-    tags_.swap(tags);
     nodes_.swap(nodes);
     mask_ = m;
     shift_ = shift;
@@ -449,7 +447,6 @@ class LruCache {
   std::uint64_t bytes_ = 0;
   std::size_t size_ = 0;
   Hook hook_;
-  std::vector<std::uint32_t> tags_;  // per slot: kEmpty or the key's tag
   std::vector<Node> nodes_;          // [0] list sentinel (next: most recent, prev: least recent);
                                      // [i + 1] the entry in slot i
   std::size_t mask_ = 0;
