@@ -28,7 +28,7 @@ TEST_CASE("bench harness: percentiles, median and MAD") {
   CHECK(vb::summarize({}).median == 0);
 }
 
-TEST_CASE("bench harness: setup runs untimed before every repetition; JSON follows the schema") {
+TEST_CASE("bench harness: setup runs untimed before every repetition and the JSON follows the schema") {
   std::string a0 = "bench_test", a1 = "--reps", a2 = "4", a3 = "--warmup", a4 = "2";
   char* argv[] = {a0.data(), a1.data(), a2.data(), a3.data(), a4.data()};
   vb::Harness h("test", 5, argv);

@@ -284,7 +284,7 @@ TEST_CASE("LruCache: byte arithmetic at the top of the 64-bit range does not wra
   CHECK(c.bytes() == max);
 }
 
-TEST_CASE("LruCache: the hook may look but not mutate; a throwing hook leaves the cache consistent") {
+TEST_CASE("LruCache: the hook may look but not mutate, and a throwing hook leaves the cache consistent") {
   LruCache<int>* self = nullptr;
   int mode = 0;
   std::vector<std::uint64_t> seen_size;
