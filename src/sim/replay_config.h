@@ -103,6 +103,11 @@ const ConfigTable<ReplayConfig>& replay_config_table();
 // Cross-field checks and derived values; throws InputError naming the field ("clipmap.clipsize").
 void validate(ReplayConfig& c);
 
+// The effective config: defaults, then the TOML file (if any), then `system` (if not empty), then
+// each "key=value" of `sets` in order; validated. Throws InputError naming the file/line or key.
+ReplayConfig load_replay_config(const std::string& config_path, const std::vector<std::string>& sets,
+                                const std::string& system = "");
+
 // Bytes of one tile of a layer in RAM/VRAM (payload plus border) and on disk.
 std::uint64_t tile_decoded_bytes(const ReplayConfig& c, const LayerSpec& layer);
 std::uint64_t tile_disk_bytes(const ReplayConfig& c, const LayerSpec& layer);
