@@ -162,6 +162,7 @@ int Clipmap::update_windows(std::int64_t gu, std::int64_t gv, int finest_active)
       set_window(L, ox, oy);
       L.placed = true;
       recount(L);
+      fast_dirty_ = true;
       ++stats_.window_moves;
       ++moved_levels;
     }
@@ -234,7 +235,7 @@ bool Clipmap::commit(TileKey key, Evicted* evicted) {
   const std::uint32_t bit = 1u << key.layer();
   if (!(s.mask & bit)) {
     s.mask |= bit;
-    --L.missing;
+    if (--L.missing == 0) fast_dirty_ = true;
   }
   return true;
 }
@@ -273,6 +274,59 @@ int Clipmap::resident_level(std::int64_t u, std::int64_t v, int desired_level) c
     return l;
   }
   return num_levels();
+}
+
+void Clipmap::rebuild_fast() const {
+  fast_.resize(levels_.size());
+  const std::int64_t m = p_.filter_margin_texels;
+  for (std::size_t l = 0; l < levels_.size(); ++l) {
+    const Level& L = levels_[l];
+    FastRect& f = fast_[l];
+    if (!L.placed || L.missing != 0) {
+      f = {0, 0, 0, 0};
+      continue;
+    }
+    // A centre texel c passes when clamp(c - m, 0) >= vx0 and clamp(c + m, W - 1) < vx1; at a
+    // texture edge the clamp makes the margin vanish, so the rectangle reaches the edge.
+    f.x0 = L.vx0 == 0 ? 0 : L.vx0 + m;
+    f.x1 = L.vx1 == L.texels_x ? L.texels_x : L.vx1 - m;
+    f.y0 = L.vy0 == 0 ? 0 : L.vy0 + m;
+    f.y1 = L.vy1 == L.texels_y ? L.texels_y : L.vy1 - m;
+  }
+  fast_dirty_ = false;
+}
+
+void Clipmap::resident_levels(const ViewSample* s, std::size_t n, std::int8_t* out) const {
+  if (fast_dirty_) rebuild_fast();
+  const int levels = num_levels();
+  const int clamp = clamp_;
+  const FastRect* fr = fast_.data();
+  // Marking sampled slots: consecutive samples mostly resolve to the same tile; skip repeats.
+  int last_l = -1;
+  std::int64_t last_tx = -1, last_ty = -1;
+  for (std::size_t i = 0; i < n; ++i) {
+    const int d = desired_level(s[i].lod, levels);
+    const int l0 = d > clamp ? d : clamp;
+    int r;
+    if (l0 < levels) {
+      const FastRect& f = fr[l0];
+      const std::int64_t ul = s[i].u >> l0, vl = s[i].v >> l0;
+      if (ul >= f.x0 && ul < f.x1 && vl >= f.y0 && vl < f.y1) {
+        r = l0;
+        if (mark_sampled_) {
+          const std::int64_t tx = tile_of(ul), ty = tile_of(vl);
+          if (r != last_l || tx != last_tx || ty != last_ty) {
+            const Level& L = levels_[static_cast<std::size_t>(r)];
+            L.slots[window_slot(L, tx, ty)].sampled = true;
+            last_l = r, last_tx = tx, last_ty = ty;
+          }
+        }
+        out[i] = static_cast<std::int8_t>(r);
+        continue;
+      }
+    }
+    out[i] = static_cast<std::int8_t>(resident_level(s[i].u, s[i].v, d));
+  }
 }
 
 std::uint64_t Clipmap::resident_unsampled() const {

@@ -111,6 +111,9 @@ class Clipmap final : public IResidency {
   Window window(int level) const;
 
   int resident_level(std::int64_t u, std::int64_t v, int desired_level) const override;
+  // Fast path: a sample whose footprint lies in a complete level's valid rectangle resolves with a
+  // few compares; everything else goes through resident_level.
+  void resident_levels(const ViewSample* s, std::size_t n, std::int8_t* out) const override;
   // When on, resident_level marks the slot it resolves to as sampled (for wasted-upload metrics).
   void set_mark_sampled(bool on) { mark_sampled_ = on; }
 
@@ -165,6 +168,14 @@ class Clipmap final : public IResidency {
   std::uint64_t missing_in(const Level& L, std::int64_t ox, std::int64_t oy) const;
 
   ClipmapParams p_;
+  // Per level, the fast path's rectangle [x0, x1) × [y0, y1) of footprint centres (valid rectangle
+  // shrunk by the filter margin; empty when the level is incomplete or unplaced). Rebuilt lazily.
+  struct FastRect {
+    std::int64_t x0, x1, y0, y1;
+  };
+  void rebuild_fast() const;
+  mutable std::vector<FastRect> fast_;
+  mutable bool fast_dirty_ = true;
   std::vector<Level> levels_;
   int n_ = 0;
   int first_pyramid_ = 0;

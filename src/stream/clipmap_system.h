@@ -28,6 +28,9 @@ class ClipmapSystem final : public IStreamingSystem {
   int resident_level(std::int64_t u, std::int64_t v, int desired_level) const override {
     return cm_.resident_level(u, v, desired_level);
   }
+  void resident_levels(const ViewSample* s, std::size_t n, std::int8_t* out) const override {
+    cm_.resident_levels(s, n, out);
+  }
   void begin_frame(const SystemFrame& f) override;
   void missing_bytes_by_level(std::vector<std::uint64_t>& out) const override;
   int coarsest_clamp() const override { return cm_.first_pyramid_level(); }
