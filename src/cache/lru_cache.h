@@ -123,12 +123,13 @@ class LruCache {
   // Promoting lookup: the entry becomes most-recent. Counts a hit or a miss.
   Value* get(TileKey key) {
     check_not_in_hook("get");
-    const std::uint32_t n = find(key);
-    if (n == kNone) {
+    const Probe p = probe(key);
+    if (!p.found) {
       ++stats_.misses;
       return nullptr;
     }
     ++stats_.hits;
+    const auto n = static_cast<std::uint32_t>(p.slot) + 1;
     move_to_front(n);
     return &nodes_[n].value;
   }
