@@ -90,9 +90,10 @@ enum class LruInsert : std::uint8_t {
 // const members; calling get (it reorders the list), insert, erase, clear, set_capacity, reserve
 // or set_hook from it throws std::logic_error. If the hook throws, the entry stays removed, the
 // exception propagates and the operation that triggered it stops there with the cache consistent
-// and within capacity (an insert whose eviction hook throws does not insert its entry). The destructor and move-assignment discard entries without calling the
-// hook: call clear() first if their resources must be released through it. A moved-from cache may
-// only be assigned to or destroyed.
+// and within capacity (an insert whose eviction hook throws does not insert its entry). The
+// destructor and move-assignment discard entries without calling the hook: call clear() first if
+// their resources must be released through it. A moved-from cache may only be assigned to or
+// destroyed.
 //
 // Invalidation: a pointer returned by get()/peek() stays valid across get, peek, contains and the
 // observers, and is invalidated by insert, erase, clear, set_capacity and reserve (entries move
@@ -292,7 +293,7 @@ class LruCache {
 
  private:
   static constexpr std::uint8_t kEmpty = 0;  // control byte of an empty slot
-  static constexpr std::uint32_t kNone = 0;               // find(): absent (node 0 is the sentinel)
+  static constexpr std::uint32_t kNone = 0;  // find(): absent (node 0 is the sentinel)
   static constexpr std::size_t kMinSlots = 16;
   // Node indices (slot + 1) are 32-bit: at most 2^31 slots (2^29 entries at the maximum load).
   static constexpr std::size_t kMaxSlots = std::size_t{1} << 31;
@@ -310,7 +311,7 @@ class LruCache {
     Value value{};
   };
   struct Probe {
-    std::size_t slot;   // the key's slot, or the empty slot ending its probe sequence
+    std::size_t slot;  // the key's slot, or the empty slot ending its probe sequence
     bool found;
     std::uint8_t ctrl;  // the key's control byte
   };
@@ -327,8 +328,7 @@ class LruCache {
   };
 
   void check_not_in_hook(const char* what) const {
-    if (in_hook_)
-      throw std::logic_error(std::string("LruCache::") + what + " called from the removal hook");
+    if (in_hook_) throw std::logic_error(std::string("LruCache::") + what + " called from the removal hook");
   }
 
   // Fibonacci hashing (Knuth, TAOCP vol. 3 §6.4, multiplicative hashing by 2^64/phi): the home
@@ -470,8 +470,8 @@ class LruCache {
   std::size_t size_ = 0;
   Hook hook_;
   std::vector<std::uint8_t> ctrl_;  // per slot: kEmpty, or 0x80 | 7 hash bits of its key
-  std::vector<Node> nodes_;          // [0] list sentinel (next: most recent, prev: least recent);
-                                     // [i + 1] the entry in slot i
+  std::vector<Node> nodes_;         // [0] list sentinel (next: most recent, prev: least recent);
+                                    // [i + 1] the entry in slot i
   std::size_t mask_ = 0;
   int shift_ = 0;
   LruStats stats_;
