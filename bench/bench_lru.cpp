@@ -102,7 +102,8 @@ std::uint64_t tile_bytes(TileKey k) {
 TileKey tile_of(std::uint64_t id) {
   const std::uint64_t h = vtsim::mix64(id + 0x9e3779b97f4a7c15ULL);
   return TileKey(static_cast<std::uint32_t>(h % 3), static_cast<std::uint32_t>((h >> 8) % 8),
-                 static_cast<std::int64_t>((h >> 16) & 0xFFFFF), static_cast<std::int64_t>((h >> 40) & 0xFFFFF));
+                 static_cast<std::int64_t>((h >> 16) & 0xFFFFF),
+                 static_cast<std::int64_t>((h >> 40) & 0xFFFFF));
 }
 
 // Zipf(alpha) ranks 0..n-1 by inverse CDF: web-object and texture-page popularity is roughly
@@ -272,7 +273,8 @@ int main(int argc, char** argv) {
     h.compare({.name = "insert_evict",
                .work = static_cast<double>(n_ins),
                .params = {{"inserts", n_ins},
-                          {"evictions_per_insert", static_cast<double>(co.evicted) / static_cast<double>(n_ins)}},
+                          {"evictions_per_insert",
+                           static_cast<double>(co.evicted) / static_cast<double>(n_ins)}},
                .target_ratio = target},
               {"lru_cache", setup_o, inserts(ours)}, {"list_unordered_map", setup_r, inserts(ref)});
   }

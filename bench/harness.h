@@ -178,7 +178,8 @@ inline Options parse_options(const std::string& benchmark, int argc, char** argv
       used = 0;
     }
     if (used != v.size() || v.empty() || n < lo || n > hi)
-      fail(flag + " '" + v + "': expected an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+      fail(flag + " '" + v + "': expected an integer in [" + std::to_string(lo) + ", " +
+           std::to_string(hi) + "]");
     return static_cast<int>(n);
   };
   for (int i = 1; i < argc; ++i) {
@@ -357,7 +358,8 @@ class Harness {
         e["ratio_of_medians"] = nullptr;
         e["pair_ratios"] = nullptr;
       }
-      e["target_ratio"] = r.spec.target_ratio > 0 ? nlohmann::json(r.spec.target_ratio) : nlohmann::json(nullptr);
+      e["target_ratio"] =
+          r.spec.target_ratio > 0 ? nlohmann::json(r.spec.target_ratio) : nlohmann::json(nullptr);
       e["meets_target"] = r.meets_target;
       j["results"].push_back(e);
     }
@@ -384,7 +386,8 @@ class Harness {
     clobber_memory();
     const auto t1 = std::chrono::steady_clock::now();
     // Never 0, so rates stay finite even for a run below the clock's resolution.
-    return std::max(1.0, static_cast<double>(std::chrono::duration_cast<std::chrono::nanoseconds>(t1 - t0).count()));
+    const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(t1 - t0).count();
+    return std::max(1.0, static_cast<double>(ns));
   }
 
   const Result* measure(const Case& c, const Side& ours, const Side* ref) {
@@ -431,9 +434,10 @@ class Harness {
     }
     r.meets_target = c.target_ratio <= 0 || (ref && r.ratio >= c.target_ratio);
     if (shortest_ns < 1e6)
-      std::cerr << fmt::format("bench_{}: warning: '{}' has repetitions of {:.0f} us; below 1 ms the clock and "
-                               "noise dominate: give it more work\n",
-                               name_, c.name, shortest_ns / 1e3);
+      std::cerr << fmt::format(
+          "bench_{}: warning: '{}' has repetitions of {:.0f} us; below 1 ms the clock and noise "
+          "dominate: give it more work\n",
+          name_, c.name, shortest_ns / 1e3);
     print(r);
     results_.push_back(std::move(r));
     return &results_.back();
@@ -446,8 +450,8 @@ class Harness {
 
   void print(const Result& r) const {
     const char* unit = metric_unit(r.spec.metric);
-    std::string line = fmt::format("  {:<22} {:<10} {:>8} {} [p10 {} p90 {}]", r.spec.name, r.side, num(r.ours.median),
-                                   unit, num(r.ours.p10), num(r.ours.p90));
+    std::string line = fmt::format("  {:<22} {:<10} {:>8} {} [p10 {} p90 {}]", r.spec.name, r.side,
+                                   num(r.ours.median), unit, num(r.ours.p10), num(r.ours.p90));
     if (r.reference) {
       line += fmt::format("  vs {} {} {}  ratio {:.2f}x", *r.reference, num(r.ref.median), unit, r.ratio);
       if (r.spec.target_ratio > 0)

@@ -62,7 +62,8 @@ TEST_CASE("bench harness: setup runs untimed before every repetition and the JSO
   CHECK(r->ours.min <= r->ours.median);
   CHECK(r->ours.median <= r->ours.max);
 
-  const vb::Result* alone = h.run({.name = "alone", .metric = vb::Metric::kMBPerS, .work = 1e6}, {"ours", {}, [] {}});
+  const vb::Result* alone =
+      h.run({.name = "alone", .metric = vb::Metric::kMBPerS, .work = 1e6}, {"ours", {}, [] {}});
   REQUIRE(alone != nullptr);
   CHECK_FALSE(alone->reference.has_value());
 
@@ -70,7 +71,8 @@ TEST_CASE("bench harness: setup runs untimed before every repetition and the JSO
   CHECK(j["schema"] == "vtsim-bench/1");
   CHECK(j["benchmark"] == "test");
   CHECK(j["reps"] == 4);
-  for (const char* k : {"git", "time_utc", "quick", "warmup", "machine", "params", "results"}) CHECK(j.contains(k));
+  for (const char* k : {"git", "time_utc", "quick", "warmup", "machine", "params", "results"})
+    CHECK(j.contains(k));
   for (const char* k : {"hostname", "cpu", "logical_cores", "compiler", "optimized", "load_average_end"})
     CHECK(j["machine"].contains(k));
   REQUIRE(j["results"].size() == 2);
@@ -83,7 +85,8 @@ TEST_CASE("bench harness: setup runs untimed before every repetition and the JSO
   CHECK(e["reference"]["name"] == "ref");
   CHECK(e["samples"].size() == 4);
   CHECK(e["meets_target"] == false);
-  for (const char* k : {"median", "min", "max", "p10", "p90", "mad", "ratio", "ratio_of_medians", "pair_ratios", "target_ratio"})
+  for (const char* k : {"median", "min", "max", "p10", "p90", "mad", "ratio", "ratio_of_medians",
+                        "pair_ratios", "target_ratio"})
     CHECK(e.contains(k));
   const auto& e2 = j["results"][1];
   CHECK(e2["unit"] == "MB/s");

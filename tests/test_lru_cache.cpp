@@ -429,7 +429,10 @@ TEST_CASE("LruCache: random workload with random sizes never exceeds the hard ca
         const bool had = c.contains(K(key));
         const auto r = c.insert(K(key), 0, size);
         if (r != LruInsert::kRejected) inserted_bytes += size;
-        CHECK(r == (size > capacity ? LruInsert::kRejected : had ? LruInsert::kReplaced : LruInsert::kInserted));
+        const LruInsert want = size > capacity ? LruInsert::kRejected
+                               : had           ? LruInsert::kReplaced
+                                               : LruInsert::kInserted;
+        CHECK(r == want);
         if (r == LruInsert::kRejected && had) CHECK(c.bytes_of(K(key)) == before);
       } else if (op < 8) {
         c.get(K(key));

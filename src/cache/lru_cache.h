@@ -60,19 +60,20 @@ enum class LruInsert : std::uint8_t {
 // Complexity: get, peek, contains, erase: expected O(1). insert: expected O(1) plus O(1) per entry
 // it evicts, amortised over table growth, which happens only while the entry count reaches a new
 // high: no allocation in steady state. clear: O(size). set_capacity: O(evicted). Iteration:
-// O(size). Memory: sizeof(Node) bytes per table slot (Node = key, bytes, two 32-bit links, Value:
-// 32 bytes for an 8-byte Value); the table is a power of two kept between 1/8 and 1/4 full, so
-// 4-8 slots (128-256 bytes with an 8-byte Value) per entry: 0.3-0.7% of a 38 KB decoded tile.
-// Keep Value small (a handle).
+// O(size). Memory: 1 + sizeof(Node) bytes per table slot (a control byte; Node = key, bytes, two
+// 32-bit links, Value: 32 bytes for an 8-byte Value); the table is a power of two kept between 1/8
+// and 1/4 full, so 4-8 slots (132-264 bytes with an 8-byte Value) per entry: 0.3-0.7% of a 38 KB
+// decoded tile. Keep Value small (a handle).
 //
 // Layout: open addressing with linear probing over a power-of-two table (deletion by backward
 // shift, so there are no tombstones and probe lengths never degrade) whose slots are the nodes
 // themselves: the slab of nodes is indexed like the table (slot i holds node i + 1; node 0 is the
-// sentinel of the intrusive doubly linked recency list, linked by 32-bit node indices). A lookup
-// computes its node's address from the hash alone and finds key, links and value in one cache
-// line, where a std::unordered_map + std::list LRU makes four dependent loads (bucket, node
-// before, node, list node) before it can relink. A backward shift moves a node and repoints its
-// two list neighbours. docs/cache.md gives the measurements behind each choice.
+// sentinel of the intrusive doubly linked recency list, linked by 32-bit node indices), beside a
+// 1-byte control array (empty, or 7 hash bits). A lookup computes the addresses of its control
+// byte and node from the hash alone and finds key, links and value in one node line; a miss
+// mostly reads control bytes only. A std::unordered_map + std::list LRU makes four dependent loads
+// (bucket, node before, node, list node) before it can relink. A backward shift moves a node and
+// repoints its two list neighbours. docs/cache.md gives the measurements behind each choice.
 //
 // Thread-safety: none. One owner (the frame loop) calls it; const members are safe to call
 // concurrently only while nobody mutates.
@@ -89,9 +90,10 @@ enum class LruInsert : std::uint8_t {
 // const members; calling get (it reorders the list), insert, erase, clear, set_capacity, reserve
 // or set_hook from it throws std::logic_error. If the hook throws, the entry stays removed, the
 // exception propagates and the operation that triggered it stops there with the cache consistent
-// and within capacity (an insert whose eviction hook throws does not insert its entry). The destructor and move-assignment discard entries without calling the
-// hook: call clear() first if their resources must be released through it. A moved-from cache may
-// only be assigned to or destroyed.
+// and within capacity (an insert whose eviction hook throws does not insert its entry). The
+// destructor and move-assignment discard entries without calling the hook: call clear() first if
+// their resources must be released through it. A moved-from cache may only be assigned to or
+// destroyed.
 //
 // Invalidation: a pointer returned by get()/peek() stays valid across get, peek, contains and the
 // observers, and is invalidated by insert, erase, clear, set_capacity and reserve (entries move
@@ -104,8 +106,7 @@ class LruCache {
   using Hook = std::function<void(TileKey key, Value& value, std::uint64_t bytes, LruRemoval reason)>;
 
   explicit LruCache(std::uint64_t capacity_bytes, Hook hook = {})
-      : capacity_(capacity_bytes), hook_(std::move(hook)), nodes_(kMinSlots + 1) {
-    nodes_[0].prev = 0;  // the sentinel: an empty list
+      : capacity_(capacity_bytes), hook_(std::move(hook)), ctrl_(kMinSlots, kEmpty), nodes_(kMinSlots + 1) {
     mask_ = kMinSlots - 1;
     shift_ = 64 - 4;  // log2(kMinSlots) = 4
   }
@@ -123,14 +124,23 @@ class LruCache {
   // Promoting lookup: the entry becomes most-recent. Counts a hit or a miss.
   Value* get(TileKey key) {
     check_not_in_hook("get");
-    const std::uint32_t n = find(key);
-    if (n == kNone) {
-      ++stats_.misses;
-      return nullptr;
+    // probe() written out: the hot path of the frame loop, and returning from inside the loop
+    // saves the Probe round trip.
+    const std::uint64_t product = key.bits * kFib;
+    const std::uint8_t c = ctrl_of(product);
+    for (std::size_t i = static_cast<std::size_t>(product >> shift_);; i = (i + 1) & mask_) {
+      const std::uint8_t ci = ctrl_[i];
+      if (ci == kEmpty) {
+        ++stats_.misses;
+        return nullptr;
+      }
+      if (ci == c && nodes_[i + 1].key == key) {
+        ++stats_.hits;
+        const auto n = static_cast<std::uint32_t>(i) + 1;
+        move_to_front(n);
+        return &nodes_[n].value;
+      }
     }
-    ++stats_.hits;
-    move_to_front(n);
-    return &nodes_[n].value;
   }
 
   // Non-promoting lookups: order and counters unchanged.
@@ -177,6 +187,7 @@ class LruCache {
     // (moving it if need be, links and all) and no second probe is needed. Its bytes are charged
     // after the evictions, so they never pick it: it is the tail only when it is alone, and then
     // bytes() is 0 and the loop has stopped (hooks cannot reorder the list: get() is refused).
+    ctrl_[p.slot] = p.ctrl;
     const std::uint32_t n = static_cast<std::uint32_t>(p.slot) + 1;
     Node& node = nodes_[n];
     node.key = key;
@@ -244,7 +255,7 @@ class LruCache {
   void reset_stats() { stats_ = {}; }
 
   // Diagnostics (O(table)): how far entries sit from their home slot; a lookup reads
-  // displacement + 1 nodes.
+  // displacement + 1 control bytes.
   struct ProbeStats {
     double mean_displacement = 0;  // slots, over entries
     std::size_t max_displacement = 0;
@@ -255,7 +266,7 @@ class LruCache {
     ps.slots = slots();
     std::uint64_t sum = 0;
     for (std::size_t i = 0; i < slots(); ++i) {
-      if (nodes_[i + 1].prev == kVacant) continue;
+      if (ctrl_[i] == kEmpty) continue;
       const std::size_t d = (i - home(nodes_[i + 1].key)) & mask_;
       sum += d;
       ps.max_displacement = std::max(ps.max_displacement, d);
@@ -281,11 +292,10 @@ class LruCache {
   }
 
  private:
-  static constexpr std::uint32_t kVacant = 0xFFFFFFFFu;  // Node::prev of an empty slot
-  static constexpr std::uint32_t kNone = 0;               // find(): absent (node 0 is the sentinel)
+  static constexpr std::uint8_t kEmpty = 0;  // control byte of an empty slot
+  static constexpr std::uint32_t kNone = 0;  // find(): absent (node 0 is the sentinel)
   static constexpr std::size_t kMinSlots = 16;
-  // Node indices (slot + 1) are 32-bit and kVacant is reserved: at most 2^31 slots (2^29
-  // entries at the maximum load).
+  // Node indices (slot + 1) are 32-bit: at most 2^31 slots (2^29 entries at the maximum load).
   static constexpr std::size_t kMaxSlots = std::size_t{1} << 31;
   // At most 1/4 full: the first probe ends a miss ~80% of the time (Knuth, TAOCP vol. 3 §6.4:
   // expected probes 1.17 hit / 1.39 miss at load 1/4, against 1.5 / 2.5 at 1/2), so the probe
@@ -296,14 +306,14 @@ class LruCache {
   struct Node {
     TileKey key;
     std::uint64_t bytes = 0;
-    std::uint32_t prev = kVacant;  // towards the most-recent end (0: this is the most recent);
-                                   // kVacant: the slot is empty
+    std::uint32_t prev = 0;  // towards the most-recent end (0: this is the most recent)
     std::uint32_t next = 0;  // towards the least-recent end (0: this is the least recent)
     Value value{};
   };
   struct Probe {
     std::size_t slot;  // the key's slot, or the empty slot ending its probe sequence
     bool found;
+    std::uint8_t ctrl;  // the key's control byte
   };
 
   class HookScope {
@@ -318,8 +328,7 @@ class LruCache {
   };
 
   void check_not_in_hook(const char* what) const {
-    if (in_hook_)
-      throw std::logic_error(std::string("LruCache::") + what + " called from the removal hook");
+    if (in_hook_) throw std::logic_error(std::string("LruCache::") + what + " called from the removal hook");
   }
 
   // Fibonacci hashing (Knuth, TAOCP vol. 3 §6.4, multiplicative hashing by 2^64/phi): the home
@@ -328,18 +337,27 @@ class LruCache {
   // progressions in x and y) land spread by the three-distance theorem: mean displacement
   // 0-0.01 slots on window and grid key sets against 0.07-0.17 for mix64 (docs/cache.md; tested
   // in tests/test_lru_cache.cpp).
-  std::size_t home(TileKey key) const {
-    return static_cast<std::size_t>((key.bits * 0x9E3779B97F4A7C15ULL) >> shift_);
+  static constexpr std::uint64_t kFib = 0x9E3779B97F4A7C15ULL;  // 2^64 / golden ratio, odd
+  std::size_t home(TileKey key) const { return static_cast<std::size_t>((key.bits * kFib) >> shift_); }
+  // Control byte: 0x80 | product bits 32-38, below the home bits of any table up to 2^25 slots
+  // (larger ones share bits with the home: a weaker filter, never a wrong answer). An empty slot
+  // or a mismatch settles a probe step without reading the node (a miss usually reads no node at
+  // all); a false match (about 1 in 128 occupied slots) costs one key comparison.
+  static std::uint8_t ctrl_of(std::uint64_t product) {
+    return static_cast<std::uint8_t>(0x80u | ((product >> 32) & 0x7Fu));
   }
   std::size_t slots() const { return mask_ + 1; }
 
-  // The slot holding key, or the empty slot that ends its probe sequence. Reads nodes only: a hit
-  // in its home slot costs one cache line.
+  // The slot holding key, or the empty slot that ends its probe sequence. Reads the 1-byte
+  // control array, and a node only when its control byte matches: a hit in its home slot costs
+  // one control byte and one node line.
   Probe probe(TileKey key) const {
-    for (std::size_t i = home(key);; i = (i + 1) & mask_) {
-      const Node& nd = nodes_[i + 1];
-      if (nd.prev == kVacant) return {i, false};
-      if (nd.key == key) return {i, true};
+    const std::uint64_t product = key.bits * kFib;
+    const std::uint8_t c = ctrl_of(product);
+    for (std::size_t i = static_cast<std::size_t>(product >> shift_);; i = (i + 1) & mask_) {
+      const std::uint8_t ci = ctrl_[i];
+      if (ci == kEmpty) return {i, false, c};
+      if (ci == c && nodes_[i + 1].key == key) return {i, true, c};
     }
   }
   // Node index holding key, or kNone.
@@ -381,9 +399,10 @@ class LruCache {
     std::size_t j = hole;
     for (;;) {
       j = (j + 1) & mask_;
-      const Node& nd = nodes_[j + 1];
-      if (nd.prev == kVacant) break;
-      if (((j - home(nd.key)) & mask_) >= ((j - hole) & mask_)) {
+      const std::uint8_t c = ctrl_[j];
+      if (c == kEmpty) break;
+      if (((j - home(nodes_[j + 1].key)) & mask_) >= ((j - hole) & mask_)) {
+        ctrl_[hole] = c;
         const auto to = static_cast<std::uint32_t>(hole) + 1;
         Node& dst = nodes_[to];
         dst = std::move(nodes_[j + 1]);
@@ -392,34 +411,37 @@ class LruCache {
         hole = j;
       }
     }
-    nodes_[hole + 1].prev = kVacant;
+    ctrl_[hole] = kEmpty;
     nodes_[hole + 1].value = Value{};  // a moved-from value may still hold resources
   }
 
   // Moves every entry into a table of new_slots slots, keeping the recency order.
   void rehash(std::size_t new_slots) {
+    std::vector<std::uint8_t> ctrl(new_slots, kEmpty);
     std::vector<Node> nodes(new_slots + 1);
     std::vector<std::uint32_t> where(nodes_.size(), 0);  // old node index -> new (sentinel 0 -> 0)
     const std::size_t m = new_slots - 1;
     int shift = 64;
     for (std::size_t n = new_slots; n > 1; n >>= 1) --shift;
-    // Place (marking the new slots taken) before moving anything: only allocation above throws.
+    // Place everything before moving anything: only the allocations above throw.
     for (std::size_t s = 0; s < slots(); ++s) {
-      if (nodes_[s + 1].prev == kVacant) continue;
-      std::size_t i = static_cast<std::size_t>((nodes_[s + 1].key.bits * 0x9E3779B97F4A7C15ULL) >> shift);
-      while (nodes[i + 1].prev != kVacant) i = (i + 1) & m;
-      nodes[i + 1].prev = 0;
+      if (ctrl_[s] == kEmpty) continue;
+      const std::uint64_t product = nodes_[s + 1].key.bits * kFib;
+      std::size_t i = static_cast<std::size_t>(product >> shift);
+      while (ctrl[i] != kEmpty) i = (i + 1) & m;
+      ctrl[i] = ctrl_[s];
       where[s + 1] = static_cast<std::uint32_t>(i) + 1;
     }
     nodes[0].prev = where[nodes_[0].prev];
     nodes[0].next = where[nodes_[0].next];
     for (std::size_t s = 0; s < slots(); ++s) {
-      if (nodes_[s + 1].prev == kVacant) continue;
+      if (ctrl_[s] == kEmpty) continue;
       Node& dst = nodes[where[s + 1]];
       dst = std::move(nodes_[s + 1]);
       dst.prev = where[dst.prev];
       dst.next = where[dst.next];
     }
+    ctrl_.swap(ctrl);
     nodes_.swap(nodes);
     mask_ = m;
     shift_ = shift;
@@ -447,8 +469,9 @@ class LruCache {
   std::uint64_t bytes_ = 0;
   std::size_t size_ = 0;
   Hook hook_;
-  std::vector<Node> nodes_;          // [0] list sentinel (next: most recent, prev: least recent);
-                                     // [i + 1] the entry in slot i
+  std::vector<std::uint8_t> ctrl_;  // per slot: kEmpty, or 0x80 | 7 hash bits of its key
+  std::vector<Node> nodes_;         // [0] list sentinel (next: most recent, prev: least recent);
+                                    // [i + 1] the entry in slot i
   std::size_t mask_ = 0;
   int shift_ = 0;
   LruStats stats_;
