@@ -300,6 +300,28 @@ class Harness {
     return measure(c, ours, &reference);
   }
 
+  // Measures one side against a fixed reference value in the case's units that cannot be timed
+  // side by side — the real time a replayed trace spans, for "× real time". The ratio of each
+  // repetition is reference / ours (lower is better) or ours / reference (higher is better).
+  const Result* run_against(const Case& c, const Side& ours, const std::string& ref_name, double ref_value) {
+    if (!selected(c.name)) return nullptr;
+    quiet_ = true;
+    measure(c, ours, nullptr);
+    quiet_ = false;
+    Result& r = results_.back();
+    r.reference = ref_name;
+    r.ref = summarize(std::vector<double>(r.ours.samples.size(), ref_value));
+    const bool hib = higher_is_better(c.metric);
+    for (double a : r.ours.samples) r.pair_ratios.push_back(hib ? a / ref_value : ref_value / a);
+    std::vector<double> sorted = r.pair_ratios;
+    std::sort(sorted.begin(), sorted.end());
+    r.ratio = percentile_sorted(sorted, 0.5);
+    r.ratio_of_medians = hib ? r.ours.median / ref_value : ref_value / r.ours.median;
+    r.meets_target = c.target_ratio <= 0 || r.ratio >= c.target_ratio;
+    print(r);
+    return &r;
+  }
+
   // Prints the summary, writes the JSON if asked. Returns the process exit code: 0; 1 when
   // --strict and a case missed its target; 2 when the JSON cannot be written.
   int finish() {
@@ -438,10 +460,12 @@ class Harness {
           "bench_{}: warning: '{}' has repetitions of {:.0f} us; below 1 ms the clock and noise "
           "dominate: give it more work\n",
           name_, c.name, shortest_ns / 1e3);
-    print(r);
+    if (!quiet_) print(r);
     results_.push_back(std::move(r));
     return &results_.back();
   }
+
+  bool quiet_ = false;
 
   static std::string num(double v) {
     if (v != 0 && (std::fabs(v) >= 1e6 || std::fabs(v) < 0.01)) return fmt::format("{:.3g}", v);
