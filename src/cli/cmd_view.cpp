@@ -36,6 +36,7 @@ struct ViewOptions {
   int tile_size = 128;
   std::string out = "view.png";
   int zoom = 1;
+  bool seams = false;
 };
 
 glm::dvec3 parse_pos(const std::string& s) {
@@ -127,6 +128,7 @@ void run_view(const ViewOptions& o) {
   std::vector<TileUse> tiles;
   aggregate_feedback(vb, o.tile_size, levels, tiles);
   const auto t2 = std::chrono::steady_clock::now();
+  const std::size_t seam_tiles = o.seams ? add_level_seams(vb, o.tile_size, levels, tiles) : 0;
   write_level_image(o.out, vb, levels, o.zoom);
 
   const double pixels = static_cast<double>(vb.width) * vb.height;
@@ -142,7 +144,11 @@ void run_view(const ViewOptions& o) {
   std::vector<std::uint64_t> per_level(static_cast<std::size_t>(levels), 0), tiles_per_level(static_cast<std::size_t>(levels), 0);
   for (const ViewSample& s : vb.samples) ++per_level[static_cast<std::size_t>(desired_level(s.lod, levels))];
   for (const TileUse& t : tiles) ++tiles_per_level[t.key.level()];
-  fmt::print("touched tiles ({} texels): {}\n", o.tile_size, tiles.size());
+  if (o.seams)
+    fmt::print("touched tiles ({} texels): {} ({} sampled + {} level-seam tiles)\n", o.tile_size, tiles.size(),
+               tiles.size() - seam_tiles, seam_tiles);
+  else
+    fmt::print("touched tiles ({} texels): {}\n", o.tile_size, tiles.size());
   for (int l = 0; l < levels; ++l)
     if (per_level[static_cast<std::size_t>(l)] > 0)
       fmt::print("  level {:2}: {:8} samples {:6} tiles\n", l, per_level[static_cast<std::size_t>(l)],
@@ -183,6 +189,7 @@ void register_view_commands(CLI::App& app) {
   cmd->add_option("--tile-size", opt->tile_size, "tile payload size for the touched-tile count, texels")
       ->capture_default_str();
   cmd->add_option("-o,--out", opt->out, "output PNG (any format OpenImageIO writes)")->capture_default_str();
+  cmd->add_flag("--seams", opt->seams, "also count level-seam tiles (add_level_seams)");
   cmd->add_option("--zoom", opt->zoom, "upscale the buffer image by this factor")->capture_default_str();
   cmd->callback([opt]() {
     try {
