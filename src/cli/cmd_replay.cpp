@@ -74,7 +74,12 @@ void register_replay_commands(CLI::App& app) {
   c->callback([a] { run_replay_command(*a); });
 
   auto* cc = app.add_subcommand("config", "Print every config key with its default value and why");
-  cc->callback([] { fmt::print("{}", replay_config_table().dump(ReplayConfig{})); });
+  auto markdown = std::make_shared<bool>(false);
+  cc->add_flag("--markdown", *markdown, "as the Markdown table of docs/config.md");
+  cc->callback([markdown] {
+    if (*markdown) fmt::print("{}", replay_config_table().markdown(ReplayConfig{}));
+    else fmt::print("{}", replay_config_table().dump(ReplayConfig{}));
+  });
 }
 
 }  // namespace vtsim::cli

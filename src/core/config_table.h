@@ -57,6 +57,17 @@ class ConfigTable {
     }
   }
 
+  // A Markdown table of every key: section, key, default (from `cfg`), why.
+  std::string markdown(const Cfg& cfg) const {
+    std::string out = "| key | default | what it is for |\n|---|---|---|\n";
+    for (const auto& f : fields_) {
+      std::string why = f.why;
+      for (std::size_t p = 0; (p = why.find('|', p)) != std::string::npos; p += 2) why.replace(p, 1, "\\|");
+      out += "| `" + f.key + "` | `" + f.get(cfg) + "` | " + why + " |\n";
+    }
+    return out;
+  }
+
   // "key = value  # why" lines, the effective configuration (for --print-config and reports).
   std::string dump(const Cfg& cfg) const {
     std::string out;
