@@ -272,6 +272,8 @@ TEST_CASE("heightfield: images load as heights / bad files are rejected") {
   CHECK(hf.nx == 4);
   CHECK(hf.ny == 3);
   CHECK(hf.z_m[5] == doctest::Approx(10.0 + 25.0));  // 25000/65535 · 65.535 m
+  CHECK_THROWS_WITH_AS(load_heightfield(png, 2.0, 1.0, 0.0, 0.0, 0.0, 11), doctest::Contains("11-post limit"),
+                       InputError);
   std::remove(png.c_str());
 
   const std::string tif = test::temp_path("nan.tif");

@@ -33,7 +33,8 @@ double lattice(std::int64_t i, std::int64_t j, int octave, std::uint64_t seed) {
 }  // namespace
 
 Heightfield load_heightfield(const std::string& path, double spacing_m, double height_scale_m,
-                             double z0_m, double x0_m, double y0_m) {
+                             double z0_m, double x0_m, double y0_m, std::int64_t max_posts) {
+  max_posts = std::min(max_posts, kMaxHeightfieldPosts);
   check_grid_params(spacing_m, x0_m, y0_m);
   if (!std::isfinite(height_scale_m)) throw InputError("height_scale_m", "must be finite");
   if (!std::isfinite(z0_m)) throw InputError("z0_m", "must be finite");
@@ -43,9 +44,9 @@ Heightfield load_heightfield(const std::string& path, double spacing_m, double h
   const std::int64_t w = spec.width, h = spec.height;
   if (spec.depth > 1) throw InputError(path, "volume images are not heightmaps");
   if (w < 2 || h < 2) throw InputError(path, "a heightmap needs at least 2×2 pixels");
-  if (w * h > kMaxHeightfieldPosts)
+  if (w * h > max_posts)
     throw InputError(path, std::to_string(w) + "×" + std::to_string(h) + " pixels is more than the " +
-                               std::to_string(kMaxHeightfieldPosts) + "-post limit");
+                               std::to_string(max_posts) + "-post limit");
   if (spec.nchannels < 1) throw InputError(path, "image has no channels");
   std::vector<float> px(static_cast<std::size_t>(w * h));
   if (!in->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, px.data()))
