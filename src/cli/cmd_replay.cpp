@@ -9,6 +9,7 @@
 #include "cli/commands.h"
 #include "core/error.h"
 #include "sim/replay.h"
+#include "sim/report_html.h"
 #include "sim/scene.h"
 #include "sim/trace_import.h"
 
@@ -22,7 +23,7 @@ struct ReplayArgs {
   std::vector<std::string> sets;
   std::string system;
   std::string clock = "sim";
-  std::string summary, frames;
+  std::string summary, frames, report;
   bool print_config = false, quiet = false, json = false, progress = false;
 };
 
@@ -53,6 +54,7 @@ void run_replay_command(const ReplayArgs& a) {
   if (env.progress) fmt::print(stderr, "\r{:40}\r", "");
   if (!a.summary.empty()) write_text(a.summary, r.summary.dump(2) + "\n");
   if (!a.frames.empty()) r.metrics.write_frames_csv(a.frames);
+  if (!a.report.empty()) write_text(a.report, html_report(r.summary, r.metrics));
   if (a.json) fmt::print("{}\n", r.summary.dump(2));
   else if (!a.quiet) fmt::print("{}", format_summary(r.summary));
 }
@@ -67,6 +69,7 @@ void register_replay_commands(CLI::App& app) {
   c->add_option("--clock", a->clock, "sim (device models, deterministic)")->capture_default_str();
   c->add_option("--summary", a->summary, "write the summary JSON here");
   c->add_option("--frames", a->frames, "write one CSV row per frame here");
+  c->add_option("--report", a->report, "write an HTML report with charts here");
   c->add_flag("--json", a->json, "print the summary JSON instead of the human summary");
   c->add_flag("--quiet,-q", a->quiet, "print nothing (files are still written)");
   c->add_flag("--progress", a->progress, "show progress even when stderr is not a terminal");

@@ -13,6 +13,7 @@
 #include "sim/feedback.h"
 #include "sim/scene.h"
 #include "sim/scene_heightfield.h"
+#include "sim/trace_import.h"
 #include "sim/view_image.h"
 
 namespace vtsim::cli {
@@ -37,6 +38,10 @@ struct ViewOptions {
   std::string out = "view.png";
   int zoom = 1;
   bool seams = false;
+  std::string trace;       // take the pose (and image size) from this trace ...
+  int frame = -1;          // ... at this frame index
+  double time_s = -1.0;    // ... or at this time (interpolated)
+  bool size_given = false;
 };
 
 glm::dvec3 parse_pos(const std::string& s) {
@@ -102,13 +107,19 @@ void run_view(const ViewOptions& o) {
     pos.z += ground;
   }
 
-  // INTEGRATION POINT (trace files): src/sim/trace_io.h (load_trace) is being written in
-  // parallel. Once it lands, add `--trace FILE` with `--frame N` or `--time T` and take the pose
-  // and image size from the trace instead of --pos/--yaw/--pitch/--roll/--vfov/--size:
-  //   const Trace tr = load_trace(trace_path);
-  //   const Pose pose = has_time ? trace_pose_at(tr, time_s) : trace_pose(tr, frame);
-  //   width = tr.image_width; height = tr.image_height;   (unless --size was given)
-  const Pose pose = pose_from_angles(pos, o.yaw, o.pitch, o.roll, o.vfov);
+  Pose pose = pose_from_angles(pos, o.yaw, o.pitch, o.roll, o.vfov);
+  if (!o.trace.empty()) {
+    const Trace tr = load_any_trace(o.trace);
+    if (o.frame >= 0 && o.time_s >= 0) throw InputError("--frame", "give --frame or --time, not both");
+    if (o.frame >= static_cast<int>(tr.poses.size()))
+      throw InputError("--frame", fmt::format("{} is past the trace's last frame {}", o.frame, tr.poses.size() - 1));
+    pose = o.time_s >= 0 ? trace_pose_at(tr, o.time_s) : trace_pose(tr, o.frame < 0 ? 0 : o.frame);
+    if (!o.size_given) {
+      width = tr.image_width;
+      height = tr.image_height;
+    }
+    pos = pose.pos_m;
+  }
   const Camera cam = make_camera(pose, width, height);
 
   ViewParams vp;
@@ -135,8 +146,13 @@ void run_view(const ViewOptions& o) {
   const ViewCounters& c = vb.counters;
   fmt::print("scene {}: texture {}x{} texels, {} levels (built in {:.1f} ms)\n", o.scene, ext.width, ext.height, levels,
              build_ms);
-  fmt::print("camera ({:.3f}, {:.3f}, {:.3f}) m, yaw {} pitch {} roll {} deg, vfov {} (hfov {:.2f}) deg, image {}x{}\n",
-             pos.x, pos.y, pos.z, o.yaw, o.pitch, o.roll, o.vfov, cam.hfov_deg(), width, height);
+  if (o.trace.empty())
+    fmt::print("camera ({:.3f}, {:.3f}, {:.3f}) m, yaw {} pitch {} roll {} deg, vfov {} (hfov {:.2f}) deg, image {}x{}\n",
+               pos.x, pos.y, pos.z, o.yaw, o.pitch, o.roll, o.vfov, cam.hfov_deg(), width, height);
+  else
+    fmt::print("camera from {} at t = {:.3f} s: ({:.3f}, {:.3f}, {:.3f}) m, looking ({:.3f}, {:.3f}, {:.3f}), vfov {:.1f} deg, "
+               "image {}x{}\n", o.trace, pose.t_s, pos.x, pos.y, pos.z, cam.fwd.x, cam.fwd.y, cam.fwd.z, cam.vfov_deg(),
+               width, height);
   fmt::print("buffer {}x{} (divisor {}): samples {} ({:.1f} %), sky {}, clipped {}, backfacing {}, "
              "outside texture {}, untextured {}\n",
              vb.width, vb.height, vb.divisor, vb.samples.size(), 100.0 * static_cast<double>(vb.samples.size()) / pixels,
@@ -180,7 +196,12 @@ void register_view_commands(CLI::App& app) {
   cmd->add_option("--pitch", opt->pitch, "degrees above the horizon")->capture_default_str();
   cmd->add_option("--roll", opt->roll, "degrees, right side down")->capture_default_str();
   cmd->add_option("--vfov", opt->vfov, "vertical field of view, degrees")->capture_default_str();
-  cmd->add_option("--size", opt->size, "full-resolution image WxH")->capture_default_str();
+  cmd->add_option("--size", opt->size, "full-resolution image WxH")->capture_default_str()->each([opt](const std::string&) {
+    opt->size_given = true;
+  });
+  cmd->add_option("--trace", opt->trace, "take the camera from this trace (pose, vfov, image size)");
+  cmd->add_option("--frame", opt->frame, "frame index of --trace (default 0)");
+  cmd->add_option("--time", opt->time_s, "time in --trace, s (interpolated)");
   cmd->add_option("--divisor", opt->divisor, "feedback buffer = image / divisor")->capture_default_str();
   cmd->add_option("--lod-bias", opt->lod_bias, "added to every LOD")->capture_default_str();
   cmd->add_option("--aniso", opt->aniso, "anisotropic LOD with this max ratio (0: isotropic)")->capture_default_str();
