@@ -44,7 +44,7 @@ void write_raw_store(const std::string& path, std::uint64_t size) {
   spec.width = spec.height = size;
   spec.tile = 128;
   spec.border = 0;
-  spec.layers = {LayerSpec{"albedo", 3, CodecSpec{store::CodecId::raw, 0}, store::Transfer::srgb}};
+  spec.layers = {StoreLayerSpec{"albedo", 3, CodecSpec{store::CodecId::raw, 0}, store::Transfer::srgb}};
   StoreWriter w(path, spec);
   std::vector<std::uint8_t> texels(w.tile_bytes(0));
   for (std::uint64_t s = 0; s < w.geometry().tile_count(); ++s) {

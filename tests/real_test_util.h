@@ -38,9 +38,7 @@ class RealScratch {
 };
 
 // 1024² texels, tile 64, no border, every level, albedo (zstd) + normal (lz4): 2 × 341 tiles,
-// made once per process (about a second; real_test_util.cpp). Tests that change a store copy it.
-// (Declared here, defined apart: store_generator.h and sim/replay_config.h both define a
-// vtsim::LayerSpec and cannot meet in one translation unit.)
+// made once per build tree (real_test_util.cpp). Tests that change a store copy it first.
 const std::string& small_store();
 
 inline std::vector<std::uint8_t> file_bytes(const std::string& p) {

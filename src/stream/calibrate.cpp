@@ -9,6 +9,7 @@
 #include <cmath>
 #include <ctime>
 #include <latch>
+#include <limits>
 #include <numeric>
 #include <random>
 #include <system_error>
@@ -108,6 +109,52 @@ void fit_line(const std::vector<double>& x, const std::vector<double>& y, double
 }
 
 }  // namespace
+
+DiskModel fit_disk_model(const std::vector<ReadPoint>& points, int io_threads, std::uint32_t typical_bytes,
+                         std::vector<std::string>* notes) {
+  struct P {
+    double s, c, X, w;
+  };
+  std::vector<P> use;
+  for (const auto& p : points)
+    if (p.concurrency <= io_threads && p.MBps > 0)
+      use.push_back({static_cast<double>(p.bytes), static_cast<double>(p.concurrency), p.MBps * 1e6,
+                     p.bytes == typical_bytes ? 4.0 : 1.0});
+  if (use.empty()) throw std::invalid_argument("fit_disk_model: no read points at or below io_threads");
+  const auto err = [&](double L_us, double B) {
+    double e = 0;
+    for (const P& p : use) {
+      const double r = std::log(disk_throughput_Bps(DiskModel{L_us, B / 1e6, static_cast<int>(p.c)}, p.s) / p.X);
+      e += p.w * r * r;
+    }
+    return e;
+  };
+  // Grid search in log space (latency 0.1 us .. 1 s, bandwidth 1 MB/s .. 1 TB/s), then two finer
+  // grids around the best cell: the objective is smooth but not convex near the bus knee.
+  double bestL = 0, bestB = 0, best = std::numeric_limits<double>::infinity();
+  double l0 = std::log(0.1), l1 = std::log(1e6), b0 = std::log(1e6), b1 = std::log(1e12);
+  for (int pass = 0; pass < 3; ++pass) {
+    const int n = 120;
+    for (int i = 0; i <= n; ++i)
+      for (int j = 0; j <= n; ++j) {
+        const double L = std::exp(l0 + (l1 - l0) * i / n), B = std::exp(b0 + (b1 - b0) * j / n);
+        const double e = err(L, B);
+        if (e < best) best = e, bestL = L, bestB = B;
+      }
+    const double dl = 3 * (l1 - l0) / n, db = 3 * (b1 - b0) / n;
+    l0 = std::log(bestL) - dl, l1 = std::log(bestL) + dl, b0 = std::log(bestB) - db, b1 = std::log(bestB) + db;
+  }
+  const DiskModel m{bestL, bestB / 1e6, io_threads};
+  if (notes) {
+    std::string r;
+    for (const auto& p : points)
+      if (p.concurrency <= io_threads)
+        r += fmt::format(" {}K×{} {:+.0f}%", p.bytes / 1024, p.concurrency,
+                         100.0 * (disk_throughput_Bps(DiskModel{m.latency_us, m.bandwidth_MBps, p.concurrency}, p.bytes) / 1e6 / p.MBps - 1));
+    notes->push_back("disk fit (model vs measured MB/s, size×in flight):" + r);
+  }
+  return m;
+}
 
 Calibration calibrate(const TileStore& store, const CalibrateOptions& o, const CalibrateProgress& progress) {
   if (o.io_threads < 1 || o.io_threads > 256) throw InputError("--io-threads", "must be in 1..256");
@@ -256,39 +303,7 @@ Calibration calibrate(const TileStore& store, const CalibrateOptions& o, const C
   }
 
   // ---- fit: disk ----
-  // Latency and single-stream transfer: least squares of the mean read time at one read in flight
-  // against the request size, t(s) = latency + s / B1 (means, not medians: a burst of N reads at
-  // concurrency k drains in N * mean / k, Little's law).
-  std::vector<double> xs, ys;
-  for (const auto& p : c.reads)
-    if (p.concurrency == 1) xs.push_back(p.bytes), ys.push_back(p.mean_us);
-  double lat_us = 0, us_per_byte = 0;
-  fit_line(xs, ys, lat_us, us_per_byte);
-  if (lat_us < 0) {
-    c.notes.push_back(fmt::format("the latency intercept came out negative ({:.1f} us): using the smallest read's mean", lat_us));
-    lat_us = ys.front();
-  }
-  // The shared bus: the model's throughput with io_threads channels at the store's mean read,
-  // k * s / (latency + s / B), must equal the measured one X (if it cannot, the device is bus-bound: B = X).
-  const ReadPoint* at = nullptr;
-  for (const auto& p : c.reads)
-    if (p.concurrency == o.io_threads && p.bytes == typical) at = &p;
-  if (!at) throw std::logic_error("calibrate: the fit's read point was not measured");
-  const double s = typical, k = o.io_threads, X = at->MBps * 1e6;
-  const double denom = k * s / X - lat_us * 1e-6;
-  double B = denom > 0 ? s / denom : X;
-  if (B < X) B = X;
-  c.disk.latency_us = lat_us;
-  c.disk.bandwidth_MBps = B / 1e6;
-  c.disk.channels = o.io_threads;
-  const double t1_model = lat_us + s / B * 1e6;
-  const ReadPoint* one = nullptr;
-  for (const auto& p : c.reads)
-    if (p.concurrency == 1 && p.bytes == typical) one = &p;
-  c.notes.push_back(fmt::format("disk: one {} KiB read takes {:.0f} us in the model, {:.0f} us measured (mean); {} reads in "
-                                "flight give {:.0f} MB/s in the model and measured",
-                                typical / 1024, t1_model, one ? one->mean_us : 0.0, o.io_threads,
-                                std::min(B, k * s / (t1_model * 1e-6)) / 1e6));
+  c.disk = fit_disk_model(c.reads, o.io_threads, typical, &c.notes);
 
   // ---- fit: decode ----
   // Cost per tile on one worker, from the per-layer means: per_tile + bytes / throughput by least

@@ -7,8 +7,8 @@
 //    latency percentiles and aggregate bandwidth per point.
 //  - Decode: the store's own tiles (a sample per layer), verify + decode as the decode pool does,
 //    per codec on one worker, then the decode pool's throughput by worker count.
-//  - Fit: DiskModel{latency_us, bandwidth_MBps, channels = io threads} and DecodeModel{per_tile_us,
-//    throughput_MBps, workers} (the formulas are in calibrate.cpp and the docs).
+//  - Fit: DiskModel{latency_us, bandwidth_MBps, channels = io threads} (fit_disk_model) and
+//    DecodeModel{per_tile_us, throughput_MBps, workers} (per-tile cost at the pool's measured speed).
 //
 // Takes ~seconds_per_point × (sizes × concurrencies + workers) of wall time. Not thread-safe
 // (spawns its own threads).
@@ -68,6 +68,13 @@ using CalibrateProgress = std::function<void(const std::string&)>;
 
 // Throws InputError for bad options (sizes not multiples of 4096, larger than the data region...).
 Calibration calibrate(const TileStore& store, const CalibrateOptions& options, const CalibrateProgress& progress = {});
+
+// The disk fit: DiskModel{latency_us, bandwidth_MBps, channels = io_threads} minimising the squared
+// log error of the model's throughput (disk_throughput_Bps with each point's concurrency as its
+// channels) against the measured points with concurrency <= io_threads; points of
+// `typical_bytes` (the store's mean read) weigh 4x. Residuals per point go to `notes`.
+DiskModel fit_disk_model(const std::vector<ReadPoint>& points, int io_threads, std::uint32_t typical_bytes,
+                         std::vector<std::string>* notes = nullptr);
 
 // The device profile: a TOML file of config keys (disk.*, decode.*, io.threads, io.direct) with the
 // measurements as comments; usable as `--config` or merged with `--set`.
