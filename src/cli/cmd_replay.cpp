@@ -5,13 +5,16 @@
 
 #include <cstdio>
 #include <fstream>
+#include <optional>
 
 #include "cli/commands.h"
 #include "core/error.h"
+#include "sim/real_replay.h"
 #include "sim/replay.h"
 #include "sim/report_html.h"
 #include "sim/scene.h"
 #include "sim/trace_import.h"
+#include "stream/tile_store.h"
 
 namespace vtsim::cli {
 
@@ -23,6 +26,8 @@ struct ReplayArgs {
   std::vector<std::string> sets;
   std::string system;
   std::string clock = "sim";
+  std::string store;
+  double speed = 1.0;
   std::string summary, frames, report;
   bool print_config = false, quiet = false, json = false, progress = false;
 };
@@ -43,15 +48,37 @@ void run_replay_command(const ReplayArgs& a) {
     return;
   }
   if (a.trace.empty()) throw InputError("--trace", "a trace file is required (see `vtsim trace gen --help`)");
-  if (a.clock != "sim") throw InputError("--clock", "'" + a.clock + "': only the simulated clock ('sim') is available here");
-  const Trace trace = load_any_trace(a.trace);
+  if (a.clock != "sim" && a.clock != "real")
+    throw InputError("--clock", "'" + a.clock + "' is not one of: sim (device models), real (threads and files)");
+  if (a.clock == "real" && a.store.empty())
+    throw InputError("--store", "the real clock reads a tile store: give --store S (make one with `vtsim store gen`)");
+  Trace trace = load_any_trace(a.trace);
+  apply_speed(cfg, trace, a.speed);
+  std::optional<TileStore> store;
+  if (!a.store.empty()) {
+    store.emplace(TileStore::open(a.store));
+    for (const std::string& note : bind_store_texture(cfg, *store))
+      if (!a.quiet) fmt::print(stderr, "vtsim: {}\n", note);
+  }
   auto scene = make_scene_from_config(cfg);
-  ReplayEnv env;
+  std::function<void(int, int)> progress;
   const bool tty = isatty(fileno(stderr)) != 0;
   if ((a.progress || tty) && !a.quiet)
-    env.progress = [](int f, int n) { fmt::print(stderr, "\rframe {}/{} ({:.0f}%)", f, n, 100.0 * f / n); };
-  ReplayResult r = run_replay(cfg, trace, *scene, env);
-  if (env.progress) fmt::print(stderr, "\r{:40}\r", "");
+    progress = [](int f, int n) { fmt::print(stderr, "\rframe {}/{} ({:.0f}%)", f, n, 100.0 * f / n); };
+  ReplayResult r;
+  if (a.clock == "real") {
+    RealRun run = run_real_replay(cfg, trace, *scene, *store, RealClockOptions{progress});
+    r = std::move(run.result);
+    const std::string warning = r.summary["real_clock"]["o_direct_warning"].get<std::string>();
+    if (!warning.empty() && !a.quiet) fmt::print(stderr, "vtsim: warning: {}\n", warning);
+  } else {
+    ReplayEnv env;
+    env.progress = progress;
+    if (store) env.sizer = store_sizer(*store);
+    r = run_replay(cfg, trace, *scene, env);
+  }
+  if (a.speed != 1.0) r.summary["trace"]["speed"] = a.speed;
+  if (progress) fmt::print(stderr, "\r{:40}\r", "");
   if (!a.summary.empty()) write_text(a.summary, r.summary.dump(2) + "\n");
   if (!a.frames.empty()) r.metrics.write_frames_csv(a.frames);
   if (!a.report.empty()) write_text(a.report, html_report(r.summary, r.metrics));
@@ -66,7 +93,11 @@ void register_replay_commands(CLI::App& app) {
   c->add_option("--config,-c", a->config, "TOML config file (docs/config.md)");
   c->add_option("--set", a->sets, "override one config key: --set upload.tiles_per_frame=8 (repeatable)");
   c->add_option("--system", a->system, "clipmap | vt (overrides run.system)");
-  c->add_option("--clock", a->clock, "sim (device models, deterministic)")->capture_default_str();
+  c->add_option("--clock", a->clock, "sim (device models, deterministic) | real (IO and decode threads on --store, wall-clock pacing)")
+      ->capture_default_str();
+  c->add_option("--store", a->store,
+                "tile store (.vts): the texture and every tile's disk bytes come from it (both clocks); required by --clock real");
+  c->add_option("--speed", a->speed, "play the trace this many times faster (both clocks)")->capture_default_str();
   c->add_option("--summary", a->summary, "write the summary JSON here");
   c->add_option("--frames", a->frames, "write one CSV row per frame here");
   c->add_option("--report", a->report, "write an HTML report with charts here");

@@ -101,7 +101,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
   IExecutor* exec = env.executor;
   if (!exec) {
     sim = std::make_unique<SimExecutor>(cfg.disk, cfg.decode, static_cast<std::size_t>(cfg.max_in_flight),
-                                        SimFaultModel{cfg.fault_rate, static_cast<std::uint64_t>(cfg.fault_seed)});
+                                        cfg.faults);
     exec = sim.get();
   }
   PipelineConfig pc;
@@ -374,6 +374,15 @@ std::string format_summary(const nlohmann::json& s) {
   if (s["faults"]["faults"].get<std::uint64_t>() > 0)
     out += fmt::format("  faults      {} faults, {} retries, {} tiles failed\n", s["faults"]["faults"].get<std::uint64_t>(),
                        s["faults"]["retries"].get<std::uint64_t>(), s["faults"]["failed_tiles"].get<std::uint64_t>());
+  if (s.contains("real_clock")) {
+    const auto& rc = s["real_clock"];
+    out += fmt::format("  real clock  {} IO threads ({}), {} decode workers; {} late frames (max {:.1f} ms); "
+                       "VRAM arena: {:.1f} MB copied in {:.1f} ms\n",
+                       rc["io_threads"].get<int>(), rc["o_direct"].get<bool>() ? "O_DIRECT" : "page cache",
+                       rc["decode_workers"].get<int>(), rc["late_frames"].get<std::uint64_t>(), rc["max_late_ms"].get<double>(),
+                       static_cast<double>(rc["vram_arena"]["bytes"].get<std::uint64_t>()) / 1e6,
+                       rc["vram_arena"]["copy_ms"].get<double>());
+  }
   out += fmt::format("  run         {:.2f} s wall, {:.0f} frames/s, {:.0f}x real time, peak {:.0f} MB\n", r["wall_s"].get<double>(),
                      r["frames_per_s"].get<double>(), r["x_realtime"].get<double>(), r["peak_rss_MB"].get<double>());
   return out;

@@ -141,8 +141,18 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
         .add(cfg::integer<C>("io.max_in_flight", &C::max_in_flight, 1, 1 << 20, "jobs submitted to the IO/decode executor at once"))
         .add(cfg::integer<C>("io.max_retries", &C::max_retries, 0, 100, "retries of a faulted tile before it fails"))
         .add(cfg::integer<C>("io.retry_backoff_frames", &C::retry_backoff_frames, 0, 100000, "frames before a retry"))
-        .add(cfg::real<C>("io.fault_rate", &C::fault_rate, 0.0, 1.0, "simulated: probability that a read fails with EIO"))
-        .add(cfg::integer<C>("io.fault_seed", &C::fault_seed, 0, std::numeric_limits<std::int64_t>::max(), "seed of the simulated fault pattern"))
+        .add(cfg::integer<C>("io.threads", &C::io_threads, 1, 256,
+                             "real clock: IO pool threads, = reads in flight at once (seed 000 §4-3)"))
+        .add(cfg::boolean<C>("io.direct", &C::io_direct, "real clock: unbuffered O_DIRECT reads (seed 000 §4-3); false = page cache"))
+        .add(cfg::real<C>("io.fault_rate", &C::fault_rate, 0.0, 1.0, "probability that a read fails with EIO (injected, both clocks)"))
+        .add(cfg::integer<C>("io.fault_seed", &C::fault_seed, 0, std::numeric_limits<std::int64_t>::max(),
+                             "seed of the injected fault pattern (per tile and attempt)"))
+        .add(cfg::real<C>("io.fault.short_read_rate", &C::fault_short_read_rate, 0.0, 1.0,
+                          "probability that a read returns half its record (injected short read)"))
+        .add(cfg::real<C>("io.fault.checksum_rate", &C::fault_checksum_rate, 0.0, 1.0,
+                          "probability that a read's payload arrives corrupted (caught by the checksum)"))
+        .add(cfg::real<C>("io.fault.slow_rate", &C::fault_slow_rate, 0.0, 1.0, "probability that a read is slow (io.fault.slow_ms more)"))
+        .add(cfg::real<C>("io.fault.slow_ms", &C::fault_slow_ms, 0.0, 60000.0, "extra time of a slow read, ms"))
         .add(cfg::text<C>("throttle.policy", &C::throttle,
                           [](const std::string& v) {
                             if (make_throttle_policy(v, ThrottleParams{})) return;
@@ -219,6 +229,8 @@ void validate(ReplayConfig& c) {
   c.upload.tiles_per_frame = c.upload_tiles_per_frame < 0 ? 0 : c.upload_tiles_per_frame;
   c.upload.bytes_per_frame = c.upload_bytes_per_frame < 0 ? 0 : static_cast<std::uint64_t>(c.upload_bytes_per_frame);
   c.upload.link_MBps = c.upload_link_MBps;
+  c.faults = FaultConfig{c.fault_rate,          static_cast<std::uint64_t>(c.fault_seed), c.fault_short_read_rate,
+                         c.fault_checksum_rate, c.fault_slow_rate, c.fault_slow_ms};
   c.throttle_params = ThrottleParams{};
   c.throttle_params.deadline_ms = c.deadline_ms;
   c.throttle_params.relax_factor = c.relax_factor;

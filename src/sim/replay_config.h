@@ -9,6 +9,7 @@
 
 #include "core/config_table.h"
 #include "stream/device_model.h"
+#include "stream/fault_layer.h"
 #include "stream/i_throttle.h"
 
 namespace vtsim {
@@ -76,8 +77,14 @@ struct ReplayConfig {
   int max_in_flight = 64;                 // jobs given to the executor at once (IO pool bound)
   int max_retries = 2;                    // retries of a faulted tile
   int retry_backoff_frames = 2;           // frames before a retry
-  double fault_rate = 0.0;                // simulated clock: probability a read fails (EIO)
+  int io_threads = 4;                     // real clock: IO pool workers (reads in flight at once)
+  bool io_direct = true;                  // real clock: O_DIRECT reads (fallback with a warning)
+  double fault_rate = 0.0;                // probability a read fails with EIO (both clocks)
   std::int64_t fault_seed = 1;            // seed of the deterministic fault pattern
+  double fault_short_read_rate = 0.0;     // probability a read comes back short
+  double fault_checksum_rate = 0.0;       // probability a read's payload arrives corrupted
+  double fault_slow_rate = 0.0;           // probability a read is slow ...
+  double fault_slow_ms = 50.0;            // ... by this much, ms
   // [throttle]
   std::string throttle = "deadline";      // none | deadline | ... (stream/throttle_registry.cpp)
   double deadline_ms = 250.0;
@@ -96,6 +103,7 @@ struct ReplayConfig {
   DecodeModel decode;
   UploadModel upload;
   ThrottleParams throttle_params;
+  FaultConfig faults;
 };
 
 const ConfigTable<ReplayConfig>& replay_config_table();

@@ -56,8 +56,9 @@ void SimExecutor::start_disk_jobs() {
     Job& j = jobs_.at(id);
     j.stage = Stage::disk_latency;
     j.result.read_start = now_;
+    j.faults = faults_.next(j.job.key);
     ++disk_active_;
-    const Ticks latency = static_cast<Ticks>(disk_.latency_us * 1000.0 + 0.5);
+    const Ticks latency = static_cast<Ticks>(disk_.latency_us * 1000.0 + 0.5) + j.faults.delay;
     events_.push(now_ + latency, Event{Ev::latency_done, id});
   }
 }
@@ -74,12 +75,6 @@ void SimExecutor::start_decode_jobs() {
     const double bps = decode_.throughput_MBps > 0 ? decode_.throughput_MBps * 1e6 : 0.0;
     events_.push(now_ + fixed + transfer_ticks(j.job.decoded_bytes, bps), Event{Ev::decode_done, id});
   }
-}
-
-bool SimExecutor::inject_io_error(const Job& j) const {
-  if (faults_.io_error_rate <= 0.0) return false;
-  const std::uint64_t h = mix64(j.job.key.bits ^ mix64(faults_.seed + j.job.id));
-  return static_cast<double>(h >> 11) * 0x1.0p-53 < faults_.io_error_rate;
 }
 
 void SimExecutor::finish(Job& j, std::vector<JobResult>& out) {
@@ -110,9 +105,11 @@ void SimExecutor::collect(Ticks until, std::vector<JobResult>& out) {
         j.result.read_end = now_;
         j.result.bytes_read = j.job.disk_bytes;
         j.result.decode_start = j.result.decode_end = now_;
-        if (inject_io_error(j)) {
+        if (j.faults.fault == Fault::io_error || j.faults.fault == Fault::short_read) {
           j.result.outcome = JobOutcome::failed;
-          j.result.fault = Fault::io_error;
+          j.result.fault = j.faults.fault;
+          // EIO delivers nothing; a short read half the record (as the IO pool's injection).
+          j.result.bytes_read = j.faults.fault == Fault::short_read ? j.job.disk_bytes / 2 : 0;
           finish(j, out);
         } else if (j.cancelled) {
           j.result.outcome = JobOutcome::cancelled;
@@ -128,7 +125,8 @@ void SimExecutor::collect(Ticks until, std::vector<JobResult>& out) {
       case Ev::decode_done: {
         --decode_active_;
         j.result.decode_end = now_;
-        j.result.outcome = JobOutcome::ready;
+        j.result.outcome = j.faults.fault == Fault::checksum ? JobOutcome::failed : JobOutcome::ready;
+        j.result.fault = j.faults.fault == Fault::checksum ? Fault::checksum : Fault::none;
         finish(j, out);
         start_decode_jobs();
         break;

@@ -12,15 +12,17 @@
 
 #include "sim/event_queue.h"
 #include "stream/device_model.h"
+#include "stream/fault_layer.h"
 #include "stream/i_executor.h"
 
 namespace vtsim {
 
-struct SimFaultModel {
-  double io_error_rate = 0.0;  // probability that a read fails with an IO error, deterministic per
-                               // (tile, attempt) hash so runs stay reproducible
-  std::uint64_t seed = 1;
-};
+// Injected faults, the same decisions as the real clock's fault layer (stream/fault_layer.h):
+// deterministic per (seed, tile, attempt), so runs stay reproducible and a retry may succeed. An
+// IO error fails the job when its transfer ends (bytes counted as read), a short read fails it
+// there with half the bytes, a corrupted payload fails it as `checksum` when its decode ends, and
+// a slow read adds its delay to the read's latency.
+using SimFaultModel = FaultConfig;
 
 class SimExecutor final : public IExecutor {
  public:
@@ -44,6 +46,7 @@ class SimExecutor final : public IExecutor {
     Stage stage = Stage::disk_queue;
     bool cancelled = false;
     std::uint64_t seq = 0;  // submission order
+    FaultPlan faults;       // drawn when the read starts
     JobResult result;
   };
   enum class Ev : std::uint8_t { latency_done, transfer_done, decode_done };
@@ -56,12 +59,11 @@ class SimExecutor final : public IExecutor {
   void start_disk_jobs();
   void start_decode_jobs();
   void finish(Job& j, std::vector<JobResult>& out);
-  bool inject_io_error(const Job& j) const;
 
   DiskModel disk_;
   DecodeModel decode_;
   std::size_t capacity_;
-  SimFaultModel faults_;
+  FaultLayer faults_;
   Ticks now_ = 0;
   Ticks bus_free_ = 0;   // when the shared transfer bus is next idle
   Ticks bus_busy_ = 0;

@@ -56,7 +56,7 @@ void validate_spec(const StoreSpec& s) {
   if (s.layers.empty() || s.layers.size() > kMaxLayers)
     throw InputError("--layers", u(s.layers.size()) + " layers; a store has 1.." + u(kMaxLayers));
   for (std::size_t i = 0; i < s.layers.size(); ++i) {
-    const LayerSpec& L = s.layers[i];
+    const StoreLayerSpec& L = s.layers[i];
     const std::string where = "layer " + u(i) + " ('" + L.name + "')";
     if (L.name.size() >= kLayerNameBytes || L.name.find('\0') != std::string::npos)
       throw InputError("--layer-names", where + ": a name is at most " + u(kLayerNameBytes - 1) + " bytes without NUL");
@@ -78,7 +78,7 @@ StoreWriter::StoreWriter(const std::string& out_path, const StoreSpec& spec) : o
   const std::uint32_t levels = spec.levels ? spec.levels : full_level_count(spec.width, spec.height);
   header_.geom = Geometry::make(spec.width, spec.height, spec.tile, spec.border, levels,
                                 static_cast<std::uint32_t>(spec.layers.size()));
-  for (const LayerSpec& L : spec.layers) {
+  for (const StoreLayerSpec& L : spec.layers) {
     LayerInfo info;
     info.name = L.name;
     info.channels = L.channels;
@@ -447,7 +447,7 @@ BuildResult build_store(const std::vector<std::string>& images, const BuildOptio
   spec.levels = o.levels;
   std::vector<Image8> level0;
   for (std::size_t i = 0; i < images.size(); ++i) {
-    LayerSpec L;
+    StoreLayerSpec L;
     L.name = o.layer_names.empty() ? fs::path(images[i]).stem().string().substr(0, kLayerNameBytes - 1) : o.layer_names[i];
     L.codec = o.codecs.empty() ? CodecSpec{CodecId::zstd, default_codec_param(CodecId::zstd)}
                                : o.codecs[o.codecs.size() == 1 ? 0 : i];

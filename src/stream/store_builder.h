@@ -14,7 +14,9 @@
 
 namespace vtsim {
 
-struct LayerSpec {
+// (Named apart from sim/replay_config.h's LayerSpec: two classes of one name in one namespace
+// break the one-definition rule, and the linker then mixes their vector code.)
+struct StoreLayerSpec {
   std::string name;                                 // <= 31 bytes
   std::uint32_t channels = 4;                       // 1..4
   CodecSpec codec;                                  // codec and its parameter
@@ -26,7 +28,7 @@ struct StoreSpec {
   std::uint32_t tile = 128;             // payload side T, texels
   std::uint32_t border = 4;             // B, texels (seed 004: 4 = one compressed block)
   std::uint32_t levels = 0;             // 0 = down to 1 x 1
-  std::vector<LayerSpec> layers;
+  std::vector<StoreLayerSpec> layers;
 };
 
 // One tile after encoding: what StoreWriter::append writes.

@@ -1,0 +1,93 @@
+// vtsim calibrate: measure this machine's disk and decode on a tile store and write a device
+// profile (TOML config keys) that the simulated clock uses to predict the real one
+// (docs/real-engine.md §5).
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "cli/commands.h"
+#include "core/error.h"
+#include "stream/calibrate.h"
+#include "stream/tile_store.h"
+
+namespace vtsim::cli {
+
+namespace {
+
+struct CalibrateArgs {
+  std::string store, out;
+  int io_threads = 4, decode_workers = 2;
+  double seconds = 0.4;
+  bool buffered = false, quick = false, quiet = false, json = false;
+  std::uint64_t seed = 1;
+};
+
+void run_calibrate(const CalibrateArgs& a) {
+  const TileStore store = TileStore::open(a.store);
+  CalibrateOptions o;
+  o.io_threads = a.io_threads;
+  o.decode_workers = a.decode_workers;
+  o.direct = !a.buffered;
+  o.seconds_per_point = a.quick ? std::min(a.seconds, 0.1) : a.seconds;
+  o.seed = a.seed;
+  if (a.quick) o.concurrency = {1, a.io_threads};
+  const bool tty = isatty(fileno(stderr)) != 0;
+  CalibrateProgress progress;
+  if (!a.quiet)
+    progress = [tty](const std::string& s) {
+      if (tty) fmt::print(stderr, "\r{:60}", s);
+      else fmt::print(stderr, "{}\n", s);
+    };
+  const Calibration c = calibrate(store, o, progress);
+  if (!a.quiet && tty) fmt::print(stderr, "\r{:60}\r", "");
+  if (!c.direct_warning.empty() && !a.quiet) fmt::print(stderr, "vtsim: warning: {}\n", c.direct_warning);
+  const std::string toml = profile_toml(c, a.store);
+  if (!a.out.empty()) {
+    std::ofstream f(a.out, std::ios::binary | std::ios::trunc);
+    if (!f || !(f << toml) || !f.flush()) throw InputError(a.out, "cannot write the profile");
+  }
+  if (a.json) {
+    nlohmann::json j;
+    for (const auto& p : c.reads)
+      j["reads"].push_back({{"bytes", p.bytes}, {"concurrency", p.concurrency}, {"reads", p.reads}, {"MBps", p.MBps},
+                            {"mean_us", p.mean_us}, {"p50_us", p.p50_us}, {"p95_us", p.p95_us}, {"p99_us", p.p99_us}});
+    for (const auto& p : c.decodes)
+      j["decode"].push_back({{"what", p.what}, {"workers", p.workers}, {"tiles", p.tiles}, {"us_per_tile", p.us_per_tile},
+                             {"tiles_per_s", p.tiles_per_s}, {"decoded_MBps", p.decoded_MBps}});
+    j["profile"] = {{"disk.latency_us", c.disk.latency_us}, {"disk.bandwidth_MBps", c.disk.bandwidth_MBps},
+                    {"disk.channels", c.disk.channels}, {"decode.per_tile_us", c.decode.per_tile_us},
+                    {"decode.throughput_MBps", c.decode.throughput_MBps}, {"decode.workers", c.decode.workers},
+                    {"io.threads", c.io_threads}, {"io.direct", c.direct}};
+    j["notes"] = c.notes;
+    fmt::print("{}\n", j.dump(2));
+  } else if (a.out.empty()) {
+    fmt::print("{}", toml);
+  } else if (!a.quiet) {
+    fmt::print("{}", toml.substr(0, toml.find("\n[disk]")));
+    fmt::print("\nwrote {}\n", a.out);
+  }
+}
+
+}  // namespace
+
+void register_calibrate_commands(CLI::App& app) {
+  auto a = std::make_shared<CalibrateArgs>();
+  auto* c = app.add_subcommand("calibrate",
+                               "Measure read latency/bandwidth and decode speed on a tile store; write a device profile for the simulated clock");
+  c->add_option("--store,-s", a->store, "tile store (.vts) to measure on")->required();
+  c->add_option("--output,-o", a->out, "write the profile (TOML config keys) here; default: print it");
+  c->add_option("--io-threads", a->io_threads, "IO pool threads the profile is for (io.threads)")->capture_default_str();
+  c->add_option("--decode-workers", a->decode_workers, "decode workers the profile is for (decode.workers)")->capture_default_str();
+  c->add_option("--seconds", a->seconds, "measuring time per point, s")->capture_default_str();
+  c->add_option("--seed", a->seed, "seed of the random offsets and tile sample")->capture_default_str();
+  c->add_flag("--buffered", a->buffered, "read through the page cache instead of O_DIRECT (io.direct = false)");
+  c->add_flag("--quick", a->quick, "fewer, shorter points (a smoke run; less accurate)");
+  c->add_flag("--json", a->json, "print the measurements and the fitted keys as JSON");
+  c->add_flag("--quiet,-q", a->quiet, "no progress or table");
+  c->callback([a] { run_calibrate(*a); });
+}
+
+}  // namespace vtsim::cli

@@ -1,0 +1,185 @@
+#include "sim/real_replay.h"
+
+#include <fmt/format.h>
+
+#include <time.h>
+
+#include <algorithm>
+#include <thread>
+
+#include "core/error.h"
+#include "sim/scene.h"
+#include "stream/threaded_executor.h"
+
+namespace vtsim {
+
+namespace {
+
+const char* format_for_channels(std::uint32_t channels) {
+  switch (channels) {
+    case 1: return "r8";
+    case 2: return "rg8";
+    case 3: return "rgb8";
+    default: return "rgba8";
+  }
+}
+
+double thread_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+}
+
+}  // namespace
+
+std::vector<std::string> bind_store_texture(ReplayConfig& cfg, const TileStore& store) {
+  const ReplayConfig def;
+  const store::Geometry& g = store.geometry();
+  const std::string& path = store.path();
+  auto bind = [&](const char* key, auto& value, auto def_value, auto store_value) {
+    using T = std::decay_t<decltype(value)>;
+    if (value != def_value && value != static_cast<T>(store_value))
+      throw InputError("config", fmt::format("field '{}': {} disagrees with the store {} ({}); leave it unset to take the "
+                                             "store's",
+                                             key, value, path, store_value));
+    value = static_cast<T>(store_value);
+  };
+  bind("texture.width", cfg.width, def.width, g.width);
+  bind("texture.height", cfg.height, def.height, g.height);
+  bind("texture.tile_size", cfg.tile_size, def.tile_size, g.tile);
+  bind("texture.border", cfg.border, def.border, g.border);
+
+  std::string layers;
+  const auto totals = store.totals();
+  for (std::uint32_t i = 0; i < store.layer_count(); ++i) {
+    const double ratio = totals[i].stored_bytes ? static_cast<double>(totals[i].decoded_bytes) / static_cast<double>(totals[i].stored_bytes) : 1.0;
+    layers += fmt::format("{}{}:{}:{:.4g}", i ? "," : "", store.layer(i).name, format_for_channels(store.layer(i).channels),
+                          std::clamp(ratio, 1.0, 1000.0));
+  }
+  if (cfg.layers != def.layers) {
+    const auto want = parse_layers(cfg.layers), have = parse_layers(layers);
+    bool same = want.size() == have.size();
+    for (std::size_t i = 0; same && i < want.size(); ++i) same = want[i].name == have[i].name && want[i].format == have[i].format;
+    if (!same)
+      throw InputError("config", "field 'texture.layers': '" + cfg.layers + "' disagrees with the store " + path + " ('" +
+                                     layers + "'); leave it unset to take the store's");
+  }
+  cfg.layers = layers;
+  const std::uint32_t full = store::full_level_count(g.width, g.height);
+  if (g.levels != full)
+    throw InputError(path + ": header field 'level_count'",
+                     fmt::format("{} levels; a clipmap samples every level down to 1×1 ({}): generate the store without --levels",
+                                 g.levels, full));
+  validate(cfg);
+  return {fmt::format("texture from the store {}: {}×{} texels, tile {}, border {}, {} levels, layers {}", path, g.width,
+                      g.height, g.tile, g.border, g.levels, layers)};
+}
+
+TileSizer store_sizer(const TileStore& store) {
+  return [&store](TileKey k) -> TileSizes {
+    if (!store.contains(k)) return {};
+    const TileLocation loc = store.locate(k);
+    return {loc.read_bytes, loc.decoded_bytes};
+  };
+}
+
+void apply_speed(ReplayConfig& cfg, Trace& trace, double speed) {
+  if (!(speed > 0.0 && speed <= 1000.0)) throw InputError("--speed", fmt::format("{} is outside (0, 1000]", speed));
+  if (speed == 1.0) return;
+  for (Pose& p : trace.poses) p.t_s /= speed;
+  cfg.fps *= speed;
+}
+
+RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const TileStore& store,
+                        const RealClockOptions& options) {
+  if (cfg.system != "clipmap")
+    throw InputError("config", "field 'run.system': the real clock drives the clipmap ('" + cfg.system + "' is not available)");
+  ThreadedExecutorConfig xc;
+  xc.io_threads = cfg.io_threads;
+  xc.decode_workers = cfg.decode_workers;
+  xc.capacity = static_cast<std::size_t>(cfg.max_in_flight);
+  xc.direct = cfg.io_direct;
+  xc.faults = cfg.faults;
+  ThreadedExecutor exec(store, xc);
+
+  ClipmapParams cp;
+  cp.extent = scene.texture();
+  cp.tile_size = cfg.tile_size;
+  cp.clipsize = cfg.clipsize;
+  cp.layers = static_cast<int>(store.layer_count());
+  std::vector<std::uint32_t> layer_bytes;
+  for (std::uint32_t i = 0; i < store.layer_count(); ++i) layer_bytes.push_back(store.tile_bytes(i));
+  RealRun run;
+  run.arena = std::make_unique<VramArena>(VramArena::for_clipmap(cp, layer_bytes));
+  VramArena& arena = *run.arena;
+
+  // Frame pacing: frame f starts at its trace time on the wall clock, or as soon as the previous
+  // frame is done when the loop runs late (the lateness is measured, not hidden).
+  const double period_s = cfg.fps > 0 ? 1.0 / cfg.fps : 1.0 / 60.0;
+  const Ticks half_period = seconds_to_ticks(period_s / 2);
+  std::uint64_t late_frames = 0, no_data = 0;
+  Ticks max_late = 0, sum_late = 0;
+  int frames = 0;
+  std::vector<std::pair<int, double>> late_list;  // (frame, ms late): the first 20 late frames
+  ReplayEnv env;
+  env.executor = &exec;
+  env.sizer = store_sizer(store);
+  env.clock_name = "real";
+  env.progress = options.progress;
+  // The frame loop's own cost: wall and CPU time (this thread) from one frame's start to the next
+  // frame's pacing point. Wall well above CPU means the thread waited for a core.
+  std::vector<double> work_wall_ms, work_cpu_ms;
+  Ticks frame_start = 0;
+  double cpu_start = 0;
+  env.pace = [&](int f, Ticks target) -> Ticks {
+    if (f > 0) {
+      work_wall_ms.push_back(ticks_to_ms(exec.now() - frame_start));
+      work_cpu_ms.push_back(thread_cpu_ms() - cpu_start);
+    }
+    if (f == 0) exec.restart_clock();
+    std::this_thread::sleep_until(exec.clock().at(target));
+    const Ticks now = exec.now();
+    const Ticks late = std::max<Ticks>(0, now - target);
+    max_late = std::max(max_late, late);
+    sum_late += late;
+    if (late > half_period) {
+      ++late_frames;
+      if (late_list.size() < 20) late_list.push_back({f, ticks_to_ms(late)});
+    }
+    ++frames;
+    frame_start = now;
+    cpu_start = thread_cpu_ms();
+    return now;
+  };
+  env.on_upload = [&](const UploadItem& u) {
+    if (u.data) arena.upload(*u.data);
+    else ++no_data;
+  };
+  run.result = run_replay(cfg, trace, scene, env);
+  exec.shutdown();
+
+  const VramArena::Stats& as = arena.stats();
+  const FaultLayer::Counts inj = exec.injected_faults();
+  nlohmann::json& rc = run.result.summary["real_clock"];
+  rc["io_threads"] = exec.io_threads();
+  rc["decode_workers"] = exec.decode_workers();
+  rc["max_in_flight"] = cfg.max_in_flight;
+  rc["o_direct"] = exec.direct();
+  rc["o_direct_warning"] = exec.direct_warning();
+  rc["late_frames"] = late_frames;
+  rc["first_late_frames"] = late_list;
+  rc["max_late_ms"] = ticks_to_ms(max_late);
+  rc["mean_late_ms"] = frames ? ticks_to_ms(sum_late) / frames : 0.0;
+  rc["uploads_without_data"] = no_data;
+  rc["frame_work_ms"] = {{"wall", to_json(percentiles(work_wall_ms))}, {"cpu", to_json(percentiles(work_cpu_ms))}};
+  rc["vram_arena"] = {{"capacity_MiB", static_cast<double>(arena.capacity_bytes()) / 1048576.0},
+                      {"uploads", as.uploads},
+                      {"bytes", as.bytes},
+                      {"overwrites", as.overwrites},
+                      {"copy_ms", static_cast<double>(as.copy_ns) * 1e-6}};
+  rc["injected_faults"] = {{"io_error", inj.io_error}, {"short_read", inj.short_read}, {"checksum", inj.checksum}, {"slow", inj.slow}};
+  rc["fault_examples"] = exec.fault_examples();
+  return run;
+}
+
+}  // namespace vtsim

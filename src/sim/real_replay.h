@@ -1,0 +1,47 @@
+#pragma once
+// Replays against a real tile store (docs/real-engine.md): the store decides the texture, its
+// index gives every tile's disk and decoded bytes (in both clocks), and the real clock runs the
+// frame loop against a ThreadedExecutor paced in wall-clock time, copying uploads into a VRAM
+// arena. The simulated clock with the same store and a calibrated device profile predicts it.
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sim/replay.h"
+#include "stream/tile_store.h"
+#include "stream/vram_arena.h"
+
+namespace vtsim {
+
+// Makes the config's texture the store's: texture.width, .height, .tile_size, .border and .layers
+// left at their defaults are taken from the store header (formats from the channel counts,
+// compression ratios from the index); a value that differs from both the default and the store is
+// rejected with InputError naming the field. Checks that the store holds every level the clipmap
+// uses, then re-validates. Returns notes saying what was taken from the store.
+std::vector<std::string> bind_store_texture(ReplayConfig& cfg, const TileStore& store);
+
+// Per-tile sizes from the store's index: disk bytes = the aligned read (what crosses the disk under
+// O_DIRECT), decoded bytes = the tile. Keys outside the store cost nothing.
+TileSizer store_sizer(const TileStore& store);
+
+// Plays a trace `speed` times faster (times divided by speed; the config's frame rate multiplied),
+// so both clocks see the same faster camera. Throws InputError("--speed") outside (0, 1000].
+void apply_speed(ReplayConfig& cfg, Trace& trace, double speed);
+
+struct RealClockOptions {
+  std::function<void(int, int)> progress;  // as ReplayEnv::progress
+};
+
+struct RealRun {
+  ReplayResult result;               // the summary has a "real_clock" section
+  std::unique_ptr<VramArena> arena;  // what the uploads copied, for inspection
+};
+
+// Runs the trace in the real clock: IO and decode threads (io.threads, decode.workers,
+// io.max_in_flight, io.direct, io.fault*), frames paced to the trace's times in wall time, uploads
+// copied into the VRAM arena. `cfg` must have been bound to `store` (bind_store_texture).
+RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const TileStore& store,
+                        const RealClockOptions& options = {});
+
+}  // namespace vtsim

@@ -1,0 +1,124 @@
+#include "stream/decode_pool.h"
+
+#include "core/error.h"
+#include "stream/i_codec.h"
+
+namespace vtsim {
+
+std::unique_ptr<std::uint8_t[]> TileBufferPool::acquire(std::size_t bytes) {
+  {
+    std::lock_guard lock(m_);
+    for (auto it = free_.rbegin(); it != free_.rend(); ++it)
+      if (it->first == bytes) {
+        auto b = std::move(it->second);
+        free_.erase(std::next(it).base());
+        return b;
+      }
+  }
+  return std::make_unique_for_overwrite<std::uint8_t[]>(bytes);
+}
+
+void TileBufferPool::release(std::unique_ptr<std::uint8_t[]> buf, std::size_t bytes) {
+  std::lock_guard lock(m_);
+  if (free_.size() < max_free_) free_.emplace_back(bytes, std::move(buf));
+}
+
+DecodeResult decode_record(const TileStore& store, TileKey key, const std::uint8_t* record, std::size_t size, bool verify,
+                           const std::shared_ptr<TileBufferPool>& buffers) {
+  DecodeResult r;
+  r.key = key;
+  const std::string where = store.path() + ": " + store::describe(key);
+  if (!store.contains(key)) {
+    r.fault = Fault::bad_record;
+    r.error = where + ": is outside the store";
+    return r;
+  }
+  const store::IndexEntry& e = store.index()[store.geometry().slot(key)];
+  if (size < e.stored_bytes) {
+    r.fault = Fault::bad_record;
+    r.error = where + ": record has " + std::to_string(size) + " bytes, the index says " + std::to_string(e.stored_bytes);
+    return r;
+  }
+  if (verify && store::checksum64(record, e.stored_bytes) != e.checksum) {
+    r.fault = Fault::checksum;
+    r.error = where + ": checksum mismatch: the record is corrupt";
+    return r;
+  }
+  try {
+    std::shared_ptr<TileData> t;
+    if (buffers) {
+      t = std::shared_ptr<TileData>(new TileData, [buffers](TileData* p) {
+        if (p->texels) buffers->release(std::move(p->texels), p->bytes);
+        delete p;
+      });
+      t->texels = buffers->acquire(e.decoded_bytes);
+    } else {
+      t = std::make_shared<TileData>();
+      t->texels = std::make_unique_for_overwrite<std::uint8_t[]>(e.decoded_bytes);
+    }
+    t->key = key;
+    t->side = store.geometry().stored_side();
+    t->channels = store.layer(key.layer()).channels;
+    t->bytes = e.decoded_bytes;
+    decoder_for(e.codec).decode(record, e.stored_bytes, static_cast<int>(t->side), static_cast<int>(t->side),
+                                static_cast<int>(t->channels), t->texels.get());
+    r.data = std::move(t);
+  } catch (const CodecError& err) {
+    r.fault = Fault::decode_error;
+    r.error = where + ": does not decode: " + err.what();
+  } catch (const std::exception& err) {
+    r.fault = Fault::decode_error;
+    r.error = where + ": decode failed: " + err.what();
+  }
+  return r;
+}
+
+DecodePool::DecodePool(const TileStore& store, int workers, const WallClock& clock, Sink sink)
+    : store_(store), clock_(clock), sink_(std::move(sink)) {
+  if (workers < 1 || workers > 1024) throw InputError("decode.workers", "must be in 1..1024, got " + std::to_string(workers));
+  workers_.reserve(static_cast<std::size_t>(workers));
+  for (int i = 0; i < workers; ++i) workers_.emplace_back([this] { worker(); });
+}
+
+DecodePool::~DecodePool() { stop(); }
+
+bool DecodePool::submit(DecodeTask& task) {
+  if (state() != State::running) return false;
+  const RequestId id = task.id;
+  const std::uint64_t prio = task.priority;
+  DecodeTask moved = std::move(task);
+  if (queue_.push(id, prio, std::move(moved))) return true;
+  task = std::move(moved);  // push refused: it did not take the task
+  return false;
+}
+
+bool DecodePool::cancel(RequestId id) { return queue_.remove(id).has_value(); }
+
+std::vector<RequestId> DecodePool::stop() {
+  std::lock_guard lock(stop_m_);
+  std::vector<RequestId> dropped;
+  if (state() == State::stopped) return dropped;
+  state_.store(State::stopping, std::memory_order_release);
+  for (auto& item : queue_.close()) dropped.push_back(item.id);
+  for (auto& t : workers_)
+    if (t.joinable()) t.join();
+  state_.store(State::stopped, std::memory_order_release);
+  return dropped;
+}
+
+void DecodePool::worker() {
+  while (auto item = queue_.pop_wait()) {
+    active_.fetch_add(1, std::memory_order_relaxed);
+    DecodeTask& t = item->task;
+    const Ticks start = clock_.now();
+    DecodeResult r = decode_record(store_, t.key, t.record.data(), t.size, /*verify=*/false, tiles_);
+    r.id = t.id;
+    r.decode_start = start;
+    r.decode_end = clock_.now();
+    t.record = RecordBuffer();  // back to the IO pool's buffers before the result travels on
+    sink_(std::move(r));
+    active_.fetch_sub(1, std::memory_order_relaxed);
+  }
+}
+
+}  // namespace vtsim

@@ -1,0 +1,107 @@
+#pragma once
+// The decode stage (seed 000 §4-3: decompression off the main thread): std::thread workers, separate
+// from the IO pool's, decode each record (its checksum already verified by the IO pool) with the
+// tile's codec into a TileData, in priority order (lower first, then submission order). Decoded
+// tiles' buffers are recycled (TileBufferPool), so a warm pool neither allocates nor page-faults
+// per tile. docs/real-engine.md.
+//
+// Each accepted task yields exactly one DecodeResult through the sink, on a worker thread, unless
+// cancel() removed it (still queued) or stop() dropped it (returned). The record buffer goes back
+// to its pool when the task ends.
+//
+// State machine (std::atomic): running -> stopping -> stopped. stop() closes the queue, lets
+// decodes under way finish and deliver, joins. Thread-safety: submit, cancel, queued, active from
+// any thread; the sink is called with no pool lock held and must not throw. The TileStore must
+// outlive the pool.
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "stream/io_pool.h"
+#include "stream/tile_data.h"
+#include "stream/tile_store.h"
+#include "stream/wall_clock.h"
+#include "stream/work_queue.h"
+
+namespace vtsim {
+
+struct DecodeTask {
+  RequestId id = 0;
+  TileKey key;
+  std::uint64_t priority = 0;
+  RecordBuffer record;   // the bytes read: the payload is the first stored_bytes
+  std::size_t size = 0;  // bytes of `record` that were read
+};
+
+// Free lists of decoded-tile buffers by size. A TileData made by decode_record with a pool hands
+// its buffer back when the last reference goes (the RAM cache evicts it, say), from any thread.
+// Thread-safe (one mutex); keeps at most `max_free` buffers.
+class TileBufferPool : public std::enable_shared_from_this<TileBufferPool> {
+ public:
+  explicit TileBufferPool(std::size_t max_free = 256) : max_free_(max_free) {}
+  std::unique_ptr<std::uint8_t[]> acquire(std::size_t bytes);
+  void release(std::unique_ptr<std::uint8_t[]> buf, std::size_t bytes);
+
+ private:
+  std::size_t max_free_;
+  std::mutex m_;
+  std::vector<std::pair<std::size_t, std::unique_ptr<std::uint8_t[]>>> free_;  // guarded by m_
+};
+
+struct DecodeResult {
+  RequestId id = 0;
+  TileKey key;
+  Fault fault = Fault::none;  // none, checksum (verify = true), decode_error or bad_record
+  std::string error;          // names the file and the tile
+  std::shared_ptr<const TileData> data;  // the decoded tile (null on a fault)
+  Ticks decode_start = 0, decode_end = 0;
+};
+
+// What a worker does with one record (also called by benchmarks and calibration): checks the
+// size (and, with `verify`, the XXH64 checksum) against the index, then decodes with the tile's
+// codec into a TileData whose buffer comes from `buffers` (or the heap). Never throws; faults are
+// reported in the result (no timestamps set).
+DecodeResult decode_record(const TileStore& store, TileKey key, const std::uint8_t* record, std::size_t size,
+                           bool verify, const std::shared_ptr<TileBufferPool>& buffers = {});
+
+class DecodePool {
+ public:
+  enum class State : std::uint8_t { running, stopping, stopped };
+  using Sink = std::function<void(DecodeResult&&)>;
+
+  DecodePool(const TileStore& store, int workers, const WallClock& clock, Sink sink);
+  ~DecodePool();
+  DecodePool(const DecodePool&) = delete;
+  DecodePool& operator=(const DecodePool&) = delete;
+
+  // false when stopping (the task is handed back untouched in `task`) or the id is queued.
+  bool submit(DecodeTask& task);
+  // true: the task was still queued and is dropped (no decode, no result).
+  bool cancel(RequestId id);
+  // Stops (idempotent): returns the ids of the tasks that were queued and will never decode.
+  std::vector<RequestId> stop();
+
+  std::size_t queued() const { return queue_.size(); }
+  int active() const { return active_.load(std::memory_order_relaxed); }
+  int workers() const { return static_cast<int>(workers_.size()); }
+  State state() const { return state_.load(std::memory_order_acquire); }
+
+ private:
+  void worker();
+
+  const TileStore& store_;
+  const WallClock& clock_;
+  Sink sink_;
+  std::shared_ptr<TileBufferPool> tiles_ = std::make_shared<TileBufferPool>();
+  WorkQueue<DecodeTask> queue_;
+  std::atomic<int> active_{0};
+  std::atomic<State> state_{State::running};
+  std::mutex stop_m_;
+  std::vector<std::thread> workers_;
+};
+
+}  // namespace vtsim

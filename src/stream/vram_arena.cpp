@@ -1,0 +1,76 @@
+#include "stream/vram_arena.h"
+
+#include <chrono>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+namespace vtsim {
+
+namespace {
+constexpr std::uint64_t kNone = ~std::uint64_t{0};  // no tile (not a valid packed key in use)
+}
+
+VramArena::VramArena(std::vector<LevelWindow> levels, std::vector<std::uint32_t> layer_bytes)
+    : levels_(std::move(levels)), layer_bytes_(std::move(layer_bytes)) {
+  if (levels_.empty() || layer_bytes_.empty()) throw std::invalid_argument("VramArena: no levels or layers");
+  std::uint64_t slots = 0;
+  for (const auto& L : levels_) {
+    if (L.wx < 1 || L.wy < 1) throw std::invalid_argument("VramArena: empty window");
+    level_base_.push_back(slots);
+    slots += static_cast<std::uint64_t>(L.wx * L.wy) * layer_bytes_.size();
+  }
+  slot_offset_.resize(slots);
+  std::uint64_t off = 0;
+  for (std::uint64_t s = 0; s < slots; ++s) {
+    slot_offset_[s] = off;
+    off += layer_bytes_[s % layer_bytes_.size()];
+  }
+  bytes_ = off;
+  owner_.assign(slots, TileKey{});
+  for (auto& k : owner_) k.bits = kNone;
+  // Touched up front, as a GPU allocation is made before streaming starts: no page faults mid-frame.
+  mem_ = std::make_unique<std::uint8_t[]>(bytes_);
+}
+
+VramArena VramArena::for_clipmap(const ClipmapParams& p, std::vector<std::uint32_t> layer_bytes) {
+  const Clipmap cm(p);
+  std::vector<LevelWindow> levels;
+  for (int l = 0; l < cm.num_levels(); ++l) {
+    const Clipmap::Window w = cm.window(l);
+    levels.push_back({w.w, w.h});
+  }
+  return VramArena(std::move(levels), std::move(layer_bytes));
+}
+
+std::size_t VramArena::slot(TileKey key) const {
+  if (key.level() >= levels_.size() || key.layer() >= layer_bytes_.size())
+    throw std::invalid_argument("VramArena: tile level " + std::to_string(key.level()) + " layer " +
+                                std::to_string(key.layer()) + " is outside the arena");
+  const LevelWindow& L = levels_[key.level()];
+  const std::int64_t sx = key.x() % L.wx, sy = key.y() % L.wy;  // coordinates are >= 0
+  return static_cast<std::size_t>(level_base_[key.level()] +
+                                  static_cast<std::uint64_t>(sy * L.wx + sx) * layer_bytes_.size() + key.layer());
+}
+
+void VramArena::upload(const TileData& tile) {
+  const std::size_t s = slot(tile.key);
+  if (tile.bytes != layer_bytes_[tile.key.layer()] || !tile.texels)
+    throw std::invalid_argument("VramArena: tile of " + std::to_string(tile.bytes) + " bytes for a slot of " +
+                                std::to_string(layer_bytes_[tile.key.layer()]));
+  const auto t0 = std::chrono::steady_clock::now();
+  std::memcpy(mem_.get() + slot_offset_[s], tile.texels.get(), tile.bytes);
+  stats_.copy_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count();
+  if (owner_[s].bits != kNone && owner_[s] != tile.key) ++stats_.overwrites;
+  owner_[s] = tile.key;
+  ++stats_.uploads;
+  stats_.bytes += tile.bytes;
+}
+
+std::span<const std::uint8_t> VramArena::peek(TileKey key) const {
+  const std::size_t s = slot(key);
+  if (owner_[s] != key) return {};
+  return {mem_.get() + slot_offset_[s], layer_bytes_[key.layer()]};
+}
+
+}  // namespace vtsim

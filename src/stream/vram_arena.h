@@ -1,0 +1,58 @@
+#pragma once
+// The VRAM arena: host memory standing in for the GPU's texture memory in the real clock. The
+// upload stage copies each decoded tile chosen within the frame's upload budget into it — the
+// memcpy a driver's staging upload would do. Layout mirrors the clipmap's textures (seed 000
+// §3-2): per level a window of wx × wy tile slots addressed toroidally, (x mod wx, y mod wy), one
+// slot per layer, so a tile overwrites exactly the slot of the tile that left its window.
+//
+// Memory: sum over levels of wx · wy · Σ layer tile bytes, reserved up front (pages are touched
+// only when written). upload O(tile bytes); peek O(1). Single-threaded (the frame loop).
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "cache/clipmap.h"
+#include "stream/tile_data.h"
+
+namespace vtsim {
+
+class VramArena {
+ public:
+  struct LevelWindow {
+    std::int64_t wx = 1, wy = 1;  // window size, tiles
+  };
+  // `layer_bytes[i]`: decoded bytes of one tile of layer i.
+  VramArena(std::vector<LevelWindow> levels, std::vector<std::uint32_t> layer_bytes);
+  // The arena of a clipmap's stack windows and pyramid levels.
+  static VramArena for_clipmap(const ClipmapParams& p, std::vector<std::uint32_t> layer_bytes);
+
+  // Copies `tile` into its slot, replacing whatever tile held it. Throws std::invalid_argument if
+  // the tile's level or layer is outside the arena or its size is not the layer's.
+  void upload(const TileData& tile);
+  // The texels of `key` if its slot holds that tile now; empty otherwise.
+  std::span<const std::uint8_t> peek(TileKey key) const;
+
+  std::uint64_t capacity_bytes() const { return bytes_; }
+  struct Stats {
+    std::uint64_t uploads = 0;     // tiles copied in
+    std::uint64_t bytes = 0;       // bytes copied in
+    std::uint64_t overwrites = 0;  // uploads that replaced another resident tile
+    std::int64_t copy_ns = 0;      // wall time spent copying
+  };
+  const Stats& stats() const { return stats_; }
+
+ private:
+  std::size_t slot(TileKey key) const;
+
+  std::vector<LevelWindow> levels_;
+  std::vector<std::uint32_t> layer_bytes_;
+  std::vector<std::uint64_t> level_base_;  // first slot of each level
+  std::vector<std::uint64_t> slot_offset_; // byte offset of each slot (slots of a tile's layers are adjacent)
+  std::vector<TileKey> owner_;             // tile held by each slot; kNone if empty
+  std::unique_ptr<std::uint8_t[]> mem_;
+  std::uint64_t bytes_ = 0;
+  Stats stats_;
+};
+
+}  // namespace vtsim

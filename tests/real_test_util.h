@@ -1,0 +1,107 @@
+#pragma once
+// Helpers for the real-engine tests: small generated stores (made once per test process), a
+// scratch directory, copying and patching store files, running the CLI, waiting with a deadline.
+#include <doctest/doctest.h>
+#include <stdlib.h>
+#include <sys/wait.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "stream/tile_store.h"
+
+namespace vtsim::test {
+
+class RealScratch {
+ public:
+  RealScratch() {
+    std::string t = (std::filesystem::temp_directory_path() / "vtsim-real-test-XXXXXX").string();
+    if (!mkdtemp(t.data())) throw std::runtime_error("mkdtemp failed");
+    path_ = t;
+  }
+  ~RealScratch() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  RealScratch(const RealScratch&) = delete;
+  RealScratch& operator=(const RealScratch&) = delete;
+  std::string file(const std::string& name) const { return (path_ / name).string(); }
+
+ private:
+  std::filesystem::path path_;
+};
+
+// 1024² texels, tile 64, no border, every level, albedo (zstd) + normal (lz4): 2 × 341 tiles,
+// made once per build tree (real_test_util.cpp). Tests that change a store copy it first.
+const std::string& small_store();
+
+inline std::vector<std::uint8_t> file_bytes(const std::string& p) {
+  std::ifstream f(p, std::ios::binary);
+  return std::vector<std::uint8_t>(std::istreambuf_iterator<char>(f), {});
+}
+inline void put_file(const std::string& p, const std::vector<std::uint8_t>& b) {
+  std::error_code ec;
+  std::filesystem::remove(p, ec);
+  std::ofstream f(p, std::ios::binary);
+  f.write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+  REQUIRE(f.good());
+}
+
+// Every tile key of a store, in slot order.
+inline std::vector<TileKey> all_keys(const TileStore& s) {
+  std::vector<TileKey> k;
+  for (std::uint64_t i = 0; i < s.geometry().tile_count(); ++i) k.push_back(s.geometry().key_of_slot(i));
+  return k;
+}
+
+// The decoded texels of a tile, read synchronously (the reference the threaded paths must match).
+inline std::vector<std::uint8_t> decoded(const TileStore& s, TileKey k) {
+  AlignedBuffer scratch;
+  std::vector<std::uint8_t> out(s.tile_bytes(k.layer()));
+  s.read_tile(k, scratch, out.data(), out.size());
+  return out;
+}
+
+// Polls `pred` until it holds or `seconds` pass; returns whether it held.
+template <class Pred>
+bool eventually(Pred pred, double seconds = 10.0) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (std::chrono::steady_clock::now() < end) {
+    if (pred()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  return pred();
+}
+
+struct CliRun {
+  int code = -1;
+  std::string out, err;
+};
+
+// Runs `vtsim ARGS` through the shell (test-controlled arguments without spaces).
+inline CliRun run_cli(const RealScratch& dir, const std::string& args) {
+  const std::string err_path = dir.file("stderr.txt");
+  std::filesystem::remove(err_path);
+  const std::string cmd = std::string(VTSIM_CLI) + " " + args + " 2>" + err_path;
+  CliRun r;
+  FILE* p = popen(cmd.c_str(), "r");
+  REQUIRE(p != nullptr);
+  char buf[4096];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+  const int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  std::ifstream e(err_path);
+  std::stringstream ss;
+  ss << e.rdbuf();
+  r.err = ss.str();
+  return r;
+}
+
+}  // namespace vtsim::test

@@ -1,0 +1,319 @@
+// Real-clock replays (src/sim/real_replay.h): the store decides the texture, a short replay
+// completes with every needed tile resident and byte-exact in the VRAM arena, the simulated clock
+// reads exactly the same tiles, faults are counted and never stall the frame loop, and the CLI
+// (`vtsim replay --clock real`, `vtsim calibrate`) works end to end.
+#include <doctest/doctest.h>
+
+#include <map>
+
+#include "real_test_util.h"
+#include "sim/real_replay.h"
+#include "sim/scene.h"
+#include "sim/trace_gen.h"
+#include "stream/calibrate.h"
+
+using namespace vtsim;
+
+namespace {
+
+// The small store is 1024² texels (32 m at 32 texels/m), tile 64: a 256-texel clipsize gives two
+// stack levels (1024, 512) of 4 × 4 tiles over a pyramid of nine levels.
+ReplayConfig bound_cfg(const TileStore& store, const std::vector<std::string>& sets = {}) {
+  ReplayConfig c;
+  for (const char* s : {"texture.texels_per_m=32", "clipmap.clipsize=256", "view.divisor=16"})
+    apply_set(replay_config_table(), c, s);
+  for (const std::string& s : sets) apply_set(replay_config_table(), c, s);
+  validate(c);
+  bind_store_texture(c, store);
+  return c;
+}
+
+Trace still_trace(double seconds) {
+  TraceGenParams g = default_gen_params(TraceKind::still);
+  g.start_m = {16.0, 16.0};
+  g.duration_s = seconds;
+  g.image_width = 640;
+  g.image_height = 360;
+  return generate_trace(g);
+}
+
+}  // namespace
+
+TEST_CASE("bind_store_texture: the texture comes from the store; a disagreeing config is rejected naming the field") {
+  const TileStore store = TileStore::open(test::small_store());
+  ReplayConfig c = bound_cfg(store);
+  CHECK(c.width == 1024);
+  CHECK(c.height == 1024);
+  CHECK(c.tile_size == 64);
+  CHECK(c.border == 0);
+  REQUIRE(c.layer_specs.size() == 2);
+  CHECK(c.layer_specs[0].name == "albedo");
+  CHECK(c.layer_specs[0].format == "rgb8");
+  CHECK(c.layer_specs[1].name == "normal");
+  CHECK(c.layer_specs[0].compression_ratio > 1.5);  // zstd on terrain albedo
+  const auto totals = store.totals();
+  CHECK(c.layer_specs[1].compression_ratio ==
+        doctest::Approx(static_cast<double>(totals[1].decoded_bytes) / static_cast<double>(totals[1].stored_bytes)).epsilon(1e-3));
+
+  auto reject = [&](const std::string& set, const std::string& field) {
+    ReplayConfig bad;
+    apply_set(replay_config_table(), bad, "clipmap.clipsize=256");
+    apply_set(replay_config_table(), bad, set);
+    validate(bad);
+    try {
+      bind_store_texture(bad, store);
+      FAIL("accepted " << set);
+    } catch (const InputError& e) {
+      CHECK(std::string(e.what()).find(field) != std::string::npos);
+      CHECK(std::string(e.what()).find("real-test-small") != std::string::npos);
+    }
+  };
+  reject("texture.width=2048", "texture.width");
+  reject("texture.tile_size=32", "texture.tile_size");
+  reject("texture.layers=albedo:rgb8", "texture.layers");        // one layer, the store has two
+  reject("texture.layers=albedo:rgb8,normal:rg8", "texture.layers");
+  // Agreeing explicit values are fine.
+  ReplayConfig ok;
+  apply_set(replay_config_table(), ok, "texture.layers=albedo:rgb8,normal:rgb8");
+  apply_set(replay_config_table(), ok, "texture.width=1024");
+  apply_set(replay_config_table(), ok, "clipmap.clipsize=256");
+  validate(ok);
+  CHECK_NOTHROW(bind_store_texture(ok, store));
+}
+
+TEST_CASE("store sizer: disk bytes are the aligned reads, decoded bytes the tile; nothing outside the store") {
+  const TileStore store = TileStore::open(test::small_store());
+  const TileSizer sizer = store_sizer(store);
+  const TileKey k(1, 2, 2, 1);
+  CHECK(sizer(k).disk_bytes == store.locate(k).read_bytes);
+  CHECK(sizer(k).decoded_bytes == 64u * 64u * 3u);
+  CHECK(sizer(TileKey(0, 0, 999, 0)).disk_bytes == 0);
+}
+
+TEST_CASE("apply_speed: the trace plays faster in both clocks; a bad factor names --speed") {
+  ReplayConfig c;
+  Trace t = still_trace(1.0);
+  const double last = t.poses.back().t_s;
+  apply_speed(c, t, 4.0);
+  CHECK(t.poses.back().t_s == doctest::Approx(last / 4));
+  CHECK(c.fps == doctest::Approx(240.0));
+  for (double bad : {0.0, -1.0, 5000.0}) {
+    try {
+      apply_speed(c, t, bad);
+      FAIL("accepted " << bad);
+    } catch (const InputError& e) {
+      CHECK(std::string(e.what()).find("--speed") != std::string::npos);
+    }
+  }
+}
+
+TEST_CASE("real clock: a short replay completes with every needed tile resident, byte-exact in the VRAM arena") {
+  const TileStore store = TileStore::open(test::small_store());
+  const ReplayConfig cfg = bound_cfg(store);
+  const Trace trace = still_trace(1.5);
+  const auto scene = make_scene_from_config(cfg);
+  RealRun run = run_real_replay(cfg, trace, *scene, store);
+  const auto& s = run.result.summary;
+  const auto& frames = run.result.metrics.frames();
+  REQUIRE(frames.size() == trace.poses.size());
+  // By the end nothing is missing and nothing is in flight (samples beyond the finest window
+  // stay coarser than they want: that is the clipmap, checked against the simulated clock below).
+  CHECK(frames.back().needs == 0);
+  CHECK(frames.back().live_requests == 0);
+  CHECK(frames.back().samples > 0);
+  CHECK(s["clock"] == "real");
+  CHECK(s["faults"]["faults"] == 0);
+  // Every upload landed in the arena, and every tile the arena holds is the store's tile.
+  const auto& arena = *run.arena;
+  const std::uint64_t uploads = s["bandwidth"]["uploads"].get<std::uint64_t>();
+  CHECK(uploads > 50);
+  CHECK(arena.stats().uploads == uploads);
+  CHECK(s["real_clock"]["uploads_without_data"] == 0);
+  std::uint64_t held = 0;
+  for (TileKey k : test::all_keys(store)) {
+    const auto got = arena.peek(k);
+    if (got.empty()) continue;
+    ++held;
+    const auto want = test::decoded(store, k);
+    REQUIRE(got.size() == want.size());
+    CHECK(std::equal(want.begin(), want.end(), got.begin()));
+  }
+  CHECK(held == uploads - arena.stats().overwrites);
+  // Each needed tile was read once: disk bytes are the sum of their aligned records.
+  std::uint64_t want_bytes = 0;
+  for (TileKey k : test::all_keys(store))
+    if (!arena.peek(k).empty()) want_bytes += store.locate(k).read_bytes;
+  CHECK(s["bandwidth"]["disk_read_bytes"].get<std::uint64_t>() == want_bytes);
+
+  // The simulated clock over the same store needs and reads exactly the same tiles.
+  ReplayEnv env;
+  env.sizer = store_sizer(store);
+  const ReplayResult sim = run_replay(cfg, trace, *scene, env);
+  CHECK(sim.summary["bandwidth"]["disk_read_bytes"] == s["bandwidth"]["disk_read_bytes"]);
+  CHECK(sim.summary["bandwidth"]["uploads"] == s["bandwidth"]["uploads"]);
+  CHECK(sim.summary["cache"]["requests"] == s["cache"]["requests"]);
+  CHECK(sim.metrics.frames().back().blurry == frames.back().blurry);  // the same residency on screen
+  CHECK(sim.metrics.frames().back().deficit_sum == frames.back().deficit_sum);
+}
+
+TEST_CASE("real clock: a moving camera streams, cancels and still ends consistent") {
+  const TileStore store = TileStore::open(test::small_store());
+  const ReplayConfig cfg = bound_cfg(store, {"upload.tiles_per_frame=4", "io.threads=2", "decode.workers=1"});
+  TraceGenParams g = default_gen_params(TraceKind::walk);
+  g.start_m = {4.0, 16.0};
+  g.speed_mps = 12.0;  // 24 m in 2 s: a texel window of 768 at level 0, many tiles in and out
+  g.duration_s = 2.0;
+  g.image_width = 640;
+  g.image_height = 360;
+  const Trace trace = generate_trace(g);
+  const auto scene = make_scene_from_config(cfg);
+  const RealRun run = run_real_replay(cfg, trace, *scene, store);
+  const auto& s = run.result.summary;
+  CHECK(s["faults"]["faults"] == 0);
+  CHECK(s["bandwidth"]["uploads"].get<std::uint64_t>() == run.arena->stats().uploads);
+  CHECK(s["latency_ms"]["tiles"].get<std::uint64_t>() == run.arena->stats().uploads);
+  std::uint64_t tiles = 0;
+  for (const auto& row : run.result.metrics.frames()) {
+    CHECK(row.uploads <= 4);
+    tiles += row.uploads;
+  }
+  CHECK(tiles == s["bandwidth"]["uploads"].get<std::uint64_t>());
+  for (TileKey k : test::all_keys(store)) {
+    const auto got = run.arena->peek(k);
+    if (got.empty()) continue;
+    const auto want = test::decoded(store, k);
+    CHECK(std::equal(want.begin(), want.end(), got.begin()));
+  }
+}
+
+TEST_CASE("real clock with injected faults: retried or failed, every fault counted by kind, nothing crashes") {
+  const TileStore store = TileStore::open(test::small_store());
+  const ReplayConfig cfg = bound_cfg(store, {"io.fault_rate=0.2", "io.fault.short_read_rate=0.1", "io.fault.checksum_rate=0.1",
+                                             "io.fault.slow_rate=0.1", "io.fault.slow_ms=20", "io.max_retries=1",
+                                             "io.retry_backoff_frames=1"});
+  const auto scene = make_scene_from_config(cfg);
+  const RealRun run = run_real_replay(cfg, still_trace(1.5), *scene, store);
+  const auto& f = run.result.summary["faults"];
+  const auto& inj = run.result.summary["real_clock"]["injected_faults"];
+  CHECK(f["io_error"].get<std::uint64_t>() > 0);
+  CHECK(f["short_read"].get<std::uint64_t>() > 0);
+  CHECK(f["checksum"].get<std::uint64_t>() > 0);
+  CHECK(f["faults"].get<std::uint64_t>() ==
+        f["io_error"].get<std::uint64_t>() + f["short_read"].get<std::uint64_t>() + f["checksum"].get<std::uint64_t>());
+  // Every injected failure that reached the pipeline was counted (a read cancelled in flight
+  // can take its fault with it).
+  CHECK(f["io_error"].get<std::uint64_t>() <= inj["io_error"].get<std::uint64_t>());
+  CHECK(f["checksum"].get<std::uint64_t>() <= inj["checksum"].get<std::uint64_t>());
+  CHECK(inj["slow"].get<std::uint64_t>() > 0);
+  CHECK(f["retries"].get<std::uint64_t>() > 0);
+  CHECK(run.arena->stats().uploads > 0);  // the healthy tiles still arrived
+  for (TileKey k : test::all_keys(store)) {
+    const auto got = run.arena->peek(k);
+    if (got.empty()) continue;
+    const auto want = test::decoded(store, k);
+    CHECK(std::equal(want.begin(), want.end(), got.begin()));  // nothing corrupt reached VRAM
+  }
+}
+
+TEST_CASE("real clock: the frame loop never waits for IO (every read takes 10 s; the replay does not)") {
+  const TileStore store = TileStore::open(test::small_store());
+  const ReplayConfig cfg = bound_cfg(store, {"io.fault.slow_rate=1", "io.fault.slow_ms=10000"});
+  const auto scene = make_scene_from_config(cfg);
+  const auto t0 = std::chrono::steady_clock::now();
+  const RealRun run = run_real_replay(cfg, still_trace(0.5), *scene, store);
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  CHECK(wall < 5.0);  // 0.5 s of frames plus start-up and a prompt shutdown, far below one read
+  CHECK(run.result.summary["bandwidth"]["uploads"] == 0);
+  CHECK(run.result.metrics.frames().size() == 31);
+  CHECK(run.result.metrics.frames().back().needs > 0);  // still waiting, not blocked
+}
+
+TEST_CASE("vtsim replay --clock real and vtsim calibrate: end to end, and the profile drives the simulated clock") {
+  test::RealScratch dir;
+  REQUIRE(test::run_cli(dir, "trace gen static --duration 0.5 --start 16,16 --image 640x360 -o " + dir.file("t.csv")).code == 0);
+  const std::string common = " --store " + test::small_store() + " --trace " + dir.file("t.csv") +
+                             " --set texture.texels_per_m=32 --set clipmap.clipsize=256";
+  auto r = test::run_cli(dir, "replay --clock real" + common + " --summary " + dir.file("real.json"));
+  CHECK(r.code == 0);
+  CHECK(r.out.find("real clock") != std::string::npos);
+  CHECK(r.err.find("texture from the store") != std::string::npos);
+  r = test::run_cli(dir, "replay --clock real --trace " + dir.file("t.csv"));
+  CHECK(r.code == 2);
+  CHECK(r.err.find("--store") != std::string::npos);
+  r = test::run_cli(dir, "replay --clock wall" + common);
+  CHECK(r.code == 2);
+  CHECK(r.err.find("--clock") != std::string::npos);
+  r = test::run_cli(dir, "replay --clock real --speed 0" + common);
+  CHECK(r.code == 2);
+  CHECK(r.err.find("--speed") != std::string::npos);
+
+  r = test::run_cli(dir, "calibrate --quick --seconds 0.05 -q --store " + test::small_store() + " -o " + dir.file("p.toml"));
+  REQUIRE(r.code == 0);
+  const std::string prof = [&] {
+    std::ifstream f(dir.file("p.toml"));
+    std::stringstream ss;
+    ss << f.rdbuf();
+    return ss.str();
+  }();
+  CHECK(prof.find("[disk]") != std::string::npos);
+  CHECK(prof.find("latency_us") != std::string::npos);
+  r = test::run_cli(dir, "replay --clock sim --config " + dir.file("p.toml") + common + " --json");
+  REQUIRE(r.code == 0);
+  const auto j = nlohmann::json::parse(r.out);
+  CHECK(j["clock"] == "simulated");
+  CHECK(j["bandwidth"]["uploads"].get<int>() > 0);
+}
+
+TEST_CASE("calibrate: one point per size and concurrency, a fitted model that reproduces the measured bandwidth") {
+  const TileStore store = TileStore::open(test::small_store());
+  CalibrateOptions o;
+  o.io_threads = 2;
+  o.decode_workers = 1;
+  o.seconds_per_point = 0.05;
+  o.sizes = {4096, 16384};
+  o.concurrency = {1};
+  o.decode_sample = 8;
+  const Calibration c = calibrate(store, o);
+  // sizes 4, 16 KiB and the store's mean read; concurrency 1 and io_threads.
+  CHECK(c.reads.size() == (c.mean_read_bytes <= 16384 && static_cast<std::uint64_t>(c.mean_read_bytes) % 4096 == 0 ? 4u : 6u));
+  for (const auto& p : c.reads) {
+    CHECK(p.reads > 0);
+    CHECK(p.MBps > 0);
+    CHECK(p.p50_us <= p.p95_us);
+    CHECK(p.p95_us <= p.p99_us);
+  }
+  CHECK(c.disk.channels == 2);
+  CHECK(c.disk.latency_us >= 0);
+  CHECK(c.disk.bandwidth_MBps > 0);
+  CHECK(c.decode.workers == 1);
+  CHECK(c.decode.per_tile_us > 0);
+  CalibrateOptions bad;
+  bad.sizes = {1000};
+  CHECK_THROWS_AS(calibrate(store, bad), InputError);
+}
+
+TEST_CASE("fit_disk_model recovers the latency and bandwidth of a device that follows the model") {
+  const DiskModel truth{120.0, 900.0, 4};
+  std::vector<ReadPoint> pts;
+  for (std::uint32_t bytes : {4096u, 16384u, 49152u, 262144u})
+    for (int c : {1, 2, 4, 8}) {
+      ReadPoint p;
+      p.bytes = bytes;
+      p.concurrency = c;
+      p.MBps = disk_throughput_Bps(DiskModel{truth.latency_us, truth.bandwidth_MBps, c}, bytes) / 1e6;
+      pts.push_back(p);
+    }
+  std::vector<std::string> notes;
+  const DiskModel m = fit_disk_model(pts, 4, 49152, &notes);
+  CHECK(m.latency_us == doctest::Approx(120.0).epsilon(0.01));
+  CHECK(m.bandwidth_MBps == doctest::Approx(900.0).epsilon(0.01));
+  CHECK(m.channels == 4);
+  REQUIRE(notes.size() == 1);
+  CHECK(notes[0].find("48K×4 +0%") != std::string::npos);
+  // Concurrency beyond io_threads is not the pool's operating range: those points are ignored.
+  for (auto& p : pts)
+    if (p.concurrency == 8) p.MBps *= 5;
+  const DiskModel m2 = fit_disk_model(pts, 4, 49152);
+  CHECK(m2.latency_us == doctest::Approx(120.0).epsilon(0.01));
+  CHECK_THROWS_AS(fit_disk_model({}, 4, 4096), std::invalid_argument);
+}
