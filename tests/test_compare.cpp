@@ -76,7 +76,7 @@ TEST_CASE("compare: glob patterns match whole keys, '*' across dots and brackets
   CHECK_FALSE(glob_match("exact", "exactly"));
 }
 
-TEST_CASE("compare: identical summaries are all same; provenance is ignored") {
+TEST_CASE("compare: identical summaries are all same, provenance is ignored") {
   json b = summary(), n = summary();
   n["vtsim_version"] = "9.9.9";
   n["trace"]["name"] = "renamed";
@@ -174,7 +174,7 @@ TEST_CASE("compare: timings use relative bands") {
   CHECK_FALSE(r.failed(true));
 }
 
-TEST_CASE("compare: per-level rows pair by level; arrays report their length") {
+TEST_CASE("compare: per-level rows pair by level, arrays report their length") {
   json b = summary(), n = summary();
   n["bandwidth"]["per_level"] = json::parse(R"([{"level": 3, "disk_read_bytes": 50}, {"level": 5, "disk_read_bytes": 7}])");
   const auto r = cmp(b, n);

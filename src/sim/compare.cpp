@@ -271,8 +271,7 @@ DocKind detect_kind(const json& doc, const std::string& path) {
     return DocKind::bench;
   }
   if (doc.contains("vtsim_version")) {
-    for (const char* k : {"trace", "run"})
-      if (!doc.contains(k)) throw InputError(path, std::string("key '") + k + "' is missing (required in a replay summary)");
+    if (!doc.contains("trace")) throw InputError(path, "key 'trace' is missing (required in a replay summary)");
     return DocKind::summary;
   }
   throw InputError(path, "not a vtsim summary or benchmark JSON (neither a 'schema' nor a 'vtsim_version' key)");
