@@ -159,7 +159,9 @@ inline const char* usage_text() {
 }
 
 // Parses the common flags; on a usage error prints it and exits 2, on --help exits 0.
-inline Options parse_options(const std::string& benchmark, int argc, char** argv) {
+// default_reps / default_quick_reps: the repetitions when --reps is not given.
+inline Options parse_options(const std::string& benchmark, int argc, char** argv, int default_reps = 15,
+                             int default_quick_reps = 7) {
   Options o;
   if (const char* q = std::getenv("VTSIM_BENCH_QUICK"); q && std::string(q) != "" && std::string(q) != "0")
     o.quick = true;
@@ -198,7 +200,7 @@ inline Options parse_options(const std::string& benchmark, int argc, char** argv
       fail("unknown option '" + a + "'");
     }
   }
-  if (o.reps == 0) o.reps = o.quick ? 7 : 15;
+  if (o.reps == 0) o.reps = o.quick ? default_quick_reps : default_reps;
   return o;
 }
 
@@ -271,8 +273,11 @@ inline nlohmann::json machine_info() {
 
 class Harness {
  public:
-  Harness(std::string benchmark, int argc, char** argv)
-      : name_(std::move(benchmark)), opt_(parse_options(name_, argc, argv)), started_(detail::utc_now()),
+  // default_reps / default_quick_reps replace 15 / 7 for benchmarks whose repetition is costly
+  // (a whole replay).
+  Harness(std::string benchmark, int argc, char** argv, int default_reps = 15, int default_quick_reps = 7)
+      : name_(std::move(benchmark)), opt_(parse_options(name_, argc, argv, default_reps, default_quick_reps)),
+        started_(detail::utc_now()),
         machine_(machine_info()) {
     std::cout << fmt::format("bench_{}: {} repetitions per side after {} warm-up{}\n", name_, opt_.reps,
                              opt_.warmup, opt_.quick ? " (quick)" : "");
@@ -320,6 +325,38 @@ class Harness {
     r.meets_target = c.target_ratio <= 0 || r.ratio >= c.target_ratio;
     print(r);
     return &r;
+  }
+
+  // Records a case timed by the benchmark itself, for work too costly to run once per side and
+  // repetition through Side (a whole replay whose output the benchmark also checks): `ours` and
+  // `ref` hold per-repetition values in the case's units, paired by index (each pair measured
+  // back to back); an empty `ref_name` records no reference. Nullptr when --filter skips it.
+  const Result* record(const Case& c, const std::string& side, const std::vector<double>& ours,
+                       const std::string& ref_name = {}, const std::vector<double>& ref = {}) {
+    if (!selected(c.name)) return nullptr;
+    if (ours.empty() || (!ref_name.empty() && ref.size() != ours.size())) {
+      std::cerr << "bench_" << name_ << ": case '" << c.name << "' recorded " << ours.size() << " values against "
+                << ref.size() << " reference values\n";
+      std::exit(3);
+    }
+    Result r;
+    r.spec = c;
+    r.side = side;
+    r.ours = summarize(ours);
+    if (!ref_name.empty()) {
+      r.reference = ref_name;
+      r.ref = summarize(ref);
+      const bool hib = higher_is_better(c.metric);
+      for (std::size_t i = 0; i < ours.size(); ++i) r.pair_ratios.push_back(hib ? ours[i] / ref[i] : ref[i] / ours[i]);
+      std::vector<double> sorted = r.pair_ratios;
+      std::sort(sorted.begin(), sorted.end());
+      r.ratio = percentile_sorted(sorted, 0.5);
+      r.ratio_of_medians = hib ? r.ours.median / r.ref.median : r.ref.median / r.ours.median;
+    }
+    r.meets_target = c.target_ratio <= 0 || (r.reference && r.ratio >= c.target_ratio);
+    print(r);
+    results_.push_back(std::move(r));
+    return &results_.back();
   }
 
   // Prints the summary, writes the JSON if asked. Returns the process exit code: 0; 1 when
