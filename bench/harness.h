@@ -327,38 +327,6 @@ class Harness {
     return &r;
   }
 
-  // Records a case timed by the benchmark itself, for work too costly to run once per side and
-  // repetition through Side (a whole replay whose output the benchmark also checks): `ours` and
-  // `ref` hold per-repetition values in the case's units, paired by index (each pair measured
-  // back to back); an empty `ref_name` records no reference. Nullptr when --filter skips it.
-  const Result* record(const Case& c, const std::string& side, const std::vector<double>& ours,
-                       const std::string& ref_name = {}, const std::vector<double>& ref = {}) {
-    if (!selected(c.name)) return nullptr;
-    if (ours.empty() || (!ref_name.empty() && ref.size() != ours.size())) {
-      std::cerr << "bench_" << name_ << ": case '" << c.name << "' recorded " << ours.size() << " values against "
-                << ref.size() << " reference values\n";
-      std::exit(3);
-    }
-    Result r;
-    r.spec = c;
-    r.side = side;
-    r.ours = summarize(ours);
-    if (!ref_name.empty()) {
-      r.reference = ref_name;
-      r.ref = summarize(ref);
-      const bool hib = higher_is_better(c.metric);
-      for (std::size_t i = 0; i < ours.size(); ++i) r.pair_ratios.push_back(hib ? ours[i] / ref[i] : ref[i] / ours[i]);
-      std::vector<double> sorted = r.pair_ratios;
-      std::sort(sorted.begin(), sorted.end());
-      r.ratio = percentile_sorted(sorted, 0.5);
-      r.ratio_of_medians = hib ? r.ours.median / r.ref.median : r.ref.median / r.ours.median;
-    }
-    r.meets_target = c.target_ratio <= 0 || (r.reference && r.ratio >= c.target_ratio);
-    print(r);
-    results_.push_back(std::move(r));
-    return &results_.back();
-  }
-
   // Prints the summary, writes the JSON if asked. Returns the process exit code: 0; 1 when
   // --strict and a case missed its target; 2 when the JSON cannot be written.
   int finish() {
@@ -379,6 +347,35 @@ class Harness {
   }
 
   const std::deque<Result>& results() const { return results_; }
+
+  // Records a comparison whose repetitions the benchmark measured itself, in the case's units —
+  // for a reference that reports its own figures (fio's bandwidth and latency percentiles, which
+  // exclude its process start-up). ours[i] and ref[i] must be the i-th repetitions of each side,
+  // run back to back (alternating order), as compare() would; the ratio is computed the same way.
+  const Result* add_measured(const Case& c, const std::string& ours_name, const std::vector<double>& ours,
+                             const std::string& ref_name, const std::vector<double>& ref) {
+    if (!selected(c.name)) return nullptr;
+    if (ours.empty() || ours.size() != ref.size()) {
+      std::cerr << "bench_" << name_ << ": case '" << c.name << "' has unpaired repetitions\n";
+      std::exit(3);
+    }
+    Result r;
+    r.spec = c;
+    r.side = ours_name;
+    r.ours = summarize(ours);
+    r.reference = ref_name;
+    r.ref = summarize(ref);
+    const bool hib = higher_is_better(c.metric);
+    for (std::size_t i = 0; i < ours.size(); ++i) r.pair_ratios.push_back(hib ? ours[i] / ref[i] : ref[i] / ours[i]);
+    std::vector<double> sorted = r.pair_ratios;
+    std::sort(sorted.begin(), sorted.end());
+    r.ratio = percentile_sorted(sorted, 0.5);
+    r.ratio_of_medians = hib ? r.ours.median / r.ref.median : r.ref.median / r.ours.median;
+    r.meets_target = c.target_ratio <= 0 || r.ratio >= c.target_ratio;
+    print(r);
+    results_.push_back(std::move(r));
+    return &results_.back();
+  }
 
   nlohmann::json to_json() const {
     nlohmann::json j;
