@@ -8,7 +8,10 @@
 //    fixed synthetic residency (mean and max over frames);
 //  - the same tile error after add_level_seams, its time, and the extra tiles it requests that
 //    divisor 1 does not touch (false positives, as a fraction of divisor 1's tile count).
-// Usage: bench_feedback [--scenes plane,heightfield,town] [--frames N] [--reps N] [--json FILE]
+// Usage: bench_feedback [--scenes plane,heightfield,town] [--frames N] [common harness flags:
+// --quick --reps N --json FILE --filter S ...]. The harness lines: render ms per frame at each
+// divisor against divisor 1 on the same frames (ratio = speed-up); the full report is the JSON's
+// params.report.
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
@@ -29,6 +32,7 @@
 #include "sim/scene.h"
 #include "sim/scene_heightfield.h"
 #include "sim/scene_town.h"
+#include "harness.h"
 
 using namespace vtsim;
 
@@ -135,15 +139,19 @@ struct DivResult {
 };
 
 struct Options {
-  std::vector<std::string> scenes{"plane", "heightfield", "town"};
-  int frames = 24;  // sampled frames per trace, evenly spaced
+  std::vector<std::string> scenes = {"plane", "heightfield", "town"};
+  int frames = 10;  // sampled frames per trace
   int reps = 3;     // renders per frame and divisor (the median is over all)
-  std::string json_path;
   int width = 1920, height = 1080;
+  std::vector<std::string> harness_args;  // the common flags, for bench::Harness
 };
 
+// This benchmark's own flags; the common ones (--quick, --reps, --json, ...) go to the harness.
+// --quick: 3 frames per trace, 1 repetition. --reps N: renders per frame and divisor.
 Options parse(int argc, char** argv) {
   Options o;
+  o.harness_args.push_back(argv[0]);
+  bool frames_given = false, reps_given = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const auto next = [&]() -> std::string {
@@ -163,22 +171,39 @@ Options parse(int argc, char** argv) {
       }
     } else if (a == "--frames") {
       o.frames = std::max(1, std::atoi(next().c_str()));
+      frames_given = true;
     } else if (a == "--reps") {
-      o.reps = std::max(1, std::atoi(next().c_str()));
-    } else if (a == "--json") {
-      o.json_path = next();
+      const std::string v = next();
+      o.reps = std::max(1, std::atoi(v.c_str()));
+      reps_given = true;
+      o.harness_args.push_back(a);
+      o.harness_args.push_back(v);
+    } else if (a == "--json" || a == "--filter" || a == "--warmup") {
+      o.harness_args.push_back(a);
+      o.harness_args.push_back(next());
+    } else if (a == "--quick" || a == "--strict" || a == "--help" || a == "-h") {
+      o.harness_args.push_back(a);
     } else {
-      fmt::print(stderr, "usage: bench_feedback [--scenes plane,heightfield,town] [--frames N] [--reps N] [--json FILE]\n");
+      fmt::print(stderr, "usage: bench_feedback [--scenes plane,heightfield,town] [--frames N] [--quick] [--reps N] "
+                         "[--json FILE] [--filter S]\n");
       std::exit(2);
     }
   }
+  const char* q = std::getenv("VTSIM_BENCH_QUICK");
+  const bool quick = std::find(o.harness_args.begin(), o.harness_args.end(), "--quick") != o.harness_args.end() ||
+                     (q && std::string(q) != "" && std::string(q) != "0");
+  if (quick && !frames_given) o.frames = 3;
+  if (quick && !reps_given) o.reps = 1;
   return o;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  const Options opt = parse(argc, argv);
+  Options opt = parse(argc, argv);
+  std::vector<char*> hargv;
+  for (auto& a : opt.harness_args) hargv.push_back(a.data());
+  bench::Harness h("feedback", static_cast<int>(hargv.size()), hargv.data(), opt.reps, opt.reps);
   nlohmann::json report = nlohmann::json::object();
   report["image"] = {opt.width, opt.height};
   report["tile_size_texels"] = kTileSize;
@@ -337,9 +362,16 @@ int main(int argc, char** argv) {
                      {"divisor_8_popin_error_mean", res[3].trace_popin[ti]}});
     }
     report["scenes"][name] = {{"divisors", jdivs}, {"traces", jtr}};
+    // Render time per frame against divisor 1 on the same frames, rendered back to back.
+    for (std::size_t di = 1; di < std::size(kDivisors); ++di)
+      h.add_measured({.name = name + "_divisor" + std::to_string(kDivisors[di]),
+                      .metric = bench::Metric::kMsPerRep,
+                      .work = 1,
+                      .params = {{"scene", name}, {"divisor", kDivisors[di]}, {"frames_per_trace", opt.frames},
+                                 {"what", "render ms per frame, one core (thread CPU time)"}},
+                      .target_ratio = 0},
+                     "divisor " + std::to_string(kDivisors[di]), res[di].render_ms, "divisor 1", res[0].render_ms);
   }
-  const std::string js = report.dump(2);
-  fmt::print("\n{}\n", js);
-  if (!opt.json_path.empty()) std::ofstream(opt.json_path) << js << "\n";
-  return 0;
+  h.param("report", report);
+  return h.finish();
 }

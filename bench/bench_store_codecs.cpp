@@ -1,7 +1,9 @@
-// Decode throughput of each tile codec on generated terrain tiles, single thread, as a ratio to
-// memcpy of the same decoded bytes measured in the same run (the raw codec's cost), plus the
-// XXH64 checksum pass every record pays. Median of --reps repetitions.
-//   build/bench/bench_store_codecs [tiles=64] [reps=7]
+// Decode throughput of each tile codec on generated terrain tiles, single thread, against memcpy
+// of the same decoded bytes measured side by side in the same run (the raw codec's cost; ratio =
+// codec MB/s / memcpy MB/s), plus the XXH64 checksum pass every record pays. Compression ratio and
+// encode speed (one pass) are in each case's params. bench/harness.h: medians of --reps
+// repetitions (7 by default, 3 quick); --quick decodes 16 tiles per layer instead of 64.
+//   build/bench/bench_store_codecs [--quick] [--reps N] [--json FILE] [--filter zstd]
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -10,31 +12,16 @@
 #include <string>
 #include <vector>
 
+#include "harness.h"
 #include "stream/i_codec.h"
 #include "stream/store_generator.h"
 
 using namespace vtsim;
 using store::CodecId;
 
-namespace {
-
-template <class F>
-double median_seconds(int reps, F&& f) {
-  std::vector<double> t;
-  for (int r = 0; r < reps; ++r) {
-    const auto a = std::chrono::steady_clock::now();
-    f();
-    t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count());
-  }
-  std::sort(t.begin(), t.end());
-  return t[t.size() / 2];
-}
-
-}  // namespace
-
 int main(int argc, char** argv) {
-  const int tiles = argc > 1 ? std::stoi(argv[1]) : 64;
-  const int reps = argc > 2 ? std::stoi(argv[2]) : 7;
+  bench::Harness h("store_codecs", argc, argv, 7, 3);
+  const int tiles = h.pick(64, 16);
   GenOptions o;
   o.width = o.height = 8192;
   o.tile = 128;
@@ -52,36 +39,42 @@ int main(int argc, char** argv) {
     for (std::uint32_t L = 0; L < 2; ++L)
       layers[L].texels.push_back(generate_tile(o, L, 0, std::uint64_t(i % 64), std::uint64_t(i / 64)));
   const double tile_bytes = double(side * side * 3);
+  const double bytes = tile_bytes * double(tiles);
+  h.param("tile", fmt::format("{}x{}x3 (128 + 2x4 border)", side, side));
+  h.param("tiles_per_layer", tiles);
 
-  fmt::print("tile {}x{}x3, {} tiles per layer, median of {} reps, one thread\n", side, side, tiles, reps);
-  fmt::print("{:<8} {:<10} {:>8} {:>12} {:>14} {:>10}\n", "layer", "codec", "ratio", "encode MB/s", "decode MB/s", "vs memcpy");
+  volatile std::uint64_t sink = 0;
   for (const Layer& L : layers) {
     std::vector<std::uint8_t> out(static_cast<std::size_t>(tile_bytes));
-    const double t_copy = median_seconds(reps, [&] {
-      for (const auto& t : L.texels) std::memcpy(out.data(), t.data(), t.size());
-    });
-    const double t_sum = median_seconds(reps, [&] {
-      volatile std::uint64_t s = 0;
-      for (const auto& t : L.texels) s = s + store::checksum64(t.data(), t.size());
-    });
-    const double mb = tile_bytes * double(tiles) / 1e6;
-    fmt::print("{:<8} {:<10} {:>8} {:>12} {:>14.0f} {:>10.3f}\n", L.name, "memcpy", "1.00", "-", mb / t_copy, 1.0);
-    fmt::print("{:<8} {:<10} {:>8} {:>12} {:>14.0f} {:>10.3f}\n", L.name, "xxh64", "-", "-", mb / t_sum, t_copy / t_sum);
+    const bench::Side copy{"memcpy", {}, [&] {
+                             for (const auto& t : L.texels) std::memcpy(out.data(), t.data(), t.size());
+                             bench::do_not_optimize(out.data());
+                           }};
+    h.compare({.name = std::string(L.name) + "_xxh64", .metric = bench::Metric::kMBPerS, .work = bytes,
+               .params = {{"layer", L.name}}, .target_ratio = 0},
+              {"xxh64", {}, [&] {
+                 for (const auto& t : L.texels) sink = sink + store::checksum64(t.data(), t.size());
+               }},
+              copy);
     for (const char* spec : {"zstd:3", "zstd:9", "zstd:19", "lz4", "lz4:9", "png", "jpeg:90"}) {
       const CodecSpec cs = parse_codec_spec(spec, "codec");
       const auto codec = make_codec(cs.id, cs.param);
       std::vector<std::vector<std::uint8_t>> enc;
-      const double t_enc = median_seconds(1, [&] {
-        for (const auto& t : L.texels) enc.push_back(codec->encode(t.data(), side, side, L.channels));
-      });
+      const auto e0 = std::chrono::steady_clock::now();
+      for (const auto& t : L.texels) enc.push_back(codec->encode(t.data(), side, side, L.channels));
+      const double enc_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - e0).count();
       double stored = 0;
       for (const auto& e : enc) stored += double(e.size());
-      const double t_dec = median_seconds(reps, [&] {
-        for (const auto& e : enc) codec->decode(e.data(), e.size(), side, side, L.channels, out.data());
-      });
-      fmt::print("{:<8} {:<10} {:>8.2f} {:>12.0f} {:>14.0f} {:>10.3f}\n", L.name, spec, tile_bytes * double(tiles) / stored,
-                 mb / t_enc, mb / t_dec, t_copy / t_dec);
+      h.compare({.name = std::string(L.name) + "_" + spec, .metric = bench::Metric::kMBPerS, .work = bytes,
+                 .params = {{"layer", L.name}, {"codec", spec}, {"compression_ratio", bytes / stored},
+                            {"encode_MBps", bytes / enc_s / 1e6}},
+                 .target_ratio = 0},
+                {spec, {}, [&] {
+                   for (const auto& e : enc) codec->decode(e.data(), e.size(), side, side, L.channels, out.data());
+                   bench::do_not_optimize(out.data());
+                 }},
+                copy);
     }
   }
-  return 0;
+  return h.finish();
 }

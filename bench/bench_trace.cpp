@@ -1,6 +1,8 @@
 // Trace I/O speed: parsing against the cost of just reading the bytes and finding the lines
-// (the floor any text parser pays), measured side by side in one run; medians of 9 repetitions.
-// Usage: build/bench/bench_trace [TUM_FILE]   (default: ../shared/traces-real/tum_fr2_desk_groundtruth.txt)
+// (the floor any text parser pays), measured side by side in one run (bench/harness.h; medians of
+// --reps repetitions, 9 by default, 5 quick); the file ../shared/traces-real/tum_fr2_desk_groundtruth.txt
+// (or $VTSIM_BENCH_TUM) for the TUM import.
+// Usage: build/bench/bench_trace [--quick] [--reps N] [--json FILE] [--filter S]
 #include <fcntl.h>
 #include <fmt/core.h>
 #include <unistd.h>
@@ -15,6 +17,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "harness.h"
 #include "sim/trace_gen.h"
 #include "sim/trace_import.h"
 #include "sim/trace_io.h"
@@ -22,19 +25,6 @@
 #include "sim/trace_stats.h"
 
 namespace {
-
-constexpr int kReps = 9;
-
-double median_ms(const std::function<void()>& fn) {
-  std::vector<double> ms;
-  for (int i = 0; i < kReps; ++i) {
-    const auto t0 = std::chrono::steady_clock::now();
-    fn();
-    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-  }
-  std::sort(ms.begin(), ms.end());
-  return ms[kReps / 2];
-}
 
 // The reference: read the file in 64 KiB chunks and count its lines.
 std::size_t read_and_count_lines(const std::string& path) {
@@ -52,51 +42,50 @@ std::size_t read_and_count_lines(const std::string& path) {
 
 volatile std::size_t g_sink;
 
-void row(const char* what, double ms, double ref_ms, std::uintmax_t bytes, std::size_t items) {
-  const std::string ref = ref_ms > 0 ? fmt::format("{:.3f}", ref_ms) : "-";
-  const std::string ratio = ref_ms > 0 ? fmt::format("{:.1f}x", ms / ref_ms) : "-";
-  const std::string mbs = bytes ? fmt::format("{:.1f}", static_cast<double>(bytes) / 1e6 / (ms / 1e3)) : "-";
-  fmt::print("{:<40} {:>9.3f} {:>9} {:>8} {:>9} {:>9.2f}\n", what, ms, ref, ratio, mbs,
-             static_cast<double>(items) / 1e6 / (ms / 1e3));
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
   using namespace vtsim;
+  bench::Harness h("trace", argc, argv, 9, 5);
   // The shared directory sits next to the source tree (as VTSIM_SHARED_DIR for the tests).
-  const std::string tum = argc > 1 ? argv[1]
-                                   : (std::filesystem::path(__FILE__).parent_path() /
-                                      "../../shared/traces-real/tum_fr2_desk_groundtruth.txt")
-                                         .string();
+  const char* env_tum = std::getenv("VTSIM_BENCH_TUM");
+  const std::string tum = env_tum && *env_tum ? env_tum
+                                              : (std::filesystem::path(__FILE__).parent_path() /
+                                                 "../../shared/traces-real/tum_fr2_desk_groundtruth.txt")
+                                                    .string();
   const std::string tmp = (std::filesystem::temp_directory_path() / "vtsim_bench_trace.csv").string();
 
   TraceGenParams p = default_gen_params(TraceKind::turn);
-  p.duration_s = 600.0;
-  Trace t;
-  const double gen_ms = median_ms([&] { t = generate_trace(p); });
+  p.duration_s = h.pick(600.0, 60.0);
+  const Trace t = generate_trace(p);
   save_trace(t, tmp);
-  const auto native_bytes = std::filesystem::file_size(tmp);
-  const double read_ms = median_ms([&] { g_sink = read_and_count_lines(tmp); });
-  const double load_ms = median_ms([&] { g_sink = load_trace(tmp).poses.size(); });
-  const double save_ms = median_ms([&] { save_trace(t, tmp); });
-  const double stats_ms = median_ms([&] { g_sink = static_cast<std::size_t>(trace_stats(t).frames); });
-  const double resample_ms = median_ms([&] { g_sink = resample(t, 100.0).poses.size(); });
+  const auto native_bytes = static_cast<double>(std::filesystem::file_size(tmp));
+  const auto poses = static_cast<double>(t.poses.size());
+  h.param("turn_trace_seconds", p.duration_s);
+  h.param("native_bytes", native_bytes);
+  h.param("poses", poses);
 
-  fmt::print("{:<40} {:>9} {:>9} {:>8} {:>9} {:>9}\n", "operation (median of 9)", "ms", "ref ms", "ratio",
-             "MB/s", "Mposes/s");
-  row("generate turn, 600 s at 60 Hz", gen_ms, 0, 0, t.poses.size());
-  row("load_trace native (ref: read+lines)", load_ms, read_ms, native_bytes, t.poses.size());
-  row("save_trace native", save_ms, 0, native_bytes, t.poses.size());
-  row("trace_stats", stats_ms, 0, 0, t.poses.size());
-  row("resample 60 -> 100 Hz", resample_ms, 0, 0, t.poses.size());
+  // Reference: read the same bytes in 64 KiB chunks and count the lines.
+  const bench::Side read_native{"read_and_count_lines", {}, [&] { g_sink = read_and_count_lines(tmp); }};
+  h.compare({.name = "load_trace_native", .metric = bench::Metric::kMBPerS, .work = native_bytes,
+             .params = {{"poses", poses}}, .target_ratio = 0},
+            {"load_trace", {}, [&] { g_sink = load_trace(tmp).poses.size(); }}, read_native);
+  h.run({.name = "generate_turn", .metric = bench::Metric::kOpsPerS, .work = poses, .params = {{"unit", "poses/s"}}, .target_ratio = 0},
+        {"generate_trace", {}, [&] { g_sink = generate_trace(p).poses.size(); }});
+  h.run({.name = "save_trace_native", .metric = bench::Metric::kMBPerS, .work = native_bytes, .params = {}, .target_ratio = 0},
+        {"save_trace", {}, [&] { save_trace(t, tmp); }});
+  h.run({.name = "trace_stats", .metric = bench::Metric::kOpsPerS, .work = poses, .params = {{"unit", "poses/s"}}, .target_ratio = 0},
+        {"trace_stats", {}, [&] { g_sink = static_cast<std::size_t>(trace_stats(t).frames); }});
+  h.run({.name = "resample_60_to_100", .metric = bench::Metric::kOpsPerS, .work = poses, .params = {{"unit", "input poses/s"}}, .target_ratio = 0},
+        {"resample", {}, [&] { g_sink = resample(t, 100.0).poses.size(); }});
   if (std::filesystem::exists(tum)) {
-    const auto tum_bytes = std::filesystem::file_size(tum);
-    std::size_t n = 0;
-    const double tum_read_ms = median_ms([&] { g_sink = read_and_count_lines(tum); });
-    const double tum_ms = median_ms([&] { n = import_trace(tum).poses.size(); });
-    row("import TUM fr2_desk (ref: read+lines)", tum_ms, tum_read_ms, tum_bytes, n);
+    const auto tum_bytes = static_cast<double>(std::filesystem::file_size(tum));
+    h.compare({.name = "import_tum", .metric = bench::Metric::kMBPerS, .work = tum_bytes, .params = {{"file", tum}}, .target_ratio = 0},
+              {"import_trace", {}, [&] { g_sink = import_trace(tum).poses.size(); }},
+              {"read_and_count_lines", {}, [&] { g_sink = read_and_count_lines(tum); }});
+  } else {
+    fmt::print(stderr, "bench_trace: {} not found: import_tum skipped\n", tum);
   }
   std::filesystem::remove(tmp);
-  return 0;
+  return h.finish();
 }

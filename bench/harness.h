@@ -159,7 +159,9 @@ inline const char* usage_text() {
 }
 
 // Parses the common flags; on a usage error prints it and exits 2, on --help exits 0.
-inline Options parse_options(const std::string& benchmark, int argc, char** argv) {
+// default_reps / default_quick_reps: the repetitions when --reps is not given.
+inline Options parse_options(const std::string& benchmark, int argc, char** argv, int default_reps = 15,
+                             int default_quick_reps = 7) {
   Options o;
   if (const char* q = std::getenv("VTSIM_BENCH_QUICK"); q && std::string(q) != "" && std::string(q) != "0")
     o.quick = true;
@@ -198,7 +200,7 @@ inline Options parse_options(const std::string& benchmark, int argc, char** argv
       fail("unknown option '" + a + "'");
     }
   }
-  if (o.reps == 0) o.reps = o.quick ? 7 : 15;
+  if (o.reps == 0) o.reps = o.quick ? default_quick_reps : default_reps;
   return o;
 }
 
@@ -271,8 +273,11 @@ inline nlohmann::json machine_info() {
 
 class Harness {
  public:
-  Harness(std::string benchmark, int argc, char** argv)
-      : name_(std::move(benchmark)), opt_(parse_options(name_, argc, argv)), started_(detail::utc_now()),
+  // default_reps / default_quick_reps replace 15 / 7 for benchmarks whose repetition is costly
+  // (a whole replay).
+  Harness(std::string benchmark, int argc, char** argv, int default_reps = 15, int default_quick_reps = 7)
+      : name_(std::move(benchmark)), opt_(parse_options(name_, argc, argv, default_reps, default_quick_reps)),
+        started_(detail::utc_now()),
         machine_(machine_info()) {
     std::cout << fmt::format("bench_{}: {} repetitions per side after {} warm-up{}\n", name_, opt_.reps,
                              opt_.warmup, opt_.quick ? " (quick)" : "");

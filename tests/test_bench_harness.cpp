@@ -102,3 +102,27 @@ TEST_CASE("bench harness: setup runs untimed before every repetition and the JSO
   CHECK(h2.run({.name = "case"}, {"ours", {}, [] {}}) == nullptr);
   CHECK(h2.results().empty());
 }
+
+TEST_CASE("bench harness: add_measured() pairs externally timed repetitions, default repetitions") {
+  std::string a0 = "bench_test";
+  char* argv[] = {a0.data()};
+  vb::Harness h("test", 1, argv, 3, 1);
+  CHECK(h.options().reps == 3);  // the benchmark's own default
+  const vb::Result* r = h.add_measured({.name = "replay", .metric = vb::Metric::kMsPerRep, .target_ratio = 2.5}, "divisor=8",
+                                       {10, 20, 40}, "divisor=1", {40, 60, 80});
+  REQUIRE(r != nullptr);
+  CHECK(r->ours.median == 20);
+  CHECK(r->ref.median == 60);
+  CHECK(r->pair_ratios == std::vector<double>{4, 3, 2});  // ms: reference / ours
+  CHECK(r->ratio == 3);
+  CHECK(r->ratio_of_medians == 3);
+  CHECK(r->meets_target);
+  const auto j = h.to_json();
+  CHECK(j["results"][0]["reference"]["name"] == "divisor=1");
+  CHECK(j["results"][0]["ratio"] == 3.0);
+
+  std::string q = "--quick";
+  char* argv_q[] = {a0.data(), q.data()};
+  CHECK(vb::Harness("test", 2, argv_q, 3, 1).options().reps == 1);
+  CHECK(vb::Harness("test", 2, argv_q).options().reps == 7);
+}

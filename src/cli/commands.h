@@ -20,5 +20,6 @@ void register_replay_commands(CLI::App& app);
 void register_view_commands(CLI::App& app);
 void register_store_commands(CLI::App& app);
 void register_calibrate_commands(CLI::App& app);
+void register_compare_commands(CLI::App& app);
 
 }  // namespace vtsim::cli

@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
   vtsim::cli::register_view_commands(app);
   vtsim::cli::register_store_commands(app);
   vtsim::cli::register_calibrate_commands(app);
+  vtsim::cli::register_compare_commands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
