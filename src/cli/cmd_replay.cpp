@@ -35,17 +35,6 @@ void write_text(const std::string& path, const std::string& text) {
 
 }  // namespace
 
-ReplayConfig load_replay_config(const std::string& config_path, const std::vector<std::string>& sets,
-                                const std::string& system) {
-  ReplayConfig cfg;
-  const auto& table = replay_config_table();
-  if (!config_path.empty()) load_toml_file(table, cfg, config_path);
-  if (!system.empty()) table.set(cfg, "run.system", ConfigValue{system}, "--system");
-  for (const auto& s : sets) apply_set(table, cfg, s);
-  validate(cfg);
-  return cfg;
-}
-
 void run_replay_command(const ReplayArgs& a) {
   ReplayConfig cfg = load_replay_config(a.config, a.sets, a.system);
   if (a.print_config) {

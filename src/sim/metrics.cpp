@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <stdexcept>
 
 #include "core/error.h"
 
@@ -169,20 +170,28 @@ nlohmann::json MetricsCollector::throttle_json(std::size_t max_changes) const {
           {"lod_timeline_truncated", throttle_.size() > max_changes}};
 }
 
+void MetricsCollector::set_system_columns(std::vector<std::string> names) {
+  if (names.size() > kSystemCounters) throw std::invalid_argument("MetricsCollector: too many system columns");
+  system_columns_ = std::move(names);
+}
+
 void MetricsCollector::write_frames_csv(const std::string& path) const {
   std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "wb"), &std::fclose);
   if (!f) throw InputError(path, "cannot open for writing");
-  std::fputs("frame,t_s,clamp,bias,measured,samples,blurry_fraction,mean_deficit,pops,finest_needed,event,"
-             "disk_bytes,decoded_bytes,upload_bytes,uploads,needs,live_requests,ram_bytes,throttled_needs\n",
-             f.get());
+  std::string header = "frame,t_s,clamp,bias,measured,samples,blurry_fraction,mean_deficit,pops,finest_needed,event,"
+                       "disk_bytes,decoded_bytes,upload_bytes,uploads,needs,live_requests,ram_bytes,throttled_needs";
+  for (const auto& c : system_columns_) header += "," + c;
+  header += "\n";
+  std::fputs(header.c_str(), f.get());
   for (const auto& r : frames_) {
     const double bf = r.samples ? static_cast<double>(r.blurry) / r.samples : 0.0;
     const double md = r.samples ? r.deficit_sum / r.samples : 0.0;
-    const std::string line = fmt::format("{},{:.6f},{},{},{},{},{:.6f},{:.6f},{},{},{},{},{},{},{},{},{},{},{}\n", r.frame,
-                                         r.t_s, r.clamp, r.bias, r.measured ? 1 : 0, r.samples, bf, md, r.pops,
-                                         r.finest_needed, r.event ? 1 : 0, r.disk_bytes, r.decoded_bytes,
-                                         r.upload_bytes, r.uploads, r.needs, r.live_requests, r.ram_bytes,
-                                         r.throttled_needs);
+    std::string line = fmt::format("{},{:.6f},{},{},{},{},{:.6f},{:.6f},{},{},{},{},{},{},{},{},{},{},{}", r.frame,
+                                   r.t_s, r.clamp, r.bias, r.measured ? 1 : 0, r.samples, bf, md, r.pops,
+                                   r.finest_needed, r.event ? 1 : 0, r.disk_bytes, r.decoded_bytes, r.upload_bytes,
+                                   r.uploads, r.needs, r.live_requests, r.ram_bytes, r.throttled_needs);
+    for (std::size_t i = 0; i < system_columns_.size(); ++i) line += fmt::format(",{}", r.system[i]);
+    line += "\n";
     std::fputs(line.c_str(), f.get());
   }
   if (std::fflush(f.get()) != 0) throw InputError(path, "write failed");
