@@ -82,8 +82,13 @@ nlohmann::json MetricsCollector::popin_json(double sharp_margin) const {
     pops += r.pops;
   }
   const Percentiles bp = percentiles(blurry);
-  // Time to sharp after each cut or fast turn: from the event frame to the first measured frame
-  // whose blurry fraction is back within `sharp_margin` of the second before the event.
+  // Time to sharp after each cut or fast turn: from the event frame to the first measured frame,
+  // at or after the blurriest frame of the kPeakHorizon_s following the event, whose blurry
+  // fraction is back within `sharp_margin` of the second before the event. Searching from the
+  // peak matters for turns: the view is still sharp when the turn starts and blurs as it sweeps
+  // over pages that are not resident (seed 001 §4), so the first frame alone would read "0 s".
+  constexpr double kPeakHorizon_s = 3.0;  // a blur starting later is not this event's
+  const auto bf_of = [](const FrameRow& r) { return r.samples ? static_cast<double>(r.blurry) / r.samples : 0.0; };
   std::vector<double> tts;
   std::size_t unresolved = 0;
   for (std::size_t e = 0; e < frames_.size(); ++e) {
@@ -94,17 +99,21 @@ nlohmann::json MetricsCollector::popin_json(double sharp_margin) const {
     for (std::size_t k = e; k-- > 0 && frames_[k].t_s >= te - 1.0;) {
       if (frames_[k].event) break;
       if (!frames_[k].measured || frames_[k].samples == 0) continue;
-      base += static_cast<double>(frames_[k].blurry) / frames_[k].samples;
+      base += bf_of(frames_[k]);
       ++nb;
     }
     base = nb ? base / nb : 0.0;
+    std::size_t end = e + 1;  // the event's window: up to the next event
+    while (end < frames_.size() && !frames_[end].event) ++end;
+    std::size_t peak = e;
+    double peak_bf = -1.0;
+    for (std::size_t f = e; f < end && frames_[f].t_s <= te + kPeakHorizon_s; ++f)
+      if (frames_[f].measured && bf_of(frames_[f]) > peak_bf) peak_bf = bf_of(frames_[f]), peak = f;
     bool found = false;
-    for (std::size_t f = e; f < frames_.size(); ++f) {
-      if (f > e && frames_[f].event) break;
+    for (std::size_t f = peak; f < end; ++f) {
       const auto& r = frames_[f];
       if (!r.measured) continue;
-      const double bf = r.samples ? static_cast<double>(r.blurry) / r.samples : 0.0;
-      if (bf <= base + sharp_margin) {
+      if (bf_of(r) <= base + sharp_margin) {
         tts.push_back(r.t_s - te);
         found = true;
         break;
