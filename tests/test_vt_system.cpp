@@ -141,6 +141,16 @@ TEST_CASE("vt system: the clamp and the sampling bias apply to requests and to w
   frame(vt, 2, &vb, sb);
   CHECK(vt.resident_level(100, 100, 0) == 1);
   CHECK(vt.resident_level(100, 100, 4) == 5);
+  // The batch form sees each sample's lod: a fractional sampling bias is exact, floor(lod + 0.5).
+  ThrottleDecision half;
+  half.sample_bias = 0.5;
+  frame(vt, 3, &vb, half);
+  const ViewSample two[] = {sample(100, 100, 0.3f), sample(100, 100, 0.8f)};
+  std::int8_t lv[2] = {-1, -1};
+  vt.resident_levels(two, 2, lv);
+  CHECK(lv[0] == 0);
+  CHECK(lv[1] == 1);
+  CHECK(vt.resident_level(100, 100, 0) == 1);  // the scalar form rounds 0.5 up to a whole level
   ThrottleDecision over;
   over.clamp = 99;  // beyond the coarsest clamp: held at the locked level
   frame(vt, 3, &vb, over);

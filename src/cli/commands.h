@@ -19,5 +19,6 @@ void register_capacity_commands(CLI::App& app);
 void register_replay_commands(CLI::App& app);
 void register_view_commands(CLI::App& app);
 void register_store_commands(CLI::App& app);
+void register_vt_commands(CLI::App& app);
 
 }  // namespace vtsim::cli

@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
   vtsim::cli::register_replay_commands(app);
   vtsim::cli::register_view_commands(app);
   vtsim::cli::register_store_commands(app);
+  vtsim::cli::register_vt_commands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

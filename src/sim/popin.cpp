@@ -8,12 +8,9 @@ void resident_levels(const ViewBuffer& vb, const IResidency& residency, std::vec
   const int n = residency.num_levels();
   if (n < 1 || n > 127) throw std::invalid_argument("resident_levels: num_levels must be in [1, 127]");
   levels.resize(vb.samples.size());
-  for (std::size_t i = 0; i < vb.samples.size(); ++i) {
-    const ViewSample& s = vb.samples[i];
-    const int r = residency.resident_level(s.u, s.v, desired_level(s.lod, n));
+  residency.resident_levels(vb.samples.data(), vb.samples.size(), levels.data());
+  for (const std::int8_t r : levels)
     if (r < 0 || r > n) throw std::invalid_argument("resident_levels: residency returned a level outside [0, num_levels]");
-    levels[i] = static_cast<std::int8_t>(r);
-  }
 }
 
 PopinFrame popin_stats(const ViewBuffer& vb, const std::vector<std::int8_t>& levels_now,

@@ -2,7 +2,10 @@
 // The question pop-in measurement asks a streaming system: which level would the screen sample
 // for this texel right now? Clipmaps answer from their valid windows, virtual textures from the
 // page table's fallback; both apply the MaxTextureLOD clamp.
+#include <cstddef>
 #include <cstdint>
+
+#include "sim/view.h"
 
 namespace vtsim {
 
@@ -13,6 +16,13 @@ class IResidency {
   // resident (and any throttle clamp). Returns num_levels() when nothing covering it is resident.
   virtual int resident_level(std::int64_t u, std::int64_t v, int desired_level) const = 0;
   virtual int num_levels() const = 0;
+  // Batch form over feedback samples: out[i] = resident_level(s[i].u, s[i].v,
+  // desired_level(s[i].lod, num_levels())). Systems override it with a faster loop.
+  virtual void resident_levels(const ViewSample* s, std::size_t n, std::int8_t* out) const {
+    const int levels = num_levels();
+    for (std::size_t i = 0; i < n; ++i)
+      out[i] = static_cast<std::int8_t>(resident_level(s[i].u, s[i].v, desired_level(s[i].lod, levels)));
+  }
 };
 
 }  // namespace vtsim

@@ -183,9 +183,10 @@ void VtSystem::apply_throttle(const ThrottleDecision& d) {
   // The screen samples floor(lod + sb); with only the desired level floor(lod) at hand the shift is
   // rounded (docs/vt.md: the sampling bias is exact at whole levels).
   const int shift = static_cast<int>(std::floor(sb + 0.5));
-  if (clamp != clamp_ || shift != sample_shift_) ++settings_gen_;
+  if (clamp != clamp_ || sb != sample_bias_) ++settings_gen_;
   clamp_ = clamp;
   sample_shift_ = shift;
+  sample_bias_ = sb;
   bias_ = bias;
 }
 
@@ -336,9 +337,7 @@ bool VtSystem::commit(TileKey key, int frame) {
   return true;
 }
 
-int VtSystem::resident_level(std::int64_t u, std::int64_t v, int desired_level) const {
-  const int n = geo_.levels();
-  const int from = std::min(std::max(desired_level + sample_shift_, clamp_), n - 1);
+int VtSystem::resolve_from(int from, std::int64_t u, std::int64_t v) const {
   u = std::clamp<std::int64_t>(u, 0, geo_.extent().width - 1);
   v = std::clamp<std::int64_t>(v, 0, geo_.extent().height - 1);
   const std::int64_t px = geo_.page_of(u >> from), py = geo_.page_of(v >> from);
@@ -358,6 +357,24 @@ int VtSystem::resident_level(std::int64_t u, std::int64_t v, int desired_level) 
   }
   if (mark_sampled_ && last_.slot != PageTable::kNoSlot) pool_.mark_sampled(last_.slot);
   return last_.level;
+}
+
+int VtSystem::resident_level(std::int64_t u, std::int64_t v, int desired_level) const {
+  // Only floor(lod) is known here: a fractional sampling bias is rounded (resident_levels below,
+  // which sees each sample's lod, is exact).
+  const int n = geo_.levels();
+  return resolve_from(std::min(std::max(desired_level + sample_shift_, clamp_), n - 1), u, v);
+}
+
+void VtSystem::resident_levels(const ViewSample* s, std::size_t count, std::int8_t* out) const {
+  // The screen samples floor(lod + sampling bias), no finer than the clamp (seed 000 §4-4), and the
+  // page table falls back from there to the finest resident ancestor (seed 001 §3.2).
+  const int n = geo_.levels();
+  const auto sb = static_cast<float>(sample_bias_);
+  for (std::size_t i = 0; i < count; ++i) {
+    const int from = std::max(desired_level(s[i].lod + sb, n), std::min(clamp_, n - 1));
+    out[i] = static_cast<std::int8_t>(resolve_from(from, s[i].u, s[i].v));
+  }
 }
 
 std::uint64_t VtSystem::evicted_unsampled_bytes() const {

@@ -18,8 +18,8 @@
 //     prefetch of pages one or two levels finer than the desired ones into RAM (Unreal).
 //  4. commit: an uploaded layer fills the reserved slot (the first one evicts the victim); a
 //     complete page is mapped in the page table, and samples resolve to it from then on.
-// Pop-in asks resident_level: the page table's fallback from max(desired + sampling bias,
-// clamp) up.
+// Pop-in asks resident_levels: the page table's fallback from max(floor(lod + sampling bias),
+// clamp) up, as the screen would sample.
 //
 // Complexity per frame: O(S + W log W) for S feedback samples and W wanted pages; resident_level
 // O(1) amortised (memoised per page between page-table changes). Thread-safety: none (the frame
@@ -59,6 +59,7 @@ class VtSystem final : public IStreamingSystem {
 
   int num_levels() const override { return geo_.levels(); }
   int resident_level(std::int64_t u, std::int64_t v, int desired_level) const override;
+  void resident_levels(const ViewSample* s, std::size_t n, std::int8_t* out) const override;
   void begin_frame(const SystemFrame& f) override;
   void missing_bytes_by_level(std::vector<std::uint64_t>& out) const override;
   int coarsest_clamp() const override;
@@ -106,6 +107,7 @@ class VtSystem final : public IStreamingSystem {
   void build_wanted();
   std::uint64_t page_priority(const Wanted& w) const;
   void on_removed(const PagePool::Removed& r);
+  int resolve_from(int from, std::int64_t u, std::int64_t v) const;
 
   VtSystemParams p_;
   VtGeometry geo_;
@@ -118,7 +120,8 @@ class VtSystem final : public IStreamingSystem {
   int clamp_ = 0;
   double bias_ = 0.0;          // feedback bias in force (requests)
   double built_bias_ = -1.0;   // bias the wanted set was built with
-  int sample_shift_ = 0;       // sampling bias, whole levels
+  double sample_bias_ = 0.0;   // sampling bias, levels
+  int sample_shift_ = 0;       // the same rounded to whole levels (resident_level)
   bool mark_sampled_ = false;
   double occupancy_ = 0.0, pressure_ = 0.0;
   std::uint32_t throttled_tiles_ = 0;
