@@ -19,7 +19,7 @@ namespace {
 
 struct CompareArgs {
   std::vector<std::string> traces{"traces"};
-  std::string policies = "none,vt_clamp,unreal_bias,rage_watermarks";
+  std::string policies = "none,deadline,vt_clamp,unreal_bias,rage_watermarks";
   std::string config;
   std::vector<std::string> sets;
   std::string markdown, json;

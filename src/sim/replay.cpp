@@ -374,6 +374,15 @@ std::string format_summary(const nlohmann::json& s) {
   out += fmt::format("  cache       RAM hit ratio {:.1f}%, {} RAM evictions, {} VRAM evictions\n",
                      100.0 * c["ram_hit_ratio"].get<double>(), c["ram_evictions"].get<std::uint64_t>(),
                      c["vram_evictions"].get<std::uint64_t>());
+  if (s.contains("vt") && s["vt"].contains("pool")) {
+    const auto& v = s["vt"];
+    out += fmt::format("  vt          pool {} pages ({:.0f}% in use, mean), {} evictions, {} rescues, pressure max {:.2f}, "
+                       "bias max {:.2f}; page table {} texels rewritten (baked)\n",
+                       v["pool_pages"].get<std::uint64_t>(), 100.0 * v["per_frame"]["pool_occupancy"]["mean"].get<double>(),
+                       v["pool"]["evictions"].get<std::uint64_t>(), v["pool"]["rescues"].get<std::uint64_t>(),
+                       v["per_frame"]["pool_pressure"]["max"].get<double>(), v["per_frame"]["bias"]["max"].get<double>(),
+                       v["page_table"]["texels_written_baked"].get<std::uint64_t>());
+  }
   out += fmt::format("  throttle    {} frames throttled, max clamp {}, {} changes ({})\n", t["frames_throttled"].get<std::size_t>(),
                      t["max_clamp"].get<int>(), t["changes"].get<std::size_t>(), t["policy"].get<std::string>());
   if (s["faults"]["faults"].get<std::uint64_t>() > 0)
