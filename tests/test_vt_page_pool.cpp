@@ -40,6 +40,10 @@ TEST_CASE("page pool: eviction takes the least recently used page, by last-used 
   CHECK(order[1] == pg(0, 3));
   CHECK(order[2] == pg(0, 0));
   CHECK(order[3] == pg(0, 2));
+  CHECK(pool.used_within(11, 2) == 2);   // A0 (frame 10), A2 (frame 11)
+  CHECK(pool.used_within(11, 9) == 3);   // and A3 (frame 3)
+  CHECK(pool.used_within(11, 20) == 4);
+  CHECK(pool.used_within(9, 5) == 0);
   // New pages evict A1 then A3, at their first layer's commit.
   const std::uint32_t s1 = pool.reserve(pg(0, 10), 12);
   CHECK(pool.pending_evictions() == 1);

@@ -185,8 +185,12 @@ PagePool::Commit PagePool::commit(TileKey page, int layer, int frame) {
     S.state = State::resident;
     reservations_.erase(page.bits);
     ++complete_;
-    if (locked(page)) ++locked_count_;
-    else lru_push_front(s);
+    if (locked(page)) {
+      ++locked_count_;
+      locked_slots_.push_back(s);
+    } else {
+      lru_push_front(s);
+    }
   }
   return c;
 }
@@ -214,9 +218,12 @@ int PagePool::last_used(TileKey page) const {
 
 std::uint32_t PagePool::used_within(int frame, int window) const {
   const int from = frame - window + 1;
+  const auto in = [&](const Slot& S) { return S.last_used >= from && S.last_used <= frame; };
   std::uint32_t n = 0;
-  for (const Slot& S : slot_)
-    if ((S.state == State::resident || S.state == State::victim) && S.last_used >= from && S.last_used <= frame) ++n;
+  // The LRU list runs from the most recent page: stop at the first one used before the window.
+  for (std::uint32_t s = lru_head_; s != kNoSlot && slot_[s].last_used >= from; s = slot_[s].next) n += in(slot_[s]);
+  for (const std::uint32_t s : locked_slots_) n += in(slot_[s]);
+  reservations_.for_each([&](std::uint64_t, std::uint32_t s) { n += slot_[s].state == State::victim && in(slot_[s]); });
   return n;
 }
 

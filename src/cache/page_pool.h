@@ -105,7 +105,8 @@ class PagePool {
   std::uint32_t locked_pages() const { return locked_count_; }
   std::size_t reservations() const { return reservations_.size(); }
   std::uint32_t pending_evictions() const { return pending_count_; }
-  // Pages (locked included) used in frames [frame - window + 1, frame]: O(those pages).
+  // Resident pages (locked and pending victims included) used in frames [frame - window + 1,
+  // frame]: O(those pages + locked pages + reservations).
   std::uint32_t used_within(int frame, int window) const;
   // Unlocked pages in eviction order, least recent first (diagnostics and tests; O(slots)).
   std::vector<TileKey> lru_order() const;
@@ -154,6 +155,7 @@ class PagePool {
   Hook hook_;
   PageMap<std::uint32_t> page_slot_;     // page held in a slot (resident, victim, filling) -> slot
   PageMap<std::uint32_t> reservations_;  // incoming page -> reserved slot (until complete)
+  std::vector<std::uint32_t> locked_slots_;  // slots of locked pages (never freed)
   std::uint32_t lru_head_ = kNoSlot, lru_tail_ = kNoSlot;  // head: most recent
   std::uint32_t free_head_ = kNoSlot;
   std::uint32_t free_count_ = 0, occupied_ = 0, complete_ = 0, locked_count_ = 0, pending_count_ = 0;
