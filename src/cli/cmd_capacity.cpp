@@ -1,11 +1,15 @@
 // vtsim capacity: memory of a clipmap (stack + pyramid, per layer) against a full mip chain, and
-// seed 000 §2-3's table recomputed (docs/clipmap.md).
+// seed 000 §2-3's table recomputed (docs/clipmap.md); for --system vt, a virtual texture's disk
+// size, page-table size and the physical pool a screen needs, and seed 001's arithmetic checked
+// (docs/vt.md "Capacity").
 #include <fmt/format.h>
 
 #include <cmath>
+#include <cstdio>
 #include <nlohmann/json.hpp>
 
 #include "cache/clipmap.h"
+#include "cache/page_table.h"
 #include "cli/commands.h"
 #include "core/error.h"
 #include "sim/replay_config.h"
@@ -27,7 +31,147 @@ struct CapacityArgs {
   std::string layers = "albedo:rgba8";
   bool json = false, seed_table = false;
   std::string system = "clipmap";
+  // vt
+  int border = 0;
+  std::string screen = "1920x1080";
+  double overdraw = 3.0, redundancy = 1.0, texels_per_pixel = 1.0;
+  bool seed_check = false;
 };
+
+std::string with_commas(std::uint64_t v) {
+  std::string s = std::to_string(v), out;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (i > 0 && (s.size() - i) % 3 == 0) out += ',';
+    out += s[i];
+  }
+  return out;
+}
+
+std::string decimal_bytes(double b) {
+  const char* units[] = {"B", "kB", "MB", "GB", "TB", "PB"};
+  int u = 0;
+  while (b >= 1000.0 && u < 5) b /= 1000.0, ++u;
+  return fmt::format("{:.{}f} {}", b, u == 0 ? 0 : 2, units[u]);
+}
+
+// Seed 001's figures, each recomputed (docs/vt.md "Seed 001 arithmetic").
+void print_seed001_checks() {
+  fmt::print("seed 001 arithmetic, recomputed (MB = 10^6 B, MiB = 2^20 B)\n");
+  const double s2a = 1680.0 * 1050.0 * 3.0;
+  fmt::print("  §2  one screen of texels, 1680×1050 × 3 B         = {} B = {:.2f} MB = {:.2f} MiB   (seed: \"5MB\"; agrees)\n",
+             with_commas(static_cast<std::uint64_t>(s2a)), s2a / 1e6, s2a / 1048576.0);
+  const double s2b = 6.0 * 3.0 * 1680.0 * 1050.0 * 4.0;
+  fmt::print("  §2  6 screens × 3 overdraw × 1680×1050 × 4 B      = {} B = {:.1f} MB = {:.1f} MiB   (seed: \"120MB\": "
+             "121.1 MiB rounded down; 127.0 in decimal MB)\n",
+             with_commas(static_cast<std::uint64_t>(s2b)), s2b / 1e6, s2b / 1048576.0);
+  fmt::print("  §3.1 1680×1080 feedback pixels                    = {}   (seed: 1814400; agrees, though §2's screen was "
+             "1680×1050 = {})\n",
+             with_commas(1680ull * 1080ull), with_commas(1680ull * 1050ull));
+  fmt::print("  §3.2 128K² texture, 128-texel pages               = {}×{} pages at level 0 = a {}² page table (seed: "
+             "1024×1024; agrees)\n",
+             131072 / 128, 131072 / 128, 131072 / 128);
+  const std::uint64_t side = 4096ull * 512ull;
+  const double texels = static_cast<double>(side) * static_cast<double>(side);
+  fmt::print("  §5  4096² page table × 512-texel pages            = {} texels a side (seed: 2097152; agrees)\n",
+             with_commas(side));
+  fmt::print("  §5  {}² texels                             = 2^42 = {:.0f} Gi texels: the seed's \"4096 G\" counts texels\n",
+             with_commas(side), texels / 1073741824.0);
+  fmt::print("      × 4 B/texel                                   = 2^44 B = {:.1f} TB = {:.0f} TiB (not 4096 GB = 4 TiB: the "
+             "seed dropped the 4 bytes)\n",
+             texels * 4.0 / 1e12, texels * 4.0 / 1099511627776.0);
+  fmt::print("      with its mip levels (× (1 − 4^-13)/(1 − 1/4) ≈ 4/3, down to one 512² page) = {:.1f} TiB\n",
+             (texels * 4.0 * 4.0 / 3.0 - 4.0 * 512.0 * 512.0 / 3.0) / 1099511627776.0);
+  const double pt = (4096.0 * 4096.0 * 4.0 - 1.0) / 3.0;
+  fmt::print("      its dense mip-mapped page table: {} entries × 4 B = {:.1f} MB\n",
+             with_commas(static_cast<std::uint64_t>(pt)), pt * 4.0 / 1e6);
+}
+
+void run_vt_capacity(const CapacityArgs& a) {
+  if (a.seed_check) {
+    print_seed001_checks();
+    return;
+  }
+  const std::int64_t h = a.height > 0 ? a.height : a.width;
+  std::vector<LayerSpec> layers;
+  try {
+    layers = parse_layers(a.layers);
+  } catch (const std::invalid_argument& e) {
+    throw InputError("--layers", e.what());
+  }
+  if (a.tile < 2 || a.tile % 2 != 0) throw InputError("--tile", fmt::format("{}: a VT page must be even", a.tile));
+  if (a.border < 0 || a.border > a.tile)
+    throw InputError("--border", fmt::format("{} texels is larger than the page ({} texels)", a.border, a.tile));
+  int sw = 0, sh = 0;
+  char x = 0;
+  if (std::sscanf(a.screen.c_str(), "%d%c%d", &sw, &x, &sh) != 3 || (x != 'x' && x != 'X') || sw <= 0 || sh <= 0 ||
+      sw > 65536 || sh > 65536)
+    throw InputError("--screen", "'" + a.screen + "': expected WxH, e.g. 1920x1080");
+  VtCapacityInput in;
+  in.extent = {a.width, h};
+  in.page_size = a.tile;
+  in.border = a.border;
+  in.bytes_per_texel = 0;
+  in.disk_bytes_per_texel = 0;
+  for (const auto& L : layers) {
+    in.bytes_per_texel += L.bytes_per_texel;
+    in.disk_bytes_per_texel += L.bytes_per_texel / L.compression_ratio;
+  }
+  in.screen_w = sw;
+  in.screen_h = sh;
+  in.overdraw = a.overdraw;
+  in.redundancy = a.redundancy;
+  in.texels_per_pixel = a.texels_per_pixel;
+  VtCapacity c;
+  try {
+    c = vt_capacity(in);
+  } catch (const std::invalid_argument& e) {
+    throw InputError("--width", e.what());
+  }
+  const int side = a.tile + 2 * a.border;
+  nlohmann::json j;
+  j["texture"] = {{"width", a.width}, {"height", h}};
+  j["page_size"] = a.tile;
+  j["border"] = a.border;
+  j["stored_side"] = side;
+  j["levels"] = c.levels;
+  j["pages"] = c.pages;
+  j["pages_level0"] = c.pages_level0;
+  j["payload_texels"] = c.payload_texels;
+  j["stored_texels"] = c.stored_texels;
+  j["disk_bytes"] = c.disk_bytes;
+  j["decoded_bytes"] = c.decoded_bytes;
+  j["page_table"] = {{"entries", c.page_table_entries},
+                     {"bytes", c.page_table_bytes},
+                     {"entry_bytes", PageTable::kEntryBytes},
+                     {"level0", {c.page_table_level0_side_x, c.page_table_level0_side_y}}};
+  j["pool"] = {{"screen", {sw, sh}},
+               {"overdraw", a.overdraw},
+               {"redundancy", a.redundancy},
+               {"texels_per_pixel", a.texels_per_pixel},
+               {"screen_texels", c.screen_texels},
+               {"pages", c.pool_pages},
+               {"bytes", c.pool_bytes}};
+  if (a.json) {
+    fmt::print("{}\n", j.dump(2));
+    return;
+  }
+  fmt::print("virtual texture {}×{}, pages of {}² texels + {}-texel border ({}² stored), {} levels down to one page\n",
+             a.width, h, a.tile, a.border, side, c.levels);
+  fmt::print("  pages          {} ({} at level 0)\n", with_commas(c.pages), with_commas(c.pages_level0));
+  fmt::print("  texels         {} payload (all levels), {} stored (+{:.1f}% borders and partial edge pages)\n",
+             with_commas(c.payload_texels), with_commas(c.stored_texels),
+             100.0 * (static_cast<double>(c.stored_texels) / static_cast<double>(c.payload_texels) - 1.0));
+  fmt::print("  disk           {} ({}), decoded {} ({})\n", decimal_bytes(c.disk_bytes), human_bytes(c.disk_bytes),
+             decimal_bytes(c.decoded_bytes), human_bytes(c.decoded_bytes));
+  fmt::print("  page table     dense mip-mapped: {} entries × {} B = {} ({}); level 0 alone {}×{}\n",
+             with_commas(c.page_table_entries), PageTable::kEntryBytes, decimal_bytes(static_cast<double>(c.page_table_bytes)),
+             human_bytes(static_cast<double>(c.page_table_bytes)), c.page_table_level0_side_x, c.page_table_level0_side_y);
+  fmt::print("                 sparse (vtsim): only mapped pages, ~16-64 B each (hash slots at load <= 1/2)\n");
+  fmt::print("  pool           {}×{} screen × overdraw {} × redundancy {} × {} texel/pixel = {} texels\n", sw, sh, a.overdraw,
+             a.redundancy, a.texels_per_pixel, with_commas(static_cast<std::uint64_t>(c.screen_texels)));
+  fmt::print("                 = {} pages of {}² payload = {} pages × {}² × {} B = {} ({})\n", with_commas(c.pool_pages),
+             a.tile, with_commas(c.pool_pages), side, in.bytes_per_texel, decimal_bytes(c.pool_bytes), human_bytes(c.pool_bytes));
+}
 
 // Seed 000 §2-3's table: texture sides × clipsizes, in bytes at 2 bytes per texel (the unit that
 // reproduces its "Full Mipmap" row: 682 KB for a 512² chain = 349,525 texels × 2 B).
@@ -55,8 +199,11 @@ void print_seed_table() {
 }
 
 void run_capacity(const CapacityArgs& a) {
-  if (a.system != "clipmap")
-    throw InputError("--system", "'" + a.system + "': capacity is implemented for: clipmap");
+  if (a.system == "vt") {
+    run_vt_capacity(a);
+    return;
+  }
+  if (a.system != "clipmap") throw InputError("--system", "'" + a.system + "': one of clipmap, vt");
   if (a.seed_table) {
     print_seed_table();
     return;
@@ -118,8 +265,9 @@ void run_capacity(const CapacityArgs& a) {
 
 void register_capacity_commands(CLI::App& app) {
   auto a = std::make_shared<CapacityArgs>();
-  auto* c = app.add_subcommand("capacity", "VRAM needed by a clipmap (stack + pyramid per layer) vs a full mip chain");
-  c->add_option("--system", a->system, "clipmap")->capture_default_str();
+  auto* c = app.add_subcommand("capacity", "VRAM needed by a clipmap (stack + pyramid per layer) vs a full mip chain; "
+                                           "for --system vt: disk, page table and the pool a screen needs");
+  c->add_option("--system", a->system, "clipmap | vt")->capture_default_str();
   c->add_option("--width,--size", a->width, "level-0 width, texels (any size)")->capture_default_str()->check(CLI::Range(std::int64_t{1}, std::int64_t{1} << 40));
   c->add_option("--height", a->height, "level-0 height, texels (default: = width)")->check(CLI::Range(std::int64_t{0}, std::int64_t{1} << 40));
   c->add_option("--clipsize", a->clipsize, "clip stack window side N, texels")->capture_default_str();
@@ -127,6 +275,12 @@ void register_capacity_commands(CLI::App& app) {
   c->add_option("--layers", a->layers, "layers name:format[:ratio],... (rgba8, rgb8, rg8, r8, rgba16f, bc1..bc7)")->capture_default_str();
   c->add_flag("--json", a->json, "print JSON");
   c->add_flag("--seed-table", a->seed_table, "recompute seed 000 §2-3's memory table and show the seed's figures");
+  c->add_option("--border", a->border, "vt: page border B, texels (stored P+2B)")->capture_default_str();
+  c->add_option("--screen", a->screen, "vt: screen WxH, pixels")->capture_default_str();
+  c->add_option("--overdraw", a->overdraw, "vt: surfaces drawn per pixel (seed 001 §2: 3)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
+  c->add_option("--redundancy", a->redundancy, "vt: screen-sized textures of cache slack (seed 001 §2: 6)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
+  c->add_option("--texels-per-pixel", a->texels_per_pixel, "vt: texels per pixel at the desired level (seed 001 §2: 1)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
+  c->add_flag("--seed-check", a->seed_check, "vt: recompute seed 001's arithmetic (§2, §3, §5)");
   c->callback([a] { run_capacity(*a); });
 }
 

@@ -21,5 +21,6 @@ void register_view_commands(CLI::App& app);
 void register_store_commands(CLI::App& app);
 void register_calibrate_commands(CLI::App& app);
 void register_compare_commands(CLI::App& app);
+void register_vt_commands(CLI::App& app);
 
 }  // namespace vtsim::cli

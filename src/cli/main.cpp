@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   vtsim::cli::register_store_commands(app);
   vtsim::cli::register_calibrate_commands(app);
   vtsim::cli::register_compare_commands(app);
+  vtsim::cli::register_vt_commands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

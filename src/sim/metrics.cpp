@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <stdexcept>
 
 #include "core/error.h"
 
@@ -81,8 +82,13 @@ nlohmann::json MetricsCollector::popin_json(double sharp_margin) const {
     pops += r.pops;
   }
   const Percentiles bp = percentiles(blurry);
-  // Time to sharp after each cut or fast turn: from the event frame to the first measured frame
-  // whose blurry fraction is back within `sharp_margin` of the second before the event.
+  // Time to sharp after each cut or fast turn: from the event frame to the first measured frame,
+  // at or after the blurriest frame of the kPeakHorizon_s following the event, whose blurry
+  // fraction is back within `sharp_margin` of the second before the event. Searching from the
+  // peak matters for turns: the view is still sharp when the turn starts and blurs as it sweeps
+  // over pages that are not resident (seed 001 §4), so the first frame alone would read "0 s".
+  constexpr double kPeakHorizon_s = 3.0;  // a blur starting later is not this event's
+  const auto bf_of = [](const FrameRow& r) { return r.samples ? static_cast<double>(r.blurry) / r.samples : 0.0; };
   std::vector<double> tts;
   std::size_t unresolved = 0;
   for (std::size_t e = 0; e < frames_.size(); ++e) {
@@ -93,17 +99,21 @@ nlohmann::json MetricsCollector::popin_json(double sharp_margin) const {
     for (std::size_t k = e; k-- > 0 && frames_[k].t_s >= te - 1.0;) {
       if (frames_[k].event) break;
       if (!frames_[k].measured || frames_[k].samples == 0) continue;
-      base += static_cast<double>(frames_[k].blurry) / frames_[k].samples;
+      base += bf_of(frames_[k]);
       ++nb;
     }
     base = nb ? base / nb : 0.0;
+    std::size_t end = e + 1;  // the event's window: up to the next event
+    while (end < frames_.size() && !frames_[end].event) ++end;
+    std::size_t peak = e;
+    double peak_bf = -1.0;
+    for (std::size_t f = e; f < end && frames_[f].t_s <= te + kPeakHorizon_s; ++f)
+      if (frames_[f].measured && bf_of(frames_[f]) > peak_bf) peak_bf = bf_of(frames_[f]), peak = f;
     bool found = false;
-    for (std::size_t f = e; f < frames_.size(); ++f) {
-      if (f > e && frames_[f].event) break;
+    for (std::size_t f = peak; f < end; ++f) {
       const auto& r = frames_[f];
       if (!r.measured) continue;
-      const double bf = r.samples ? static_cast<double>(r.blurry) / r.samples : 0.0;
-      if (bf <= base + sharp_margin) {
+      if (bf_of(r) <= base + sharp_margin) {
         tts.push_back(r.t_s - te);
         found = true;
         break;
@@ -169,20 +179,28 @@ nlohmann::json MetricsCollector::throttle_json(std::size_t max_changes) const {
           {"lod_timeline_truncated", throttle_.size() > max_changes}};
 }
 
+void MetricsCollector::set_system_columns(std::vector<std::string> names) {
+  if (names.size() > kSystemCounters) throw std::invalid_argument("MetricsCollector: too many system columns");
+  system_columns_ = std::move(names);
+}
+
 void MetricsCollector::write_frames_csv(const std::string& path) const {
   std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "wb"), &std::fclose);
   if (!f) throw InputError(path, "cannot open for writing");
-  std::fputs("frame,t_s,clamp,bias,measured,samples,blurry_fraction,mean_deficit,pops,finest_needed,event,"
-             "disk_bytes,decoded_bytes,upload_bytes,uploads,needs,live_requests,ram_bytes,throttled_needs\n",
-             f.get());
+  std::string header = "frame,t_s,clamp,bias,measured,samples,blurry_fraction,mean_deficit,pops,finest_needed,event,"
+                       "disk_bytes,decoded_bytes,upload_bytes,uploads,needs,live_requests,ram_bytes,throttled_needs";
+  for (const auto& c : system_columns_) header += "," + c;
+  header += "\n";
+  std::fputs(header.c_str(), f.get());
   for (const auto& r : frames_) {
     const double bf = r.samples ? static_cast<double>(r.blurry) / r.samples : 0.0;
     const double md = r.samples ? r.deficit_sum / r.samples : 0.0;
-    const std::string line = fmt::format("{},{:.6f},{},{},{},{},{:.6f},{:.6f},{},{},{},{},{},{},{},{},{},{},{}\n", r.frame,
-                                         r.t_s, r.clamp, r.bias, r.measured ? 1 : 0, r.samples, bf, md, r.pops,
-                                         r.finest_needed, r.event ? 1 : 0, r.disk_bytes, r.decoded_bytes,
-                                         r.upload_bytes, r.uploads, r.needs, r.live_requests, r.ram_bytes,
-                                         r.throttled_needs);
+    std::string line = fmt::format("{},{:.6f},{},{},{},{},{:.6f},{:.6f},{},{},{},{},{},{},{},{},{},{},{}", r.frame,
+                                   r.t_s, r.clamp, r.bias, r.measured ? 1 : 0, r.samples, bf, md, r.pops,
+                                   r.finest_needed, r.event ? 1 : 0, r.disk_bytes, r.decoded_bytes, r.upload_bytes,
+                                   r.uploads, r.needs, r.live_requests, r.ram_bytes, r.throttled_needs);
+    for (std::size_t i = 0; i < system_columns_.size(); ++i) line += fmt::format(",{}", r.system[i]);
+    line += "\n";
     std::fputs(line.c_str(), f.get());
   }
   if (std::fflush(f.get()) != 0) throw InputError(path, "write failed");

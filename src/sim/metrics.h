@@ -3,6 +3,7 @@
 // pop-in, bandwidth, cache, throttle, and the run's own cost. The collector takes per-frame rows
 // and per-tile upload records; summary() turns them into the summary JSON, write_frames_csv() the
 // per-frame CSV. Percentiles are nearest-rank on the sorted values (deterministic).
+#include <array>
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -11,6 +12,11 @@
 #include "core/time.h"
 
 namespace vtsim {
+
+// Per-frame counters a streaming system adds to the per-frame CSV (names from
+// IStreamingSystem::frame_counter_names; unused entries stay 0).
+inline constexpr std::size_t kSystemCounters = 12;
+using SystemCounters = std::array<double, kSystemCounters>;
 
 struct FrameRow {
   int frame = 0;
@@ -32,6 +38,7 @@ struct FrameRow {
   std::uint32_t live_requests = 0;  // requests in the pipeline (queued, in flight, waiting upload)
   std::uint64_t ram_bytes = 0;      // RAM cache occupancy
   std::uint32_t throttled_needs = 0;  // tiles the clamp kept from being requested
+  SystemCounters system{};          // system-specific counters (MetricsCollector::set_system_columns)
 };
 
 struct TileLatency {
@@ -63,6 +70,9 @@ class MetricsCollector {
   void add_latency(const TileLatency& l) { latencies_.push_back(l); }
   void add_throttle_change(const ThrottleChange& c) { throttle_.push_back(c); }
   void add_level_bytes(int level, std::uint64_t disk, std::uint64_t upload);
+  // Names of the system-specific CSV columns appended after the standard ones (at most
+  // kSystemCounters; throws std::invalid_argument beyond).
+  void set_system_columns(std::vector<std::string> names);
 
   const std::vector<FrameRow>& frames() const { return frames_; }
   const std::vector<TileLatency>& latencies() const { return latencies_; }
@@ -81,6 +91,7 @@ class MetricsCollector {
   std::vector<FrameRow> frames_;
   std::vector<TileLatency> latencies_;
   std::vector<ThrottleChange> throttle_;
+  std::vector<std::string> system_columns_;
   std::vector<std::uint64_t> level_disk_, level_upload_;
 };
 

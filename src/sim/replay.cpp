@@ -17,6 +17,7 @@
 #include "stream/clipmap_system.h"
 #include "stream/i_system.h"
 #include "stream/sim_executor.h"
+#include "stream/vt_system.h"
 
 namespace vtsim {
 
@@ -62,6 +63,7 @@ std::unique_ptr<IStreamingSystem> make_system(const ReplayConfig& cfg, const ISc
     p.thrash_frames = cfg.thrash_frames;
     return std::make_unique<ClipmapSystem>(p);
   }
+  if (cfg.system == "vt") return std::make_unique<VtSystem>(vt_system_params(cfg, scene.texture()));
   throw InputError("config", "field 'run.system': '" + cfg.system + "' is not available");
 }
 
@@ -162,6 +164,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
   bool cut = true;  // the first frame has no predecessor: treat it as a cut
   std::uint64_t level_upload[TileKey::kMaxLevels] = {};
   auto last_progress = wall0;
+  m.set_system_columns(system->frame_counter_names());
 
   for (int f = 0; f < frames; ++f) {
     const Pose& pose = trace.poses[static_cast<std::size_t>(f)];
@@ -211,6 +214,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
     ti.discontinuity = cut;
     ti.pool_occupancy = system->pool_occupancy();
     ti.pool_pressure = system->pool_pressure();
+    system->pool_demand(ti.pool_demand_by_level, ti.pool_slots);
     const ThrottleDecision dec = throttle->update(ti);
     if (dec.clamp != clamp || dec.bias != bias)
       m.add_throttle_change({f, row.t_s, clamp, dec.clamp, dec.bias, dec.reason});
@@ -269,6 +273,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
     row.live_requests = static_cast<std::uint32_t>(pipe.live_requests());
     row.ram_bytes = pipe.ram_bytes_used();
     row.throttled_needs = system->throttled_needs();
+    system->frame_counters(row.system);
     m.add_frame(row);
 
     if (env.progress) {
@@ -369,6 +374,15 @@ std::string format_summary(const nlohmann::json& s) {
   out += fmt::format("  cache       RAM hit ratio {:.1f}%, {} RAM evictions, {} VRAM evictions\n",
                      100.0 * c["ram_hit_ratio"].get<double>(), c["ram_evictions"].get<std::uint64_t>(),
                      c["vram_evictions"].get<std::uint64_t>());
+  if (s.contains("vt") && s["vt"].contains("pool")) {
+    const auto& v = s["vt"];
+    out += fmt::format("  vt          pool {} pages ({:.0f}% in use, mean), {} evictions, {} rescues, pressure max {:.2f}, "
+                       "bias max {:.2f}; page table {} texels rewritten (baked)\n",
+                       v["pool_pages"].get<std::uint64_t>(), 100.0 * v["per_frame"]["pool_occupancy"]["mean"].get<double>(),
+                       v["pool"]["evictions"].get<std::uint64_t>(), v["pool"]["rescues"].get<std::uint64_t>(),
+                       v["per_frame"]["pool_pressure"]["max"].get<double>(), v["per_frame"]["bias"]["max"].get<double>(),
+                       v["page_table"]["texels_written_baked"].get<std::uint64_t>());
+  }
   out += fmt::format("  throttle    {} frames throttled, max clamp {}, {} changes ({})\n", t["frames_throttled"].get<std::size_t>(),
                      t["max_clamp"].get<int>(), t["changes"].get<std::size_t>(), t["policy"].get<std::string>());
   if (s["faults"]["faults"].get<std::uint64_t>() > 0)

@@ -1,4 +1,6 @@
 #include "sim/replay_config.h"
+
+#include "cache/page_table.h"
 #include "core/tile_key.h"
 
 #include <fmt/format.h>
@@ -118,6 +120,14 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
                              "window edge tiles excluded from sampling (seed 000 §4-6)"))
         .add(cfg::integer<C>("clipmap.filter_margin_texels", &C::filter_margin_texels, 0, 64,
                              "footprint half-width that must be valid (bilinear: 1)"))
+        .add(cfg::integer<C>("vt.pool_pages", &C::vt_pool_pages, 1, std::int64_t{1} << 24,
+                             "physical page pool, slots of one page in every layer (the VRAM budget)"))
+        .add(cfg::integer<C>("vt.locked_levels", &C::vt_locked_levels, 0, 63,
+                             "coarsest levels locked resident: the fallback every sample has"))
+        .add(cfg::integer<C>("vt.prefetch_finer_levels", &C::vt_prefetch_finer_levels, 0, 2,
+                             "also fetch pages 1 or 2 levels finer than desired into RAM (Unreal); 0 = off"))
+        .add(cfg::integer<C>("vt.residency_window_frames", &C::vt_residency_window_frames, 1, 100000,
+                             "a page used within this many frames counts as visible (pool occupancy)"))
         .add(cfg::real<C>("ram.capacity_MiB", &C::ram_MiB, 0.0, 1e9, "RAM cache of decoded tiles, MiB (hard cap)"))
         .add(cfg::real<C>("prefetch.lookahead_s", &C::prefetch_lookahead_s, 0.0, 3600.0,
                           "look-ahead along the motion (seed 000 §4-2), s; 0 = off"))
@@ -166,6 +176,13 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
         .add(cfg::integer<C>("throttle.relax_frames", &C::relax_frames, 1, 100000, "... for this many consecutive frames"))
         .add(cfg::real<C>("throttle.drain_horizon_s", &C::drain_horizon_s, 0.0, 1e6,
                           "an over-deadline backlog not back under it within this long clamps, s"))
+        .add(cfg::real<C>("throttle.high_water", &C::high_water, 0.0, 100.0,
+                          "VT: pool pressure (RAGE) / visible residency (Unreal) above which the bias rises"))
+        .add(cfg::real<C>("throttle.low_water", &C::low_water, 0.0, 100.0, "VT: ... below which the bias falls"))
+        .add(cfg::real<C>("throttle.bias_step", &C::bias_step, 0.0, 16.0, "RAGE: feedback bias change per adjustment, levels"))
+        .add(cfg::real<C>("throttle.max_bias", &C::max_bias, 0.0, 16.0, "VT: largest feedback bias, levels"))
+        .add(cfg::real<C>("throttle.adjust_rate", &C::adjust_rate, 0.0, 100.0,
+                          "Unreal: bias change per frame per unit of residency beyond a bound"))
         .add(cfg::real<C>("metrics.cut_m", &C::cut_m, 0.0, 1e12, "a frame-to-frame jump longer than this is a cut, m"))
         .add(cfg::real<C>("metrics.turn_deg_per_s", &C::turn_deg_per_s, 0.0, 1e6, "faster rotation is a fast turn, deg/s"))
         .add(cfg::real<C>("metrics.sharp_margin", &C::sharp_margin, 0.0, 1.0,
@@ -200,6 +217,26 @@ void validate(ReplayConfig& c) {
       bad("clipmap.clipsize", fmt::format("{} is not a multiple of texture.tile_size {}", c.clipsize, c.tile_size));
     if (c.border != 0 && c.system == "clipmap")
       bad("texture.border", "the clipmap's toroidal windows keep neighbours adjacent: borders must be 0");
+  }
+  if (c.system == "vt") {
+    if (c.tile_size < 2 || c.tile_size % 2 != 0)
+      bad("texture.tile_size", fmt::format("{}: a VT page must be even (a page lies inside one parent page)", c.tile_size));
+    if (c.border > c.tile_size)
+      bad("texture.border", fmt::format("{} texels is larger than the page ({} texels)", c.border, c.tile_size));
+    // Partial edge pages are allowed (docs/vt.md): no divisibility check on texture.width/height.
+    try {
+      const VtGeometry g({c.width, c.height}, c.tile_size, c.border);
+      if (c.vt_locked_levels > g.levels())
+        bad("vt.locked_levels", fmt::format("{} is more than the texture's {} levels", c.vt_locked_levels, g.levels()));
+      const std::uint64_t locked = g.coarsest_pages(c.vt_locked_levels);
+      if (static_cast<std::uint64_t>(c.vt_pool_pages) < locked)
+        bad("vt.pool_pages", fmt::format("{} pages is smaller than the {} locked levels ({} pages)", c.vt_pool_pages,
+                                         c.vt_locked_levels, locked));
+    } catch (const std::invalid_argument& e) {
+      bad("texture.tile_size", e.what());
+    }
+    if (c.low_water > c.high_water)
+      bad("throttle.low_water", fmt::format("{} is above throttle.high_water {}", c.low_water, c.high_water));
   }
   if (c.upload_tiles_per_frame == 0)
     bad("upload.tiles_per_frame", "a zero budget uploads nothing; use -1 for no tile limit");
@@ -236,6 +273,26 @@ void validate(ReplayConfig& c) {
   c.throttle_params.relax_factor = c.relax_factor;
   c.throttle_params.relax_frames = c.relax_frames;
   c.throttle_params.drain_horizon_s = c.drain_horizon_s;
+  c.throttle_params.high_water = c.high_water;
+  c.throttle_params.low_water = c.low_water;
+  c.throttle_params.bias_step = c.bias_step;
+  c.throttle_params.max_bias = c.max_bias;
+  c.throttle_params.adjust_rate = c.adjust_rate;
+}
+
+}  // namespace vtsim
+
+namespace vtsim {
+
+ReplayConfig load_replay_config(const std::string& config_path, const std::vector<std::string>& sets,
+                                const std::string& system) {
+  ReplayConfig cfg;
+  const auto& table = replay_config_table();
+  if (!config_path.empty()) load_toml_file(table, cfg, config_path);
+  if (!system.empty()) table.set(cfg, "run.system", ConfigValue{system}, "--system");
+  for (const auto& s : sets) apply_set(table, cfg, s);
+  validate(cfg);
+  return cfg;
 }
 
 }  // namespace vtsim

@@ -56,6 +56,11 @@ struct ReplayConfig {
   double update_threshold_tiles = 0.5;    // hysteresis before a window recentres, tiles
   int invalid_border_tiles = 0;           // window edge tiles excluded from sampling
   int filter_margin_texels = 1;           // footprint half-width that must be valid
+  // [vt] (virtual texturing; texture.tile_size is the page payload P, texture.border the border B)
+  std::int64_t vt_pool_pages = 1024;      // physical page pool, slots (RAGE-like: a 4096² texture of 128² pages)
+  int vt_locked_levels = 1;               // coarsest levels locked resident (never evicted)
+  int vt_prefetch_finer_levels = 0;       // also fetch pages 1 or 2 levels finer into RAM (Unreal); 0 = off
+  int vt_residency_window_frames = 15;    // a page used within this many frames counts as visible
   // [ram]
   double ram_MiB = 256.0;                 // RAM cache of decoded tiles, MiB
   // [prefetch]
@@ -91,6 +96,11 @@ struct ReplayConfig {
   double relax_factor = 0.5;
   int relax_frames = 15;
   double drain_horizon_s = 1.0;           // an over-deadline backlog that drains slower than this outruns
+  double high_water = 0.95;               // VT policies: pool pressure/occupancy above which the bias rises
+  double low_water = 0.75;                // ... below which it falls
+  double bias_step = 0.25;                // RAGE: bias change per adjustment, levels
+  double max_bias = 4.0;                  // bias clamp, levels
+  double adjust_rate = 0.2;               // Unreal: bias change per unit of residency beyond a bound
   // [metrics]
   double cut_m = 50.0;                    // a frame-to-frame jump longer than this is a cut
   double turn_deg_per_s = 180.0;          // faster rotation is a fast turn

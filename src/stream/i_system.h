@@ -5,9 +5,11 @@
 #include <cstdint>
 #include <glm/vec3.hpp>
 #include <nlohmann/json.hpp>
+#include <string>
 #include <vector>
 
 #include "core/time.h"
+#include "sim/metrics.h"
 #include "sim/residency.h"
 #include "sim/trace.h"
 #include "sim/view.h"
@@ -40,6 +42,14 @@ class IStreamingSystem : public IResidency {
   virtual void set_mark_sampled(bool on) = 0;
   virtual double pool_occupancy() const { return 0.0; }
   virtual double pool_pressure() const { return 0.0; }
+  // Virtual texturing: pages wanted per level and pool slots (ThrottleInput); clipmaps: none.
+  virtual void pool_demand(std::vector<std::uint64_t>& pages_by_level, std::uint64_t& slots) const {
+    pages_by_level.clear();
+    slots = 0;
+  }
+  // System-specific per-frame counters for the per-frame CSV (names once, values every frame).
+  virtual std::vector<std::string> frame_counter_names() const { return {}; }
+  virtual void frame_counters(SystemCounters& out) const { out.fill(0.0); }
   // System-specific counters for the summary ("clipmap" or "vt" section), and the VRAM totals.
   virtual nlohmann::json stats_json() const = 0;
   virtual std::uint64_t vram_evictions() const = 0;

@@ -23,6 +23,7 @@ struct ThrottleParams {
   double low_water = 0.75;      // pool occupancy below which it falls
   double bias_step = 0.25;      // bias change per adjustment, levels
   double max_bias = 4.0;        // bias clamp, levels
+  double adjust_rate = 0.2;     // Unreal: bias change per unit of residency beyond a bound, per frame
 };
 
 struct ThrottleInput {
@@ -39,11 +40,17 @@ struct ThrottleInput {
   // Virtual texturing: physical pool state.
   double pool_occupancy = 0.0;  // fraction of pool slots holding pages used in the last frames
   double pool_pressure = 0.0;   // wanted pages / pool slots (> 1: oversubscribed)
+  // Pages the view wants per level (desired pages and their ancestors, under the current bias,
+  // not clamped) and the pool's slots: what a clamp must fit (empty / 0 for clipmaps).
+  std::vector<std::uint64_t> pool_demand_by_level;
+  std::uint64_t pool_slots = 0;
 };
 
 struct ThrottleDecision {
   int clamp = 0;                // finest level allowed (0 = unthrottled)
   double bias = 0.0;            // feedback LOD bias, levels (virtual texturing)
+  double sample_bias = 0.0;     // LOD bias the screen samples with (Unreal's residency bias is
+                                // also a sampling bias; RAGE's feedback bias is not)
   std::string reason;           // why it changed (empty when unchanged)
 };
 

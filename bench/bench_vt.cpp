@@ -1,0 +1,102 @@
+// Virtual texturing replay speed (issue 5): a 10-minute, 60 Hz walk through the test town at
+// feedback divisor 8, simulated clock, one core; reported as × real time (trace duration / median
+// wall time of the repetitions — real time is the reference: 1× means as slow as playing it).
+// Cases:
+//  - replay_town_walk        the whole frame loop: feedback render, VT system, pipeline, pop-in;
+//  - replay_town_walk_every4 the same with view.feedback_every = 4 (a fidelity knob);
+//  - render_only             the same 36,000 feedback renders alone: the floor the renderer sets;
+//  - replay_town_static      a static camera for the same time (no requests after warm-up).
+// The streaming system's own cost per frame is the difference of the first and the third.
+// Defaults to 3 repetitions and no warm-up (one full run is ~1-2 minutes); --quick uses 60 s.
+// Usage: build/bench/bench_vt [--quick] [--reps N] [--json FILE]
+#include <fmt/format.h>
+
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "harness.h"
+#include "sim/camera.h"
+#include "sim/replay.h"
+#include "sim/scene.h"
+#include "sim/trace_gen.h"
+
+using namespace vtsim;
+
+int main(int argc, char** argv) {
+  std::vector<char*> args(argv, argv + argc);
+  bool has_reps = false, has_warmup = false;
+  for (int i = 1; i < argc; ++i) {
+    has_reps = has_reps || std::strcmp(argv[i], "--reps") == 0;
+    has_warmup = has_warmup || std::strcmp(argv[i], "--warmup") == 0;
+  }
+  std::string reps = "--reps", three = "3", warm = "--warmup", zero = "0";
+  if (!has_reps) args.insert(args.end(), {reps.data(), three.data()});
+  if (!has_warmup) args.insert(args.end(), {warm.data(), zero.data()});
+  bench::Harness h("vt", static_cast<int>(args.size()), args.data());
+
+  const double duration_s = h.pick(600.0, 60.0);
+  TraceGenParams gp = default_gen_params(TraceKind::walk);
+  gp.duration_s = duration_s;
+  gp.start_m = {30.0, 8.0};  // along the town's first street, heading east (900 m in 10 min)
+  const Trace walk = generate_trace(gp);
+  TraceGenParams sp = default_gen_params(TraceKind::still);
+  sp.duration_s = duration_s;
+  sp.start_m = {30.0, 8.0};
+  const Trace still = generate_trace(sp);
+  const double frames = static_cast<double>(walk.poses.size());
+  const std::vector<std::string> sets = {"scene.kind=town", "view.divisor=8"};
+  const ReplayConfig cfg = load_replay_config("", sets, "vt");
+  auto scene = make_scene_from_config(cfg);
+  h.param("trace_s", duration_s);
+  h.param("frames", frames);
+  h.param("config", sets);
+
+  const auto x_realtime = [&](const bench::Result* r) { return r ? r->ours.median / 60.0 : 0.0; };
+  nlohmann::json last;
+  const auto replay_case = [&](const std::string& name, const Trace& t, const ReplayConfig& c) {
+    return h.run({.name = name, .metric = bench::Metric::kOpsPerS, .work = frames, .params = {{"unit", "frames/s"}}},
+                 {"vt", {}, [&] {
+                    ReplayResult r = run_replay(c, t, *scene);
+                    last = r.summary;
+                    bench::do_not_optimize(last);
+                  }});
+  };
+  const bench::Result* full = replay_case("replay_town_walk", walk, cfg);
+  nlohmann::json full_summary = last;
+  ReplayConfig every4 = load_replay_config("", {"scene.kind=town", "view.divisor=8", "view.feedback_every=4"}, "vt");
+  const bench::Result* e4 = replay_case("replay_town_walk_every4", walk, every4);
+  ViewParams vp;
+  vp.divisor = cfg.divisor;
+  ViewBuffer vb;
+  std::size_t samples = 0;
+  const bench::Result* render = h.run(
+      {.name = "render_only", .metric = bench::Metric::kOpsPerS, .work = frames, .params = {{"unit", "frames/s"}}},
+      {"render", {}, [&] {
+         samples = 0;
+         for (const Pose& p : walk.poses) {
+           scene->render(make_camera(p, walk.image_width, walk.image_height), vp, vb);
+           samples += vb.samples.size();
+         }
+         bench::do_not_optimize(samples);
+       }});
+  const bench::Result* stat = replay_case("replay_town_static", still, cfg);
+  nlohmann::json static_summary = last;
+
+  fmt::print("\n{:<28} {:>12} {:>14}   (real time = 1×; issue 5 target >= 100×)\n", "case", "frames/s", "× real time");
+  for (const auto* r : {full, e4, render, stat})
+    if (r) fmt::print("{:<28} {:>12.0f} {:>13.1f}×\n", r->spec.name, r->ours.median, x_realtime(r));
+  if (full && render) {
+    const double us_full = 1e6 / full->ours.median, us_render = 1e6 / render->ours.median;
+    fmt::print("per frame: whole loop {:.0f} us, feedback render {:.0f} us ({:.0f}%), VT system + pipeline + pop-in {:.0f} us "
+               "(alone: {:.0f}× real time)\n",
+               us_full, us_render, 100.0 * us_render / us_full, us_full - us_render,
+               us_full > us_render ? (1e6 / 60.0) / (us_full - us_render) : 0.0);
+  }
+  if (!full_summary.is_null())
+    fmt::print("walk: {} pages mapped, {} evictions, blurry {:.2f}% mean; static: {} requests in {:.0f} s\n",
+               full_summary["vt"]["pages_mapped"].get<std::uint64_t>(), full_summary["vt"]["pool"]["evictions"].get<std::uint64_t>(),
+               100.0 * full_summary["popin"]["blurry_fraction_mean"].get<double>(),
+               static_summary.is_null() ? 0 : static_summary["cache"]["requests"].get<std::uint64_t>(), duration_s);
+  return h.finish();
+}

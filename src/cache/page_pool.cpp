@@ -1,0 +1,236 @@
+#include "cache/page_pool.h"
+
+#include <stdexcept>
+
+namespace vtsim {
+
+PagePool::PagePool(std::uint32_t slots, int layers, int lock_from_level, Hook hook)
+    : slot_(slots), lock_from_(lock_from_level), hook_(std::move(hook)) {
+  if (slots == 0) throw std::invalid_argument("PagePool: at least one slot");
+  if (layers < 1 || layers > 16) throw std::invalid_argument("PagePool: layers must be 1..16");
+  full_mask_ = (1u << layers) - 1u;
+  for (std::uint32_t s = slots; s-- > 0;) free_push(s);  // slot 0 first out
+}
+
+void PagePool::lru_unlink(std::uint32_t s) {
+  Slot& S = slot_[s];
+  if (S.prev != kNoSlot) slot_[S.prev].next = S.next;
+  else lru_head_ = S.next;
+  if (S.next != kNoSlot) slot_[S.next].prev = S.prev;
+  else lru_tail_ = S.prev;
+  S.prev = S.next = kNoSlot;
+  S.in_lru = false;
+}
+
+void PagePool::lru_push_front(std::uint32_t s) {
+  Slot& S = slot_[s];
+  S.prev = kNoSlot;
+  S.next = lru_head_;
+  if (lru_head_ != kNoSlot) slot_[lru_head_].prev = s;
+  else lru_tail_ = s;
+  lru_head_ = s;
+  S.in_lru = true;
+}
+
+void PagePool::lru_insert_ordered(std::uint32_t s) {
+  // Walk from the least recent end past every page older than s; s goes just after (more recent
+  // than) them.
+  std::uint32_t after = lru_tail_;
+  while (after != kNoSlot && older(slot_[after], slot_[s])) after = slot_[after].prev;
+  if (after == kNoSlot) {
+    lru_push_front(s);
+    return;
+  }
+  Slot& S = slot_[s];
+  S.prev = after;
+  S.next = slot_[after].next;
+  if (S.next != kNoSlot) slot_[S.next].prev = s;
+  else lru_tail_ = s;
+  slot_[after].next = s;
+  S.in_lru = true;
+}
+
+void PagePool::free_push(std::uint32_t s) {
+  Slot& S = slot_[s];
+  S = Slot{};
+  S.next = free_head_;
+  free_head_ = s;
+  ++free_count_;
+}
+
+std::uint32_t PagePool::free_pop() {
+  const std::uint32_t s = free_head_;
+  if (s == kNoSlot) return kNoSlot;
+  free_head_ = slot_[s].next;
+  slot_[s].next = kNoSlot;
+  --free_count_;
+  return s;
+}
+
+void PagePool::evict(std::uint32_t s, Removal why) {
+  Slot& S = slot_[s];
+  const Removed r{S.page, s, S.mask, S.mask == full_mask_, S.sampled, S.last_used, why};
+  if (S.in_lru) lru_unlink(s);
+  page_slot_.erase(S.page.bits);
+  --occupied_;
+  if (r.complete) --complete_;
+  if (why == Removal::kEvicted) {
+    ++stats_.evictions;
+    if (!S.sampled) ++stats_.evicted_unsampled;
+  } else {
+    ++stats_.partial_released;
+  }
+  S.mask = 0;
+  S.sampled = false;
+  S.last_used = kNever;
+  if (hook_) hook_(r);
+}
+
+PagePool::Touch PagePool::touch(TileKey page, int frame) {
+  Touch t;
+  const std::uint32_t* ps = page_slot_.find(page.bits);
+  if (!ps) return t;
+  const std::uint32_t s = *ps;
+  t.slot = s;
+  Slot& S = slot_[s];
+  if (S.state == State::victim) {  // rescue: the incoming page loses this slot
+    t.rescued = true;
+    t.lost = S.incoming;
+    reservations_.erase(S.incoming.bits);
+    --pending_count_;
+    ++stats_.rescues;
+    S.state = State::resident;
+  }
+  S.last_used = frame;
+  S.seq = ++seq_;
+  if (S.state == State::resident && !locked(S.page)) {
+    if (S.in_lru) lru_unlink(s);
+    lru_push_front(s);
+  }
+  return t;
+}
+
+std::uint32_t PagePool::reserve(TileKey page, int frame) {
+  if (const std::uint32_t* r = reservations_.find(page.bits)) return *r;
+  if (page_slot_.contains(page.bits)) throw std::logic_error("PagePool::reserve: the page is already in a slot");
+  std::uint32_t s = free_pop();
+  if (s != kNoSlot) {
+    slot_[s].state = State::reserved_free;
+  } else if (lru_tail_ != kNoSlot && slot_[lru_tail_].last_used < frame) {
+    s = lru_tail_;
+    lru_unlink(s);
+    slot_[s].state = State::victim;
+    ++pending_count_;
+  } else {
+    ++stats_.reserve_failures;
+    return kNoSlot;
+  }
+  slot_[s].incoming = page;
+  reservations_.put(page.bits, s);
+  ++stats_.reservations;
+  return s;
+}
+
+void PagePool::release(TileKey page) {
+  const std::uint32_t* r = reservations_.find(page.bits);
+  if (!r) return;
+  const std::uint32_t s = *r;
+  reservations_.erase(page.bits);
+  Slot& S = slot_[s];
+  switch (S.state) {
+    case State::reserved_free:
+      free_push(s);
+      break;
+    case State::victim:
+      S.state = State::resident;
+      --pending_count_;
+      ++stats_.released_victims;
+      lru_insert_ordered(s);
+      break;
+    case State::filling:
+      evict(s, Removal::kReleased);
+      free_push(s);
+      break;
+    case State::free:
+    case State::resident:
+      throw std::logic_error("PagePool::release: inconsistent reservation");
+  }
+}
+
+PagePool::Commit PagePool::commit(TileKey page, int layer, int frame) {
+  Commit c;
+  const std::uint32_t* r = reservations_.find(page.bits);
+  if (!r || layer < 0 || layer >= 16 || !(full_mask_ & (1u << layer))) return c;
+  const std::uint32_t s = *r;
+  Slot& S = slot_[s];
+  if (S.state == State::victim) {
+    --pending_count_;
+    evict(s, Removal::kEvicted);
+  }
+  if (S.state == State::victim || S.state == State::reserved_free) {
+    c.first_layer = true;
+    S.state = State::filling;
+    S.page = page;
+    S.mask = 0;
+    S.sampled = false;
+    page_slot_.put(page.bits, s);
+    ++occupied_;
+  }
+  S.mask |= 1u << layer;
+  S.last_used = frame;
+  S.seq = ++seq_;
+  c.slot = s;
+  if (S.mask == full_mask_) {
+    c.complete = true;
+    S.state = State::resident;
+    reservations_.erase(page.bits);
+    ++complete_;
+    if (locked(page)) {
+      ++locked_count_;
+      locked_slots_.push_back(s);
+    } else {
+      lru_push_front(s);
+    }
+  }
+  return c;
+}
+
+std::uint32_t PagePool::slot_of(TileKey page) const {
+  if (const std::uint32_t* s = page_slot_.find(page.bits)) return *s;
+  if (const std::uint32_t* r = reservations_.find(page.bits)) return *r;
+  return kNoSlot;
+}
+
+bool PagePool::resident(TileKey page) const {
+  const std::uint32_t* s = page_slot_.find(page.bits);
+  return s && slot_[*s].mask == full_mask_;
+}
+
+std::uint32_t PagePool::resident_mask(TileKey page) const {
+  const std::uint32_t* s = page_slot_.find(page.bits);
+  return s ? slot_[*s].mask : 0u;
+}
+
+int PagePool::last_used(TileKey page) const {
+  const std::uint32_t* s = page_slot_.find(page.bits);
+  return s ? slot_[*s].last_used : kNever;
+}
+
+std::uint32_t PagePool::used_within(int frame, int window) const {
+  const int from = frame - window + 1;
+  const auto in = [&](const Slot& S) { return S.last_used >= from && S.last_used <= frame; };
+  std::uint32_t n = 0;
+  // The LRU list runs from the most recent page: stop at the first one used before the window.
+  for (std::uint32_t s = lru_head_; s != kNoSlot && slot_[s].last_used >= from; s = slot_[s].next) n += in(slot_[s]);
+  for (const std::uint32_t s : locked_slots_) n += in(slot_[s]);
+  reservations_.for_each([&](std::uint64_t, std::uint32_t s) { n += slot_[s].state == State::victim && in(slot_[s]); });
+  return n;
+}
+
+std::vector<TileKey> PagePool::lru_order() const {
+  std::vector<TileKey> out;
+  for (std::uint32_t s = lru_tail_; s != kNoSlot; s = slot_[s].prev) out.push_back(slot_[s].page);
+  return out;
+}
+
+}  // namespace vtsim

@@ -1,0 +1,177 @@
+// vtsim vt compare: the residency policies side by side on the same traces at equal budgets —
+// pop-in, latency, bandwidth — as a Markdown table (docs/vt.md "Policies compared").
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "cli/commands.h"
+#include "core/error.h"
+#include "sim/replay.h"
+#include "sim/scene.h"
+#include "sim/trace_import.h"
+
+namespace vtsim::cli {
+
+namespace {
+
+struct CompareArgs {
+  std::vector<std::string> traces{"traces"};
+  std::string policies = "none,deadline,vt_clamp,unreal_bias,rage_watermarks";
+  std::string config;
+  std::vector<std::string> sets;
+  std::string markdown, json;
+  bool quiet = false;
+};
+
+std::vector<std::string> split(const std::string& s) {
+  std::vector<std::string> out;
+  std::size_t b = 0;
+  while (b <= s.size()) {
+    const std::size_t e = std::min(s.find(',', b), s.size());
+    if (e > b) out.push_back(s.substr(b, e - b));
+    b = e + 1;
+  }
+  return out;
+}
+
+// Files named directly, or every *.csv of a directory (sorted).
+std::vector<std::string> trace_files(const std::vector<std::string>& args) {
+  std::vector<std::string> out;
+  for (const auto& a : args) {
+    std::error_code ec;
+    if (std::filesystem::is_directory(a, ec)) {
+      std::vector<std::string> dir;
+      for (const auto& e : std::filesystem::directory_iterator(a))
+        if (e.path().extension() == ".csv") dir.push_back(e.path().string());
+      std::sort(dir.begin(), dir.end());
+      if (dir.empty()) throw InputError(a, "no .csv traces in this directory");
+      out.insert(out.end(), dir.begin(), dir.end());
+    } else {
+      out.push_back(a);
+    }
+  }
+  return out;
+}
+
+double num(const nlohmann::json& j) { return j.is_number() ? j.get<double>() : 0.0; }
+
+void run_compare(const CompareArgs& a) {
+  const auto policies = split(a.policies);
+  if (policies.empty()) throw InputError("--policies", "no policy named");
+  for (const auto& p : policies)
+    if (!make_throttle_policy(p, ThrottleParams{})) throw InputError("--policies", "unknown policy '" + p + "'");
+  const auto files = trace_files(a.traces);
+  // The shared budget: one config for every run, the policy the only difference.
+  ReplayConfig base = load_replay_config(a.config, a.sets, "vt");
+  nlohmann::json rows = nlohmann::json::array();
+  auto scene = make_scene_from_config(base);
+  for (const auto& file : files) {
+    const Trace trace = load_any_trace(file);
+    const std::string name = std::filesystem::path(file).stem().string();
+    for (const auto& policy : policies) {
+      std::vector<std::string> sets = a.sets;
+      sets.push_back("throttle.policy=" + policy);
+      const ReplayConfig cfg = load_replay_config(a.config, sets, "vt");
+      if (!a.quiet) fmt::print(stderr, "\r{:<60}", fmt::format("{} / {}", name, policy));
+      const ReplayResult r = run_replay(cfg, trace, *scene);
+      const auto& s = r.summary;
+      double max_bias = 0;
+      int max_clamp = 0;
+      for (const auto& row : r.metrics.frames()) {
+        max_bias = std::max(max_bias, row.bias);
+        max_clamp = std::max(max_clamp, row.clamp);
+      }
+      rows.push_back({{"trace", name},
+                      {"policy", policy},
+                      {"blurry_mean", num(s["popin"]["blurry_fraction_mean"])},
+                      {"blurry_p99", num(s["popin"]["blurry_fraction_p99"])},
+                      {"mean_deficit", num(s["popin"]["mean_deficit"])},
+                      {"pops_per_s", num(s["popin"]["visible_pops"]) / num(s["trace"]["duration_s"])},
+                      {"tts_mean", num(s["popin"]["time_to_sharp_s"]["mean"])},
+                      {"tts_max", num(s["popin"]["time_to_sharp_s"]["max"])},
+                      {"events", s["popin"]["time_to_sharp_s"]["events"]},
+                      {"never_sharp", s["popin"]["time_to_sharp_s"]["never_sharp"]},
+                      {"latency_p50", num(s["latency_ms"]["p50"])},
+                      {"latency_p99", num(s["latency_ms"]["p99"])},
+                      {"disk_MBps", num(s["bandwidth"]["disk_read_MBps"])},
+                      {"upload_MBps", num(s["bandwidth"]["upload_MBps"])},
+                      {"evictions", s["vt"]["pool"]["evictions"]},
+                      {"thrash", s["vt"]["vram_thrash"]},
+                      {"pressure_max", num(s["vt"]["per_frame"]["pool_pressure"]["max"])},
+                      {"max_bias", max_bias},
+                      {"max_clamp", max_clamp}});
+    }
+  }
+  if (!a.quiet) fmt::print(stderr, "\r{:60}\r", "");
+
+  std::string md;
+  md += fmt::format("Pool {} pages of {}+2×{} texels, disk `{}`, upload {} tiles/frame, RAM {} MiB, view divisor {}, scene `{}`.\n\n",
+                    base.vt_pool_pages, base.tile_size, base.border, base.disk_preset, base.upload_tiles_per_frame,
+                    base.ram_MiB, base.divisor, base.scene);
+  md += "| trace | policy | blurry % mean | blurry % p99 | deficit | pops/s | sharp again s (mean / max) | latency ms p50 / p99 | "
+        "disk MB/s | upload MB/s | evictions | thrash | max pressure | max bias | max clamp |\n";
+  md += "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+  for (const auto& r : rows) {
+    const std::string tts = r["events"].get<std::size_t>() == 0
+                                ? "–"
+                                : fmt::format("{:.2f} / {:.2f}{}", r["tts_mean"].get<double>(), r["tts_max"].get<double>(),
+                                              r["never_sharp"].get<std::size_t>() ? fmt::format(" ({} never)", r["never_sharp"].get<std::size_t>()) : "");
+    md += fmt::format("| {} | {} | {:.2f} | {:.2f} | {:.3f} | {:.0f} | {} | {:.0f} / {:.0f} | {:.2f} | {:.2f} | {} | {} | {:.2f} | {:.2f} | {} |\n",
+                      r["trace"].get<std::string>(), r["policy"].get<std::string>(), 100.0 * r["blurry_mean"].get<double>(),
+                      100.0 * r["blurry_p99"].get<double>(), r["mean_deficit"].get<double>(), r["pops_per_s"].get<double>(), tts,
+                      r["latency_p50"].get<double>(), r["latency_p99"].get<double>(), r["disk_MBps"].get<double>(),
+                      r["upload_MBps"].get<double>(), r["evictions"].get<std::uint64_t>(), r["thrash"].get<std::uint64_t>(),
+                      r["pressure_max"].get<double>(), r["max_bias"].get<double>(), r["max_clamp"].get<int>());
+  }
+  // Per policy, the mean over the traces.
+  md += "\n| policy (mean over traces) | blurry % mean | deficit | pops/s | latency ms p99 | disk MB/s | upload MB/s | evictions |\n";
+  md += "|---|---:|---:|---:|---:|---:|---:|---:|\n";
+  for (const auto& p : policies) {
+    double b = 0, d = 0, l = 0, disk = 0, up = 0, ev = 0, pops = 0;
+    int n = 0;
+    for (const auto& r : rows)
+      if (r["policy"] == p) {
+        b += r["blurry_mean"].get<double>();
+        d += r["mean_deficit"].get<double>();
+        pops += r["pops_per_s"].get<double>();
+        l += r["latency_p99"].get<double>();
+        disk += r["disk_MBps"].get<double>();
+        up += r["upload_MBps"].get<double>();
+        ev += static_cast<double>(r["evictions"].get<std::uint64_t>());
+        ++n;
+      }
+    md += fmt::format("| {} | {:.2f} | {:.3f} | {:.0f} | {:.0f} | {:.2f} | {:.2f} | {:.0f} |\n", p, 100.0 * b / n, d / n,
+                      pops / n, l / n, disk / n, up / n, ev / n);
+  }
+  if (!a.markdown.empty()) {
+    std::ofstream out(a.markdown, std::ios::binary | std::ios::trunc);
+    if (!out || !(out << md).flush()) throw InputError(a.markdown, "cannot write");
+  }
+  if (!a.json.empty()) {
+    std::ofstream out(a.json, std::ios::binary | std::ios::trunc);
+    if (!out || !(out << rows.dump(2) << "\n").flush()) throw InputError(a.json, "cannot write");
+  }
+  if (a.markdown.empty() || !a.quiet) fmt::print("{}", md);
+}
+
+}  // namespace
+
+void register_vt_commands(CLI::App& app) {
+  auto* vt = app.add_subcommand("vt", "Virtual texturing tools (docs/vt.md)");
+  vt->require_subcommand(1);
+  auto a = std::make_shared<CompareArgs>();
+  auto* c = vt->add_subcommand("compare", "Replay traces under each residency policy at equal budgets; print a Markdown table");
+  c->add_option("--traces", a->traces, "trace files or directories of *.csv (default: traces)")->capture_default_str();
+  c->add_option("--policies", a->policies, "comma-separated throttle policies")->capture_default_str();
+  c->add_option("--config,-c", a->config, "TOML config file shared by every run (docs/config.md)");
+  c->add_option("--set", a->sets, "override one config key for every run (repeatable)");
+  c->add_option("--markdown", a->markdown, "write the table here");
+  c->add_option("--json", a->json, "write every run's figures here");
+  c->add_flag("--quiet,-q", a->quiet, "no progress; with --markdown, nothing on stdout");
+  c->callback([a] { run_compare(*a); });
+}
+
+}  // namespace vtsim::cli
