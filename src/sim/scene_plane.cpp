@@ -12,10 +12,15 @@ namespace vtsim {
 
 namespace {
 
-constexpr int kChunk = 64;  // pixels per vectorised batch: arrays stay in L1, loops long enough
+constexpr int kChunk = 64;  // pixels per batch: arrays stay in L1, loops long enough
 
-// Per-pixel values of one batch of a row, computed branch-free so that the compiler vectorises
-// them; classification and the logarithm follow in a scalar pass.
+// Four doubles (GCC vector extension): one AVX register in the avx2 clones below, two SSE2
+// registers otherwise. Every lane does exactly the scalar IEEE operations in the same order, and
+// no clone enables FMA, so the values are the same bits whichever clone runs.
+typedef double v4d __attribute__((vector_size(32)));
+
+// Per-pixel values of one batch of a row; classification and the logarithm follow in a scalar
+// pass.
 struct Batch {
   alignas(32) double dz[kChunk];
   alignas(32) double t[kChunk];
@@ -24,35 +29,95 @@ struct Batch {
   alignas(32) double q[kChunk];   // squared footprint for the LOD rule, clamped
 };
 
-// Branch-free per-pixel arithmetic of a batch (vectorised by the compiler).
-template <bool kAniso>
-void fill_batch(Batch& b, const double* a, int n, const glm::dvec3& row, const glm::dvec3& L, const glm::dvec3& U,
-                double ox, double oy, double oz, double tpm, double tpm2, double inv_a2) {
-  const double Lx = L.x, Ly = L.y, Lz = L.z, Ux = U.x, Uy = U.y, Uz = U.z;
-  const double rx = row.x, ry = row.y, rz = row.z;
-  for (int j = 0; j < n; ++j) {
-    const double dx = rx + a[j] * Lx, dy = ry + a[j] * Ly, dz = rz + a[j] * Lz;
-    const double r = 1.0 / dz;
-    const double t = -oz * r;
-    const double kx = Lz * r, ky = Uz * r;
-    const double ax = kx * dx - Lx, ay = kx * dy - Ly;
-    const double bx = ky * dx - Ux, by = ky * dy - Uy;
-    const double s = t * t * tpm2;
-    const double lx2 = s * (ax * ax + ay * ay), ly2 = s * (bx * bx + by * by);
-    const double major = lx2 > ly2 ? lx2 : ly2;
-    double q = major;
-    if constexpr (kAniso) {
-      const double minor = lx2 > ly2 ? ly2 : lx2, am = major * inv_a2;
-      q = minor > am ? minor : am;
-    }
-    q = q >= kMinFootprint2 ? q : kMinFootprint2;  // also NaN -> min (as lod_from_lengths2)
-    q = q > kMaxFootprint2 ? kMaxFootprint2 : q;
-    b.dz[j] = dz;
-    b.t[j] = t;
-    b.tu[j] = (ox + t * dx) * tpm;
-    b.tv[j] = (oy + t * dy) * tpm;
-    b.q[j] = q;
+// Row constants of the arithmetic.
+struct RowConsts {
+  double rx, ry, rz, Lx, Ly, Lz, Ux, Uy, Uz, ox, oy, oz, tpm, tpm2, inv_a2;
+};
+
+struct Lanes {
+  v4d dz, t, tu, tv, q;
+};
+
+// Row values that do not depend on the column when the camera has no roll (L.z = 0): then
+// d.z = r.z + a·L.z is r.z exactly for every column (a·0 = ±0, and r.z != 0 is required), and so
+// are 1/d.z, t, the footprint factors and s; hoisting them leaves every lane's value unchanged.
+struct RowFlat {
+  double dz, r, t, kx, ky, s;
+};
+inline RowFlat row_flat(const RowConsts& k) {
+  RowFlat f;
+  f.dz = k.rz;
+  f.r = 1.0 / f.dz;
+  f.t = -k.oz * f.r;
+  f.kx = k.Lz * f.r;
+  f.ky = k.Uz * f.r;
+  f.s = f.t * f.t * k.tpm2;
+  return f;
+}
+
+// The per-pixel arithmetic of four columns a (branch-free); kFlat takes the column-independent
+// values from `rf` (see RowFlat).
+template <bool kAniso, bool kFlat>
+[[gnu::always_inline]] inline void shade4(const v4d& a, const RowConsts& k, const RowFlat& rf, Lanes& o) {
+  const v4d dx = k.rx + a * k.Lx, dy = k.ry + a * k.Ly;
+  v4d dz, t, kx, ky, s;
+  if constexpr (kFlat) {
+    dz = v4d{} + rf.dz;
+    t = v4d{} + rf.t;
+    kx = v4d{} + rf.kx;
+    ky = v4d{} + rf.ky;
+    s = v4d{} + rf.s;
+  } else {
+    dz = k.rz + a * k.Lz;
+    const v4d r = 1.0 / dz;
+    t = -k.oz * r;
+    kx = k.Lz * r;
+    ky = k.Uz * r;
+    s = t * t * k.tpm2;
   }
+  const v4d ax = kx * dx - k.Lx, ay = kx * dy - k.Ly;
+  const v4d bx = ky * dx - k.Ux, by = ky * dy - k.Uy;
+  const v4d lx2 = s * (ax * ax + ay * ay), ly2 = s * (bx * bx + by * by);
+  const v4d major = lx2 > ly2 ? lx2 : ly2;
+  v4d q = major;
+  if constexpr (kAniso) {
+    const v4d minor = lx2 > ly2 ? ly2 : lx2, am = major * k.inv_a2;
+    q = minor > am ? minor : am;
+  }
+  const v4d qmin = v4d{} + kMinFootprint2, qmax = v4d{} + kMaxFootprint2;
+  q = q >= qmin ? q : qmin;  // also NaN -> min (as lod_from_lengths2)
+  q = q > qmax ? qmax : q;
+  o.dz = dz;
+  o.t = t;
+  o.tu = (k.ox + t * dx) * k.tpm;
+  o.tv = (k.oy + t * dy) * k.tpm;
+  o.q = q;
+}
+
+// By reference: a 32-byte vector passed or returned by value would change the ABI between the
+// clones (-Wpsabi).
+[[gnu::always_inline]] inline void load4(const double* p, v4d& v) { __builtin_memcpy(&v, p, sizeof v); }
+[[gnu::always_inline]] inline void store4(double* p, const v4d& v) { __builtin_memcpy(p, &v, sizeof v); }
+
+// Batch values of n columns (reads ceil(n/4)·4 entries of a: column arrays are padded).
+template <bool kAniso>
+[[gnu::always_inline]] inline void fill_batch_t(Batch& b, const double* a, int n, const RowConsts& k) {
+  for (int j = 0; j < n; j += 4) {
+    Lanes o;
+    v4d av;
+    load4(a + j, av);
+    shade4<kAniso, false>(av, k, RowFlat{}, o);
+    store4(b.dz + j, o.dz);
+    store4(b.t + j, o.t);
+    store4(b.tu + j, o.tu);
+    store4(b.tv + j, o.tv);
+    store4(b.q + j, o.q);
+  }
+}
+__attribute__((target_clones("avx2", "default"))) void fill_batch(Batch& b, const double* a, int n, const RowConsts& k,
+                                                                  bool aniso) {
+  if (aniso) fill_batch_t<true>(b, a, n, k);
+  else fill_batch_t<false>(b, a, n, k);
 }
 
 // Per-frame constants of the plane, shared by render, render_spans and render_pixels: one code
@@ -94,9 +159,12 @@ struct PlaneFrame {
     const double dz_first = r.z + col[0] * cam.left.z, dz_last = r.z + col[bw - 1] * cam.left.z;
     return oz != 0.0 && dz_first * oz >= 0.0 && dz_last * oz >= 0.0;
   }
+  RowConsts consts(const Camera& cam, const glm::dvec3& r) const {
+    return RowConsts{r.x,      r.y,      r.z,      cam.left.x, cam.left.y, cam.left.z, cam.up.x, cam.up.y,
+                     cam.up.z, ox,       oy,       oz,         tpm,        tpm2,       inv_a2};
+  }
   void fill(Batch& b, const double* a, int n, const glm::dvec3& r, const Camera& cam) const {
-    if (aniso) fill_batch<true>(b, a, n, r, cam.left, cam.up, ox, oy, oz, tpm, tpm2, inv_a2);
-    else fill_batch<false>(b, a, n, r, cam.left, cam.up, ox, oy, oz, tpm, tpm2, inv_a2);
+    fill_batch(b, a, n, consts(cam, r), aniso);
   }
   // True when batch entry j is a sample; otherwise counts why not and returns false.
   bool classify(const Batch& b, int j, ViewCounters& c) const {
@@ -130,11 +198,13 @@ struct PlaneFrame {
   }
 };
 
-// cx − px of each buffer column, per thread.
+// cx − px of each buffer column, per thread; padded with 8 copies of the last so that groups of
+// four starting anywhere in the row stay inside.
 const double* column_offsets(const Camera& cam, int div, int bw) {
   thread_local std::vector<double> col;
-  col.resize(static_cast<std::size_t>(bw));
+  col.resize(static_cast<std::size_t>(bw) + 8);
   for (int bx = 0; bx < bw; ++bx) col[static_cast<std::size_t>(bx)] = cam.cx - sample_pos(bx, div, cam.width);
+  for (std::size_t i = static_cast<std::size_t>(bw); i < col.size(); ++i) col[i] = col[static_cast<std::size_t>(bw) - 1];
   return col.data();
 }
 
@@ -188,29 +258,137 @@ const LevelCuts& level_cuts(double bias, int levels) {
   return lc;
 }
 
-// The open span's test, as double comparisons on the batch values: a sample (as classify) at
+// The open span's test, as double comparisons on a sample's values: a sample (as classify) at
 // the span's level (q in [q_lo, q_hi)) whose texel lies in the span's block (u in [u_lo, u_hi),
 // bounds clipped to the texture, so the texture test is included).
 struct SpanBounds {
   double q_lo, q_hi, u_lo, u_hi, v_lo, v_hi;
 };
 
-// Entries from j on (j < n) that pass the open span's test, up to the first that fails. Eight
-// at a time with no branch inside (the compiler vectorises the block), then one by one.
-int run_length(const Batch& b, int j, int n, const SpanBounds& k, double oz, double t_near, double t_far) {
-  const auto in = [&](int i) {
-    return (b.dz[i] * oz < 0.0) & (b.t[i] >= t_near) & (b.t[i] <= t_far) & (b.q[i] >= k.q_lo) & (b.q[i] < k.q_hi) &
-           (b.tu[i] >= k.u_lo) & (b.tu[i] < k.u_hi) & (b.tv[i] >= k.v_lo) & (b.tv[i] < k.v_hi);
-  };
-  int i = j;
-  while (i + 8 <= n) {
-    bool all = true;
-    for (int m = 0; m < 8; ++m) all &= in(i + m);
-    if (!all) break;
-    i += 8;
+// Where render_spans writes, across rows.
+struct SpanOut {
+  std::vector<ViewSpan>& spans;
+  ViewCounters& c;
+  std::uint32_t& n_samples;
+  const LevelCuts& cuts;
+  int levels, block_shift;
+};
+
+// Opens a span at the sample in batch entry j.
+void open_span(const PlaneFrame& fr, const Batch& b, int j, std::uint32_t pixel, SpanOut& o, SpanBounds& k) {
+  const ViewSample sm = fr.sample(b, j, pixel);
+  const int level = desired_level(sm.lod, o.levels);
+  o.spans.push_back(ViewSpan{sm.u, sm.u, sm.v, sm.v, sm.pixel, 1, o.n_samples, level});
+  ++o.n_samples;
+  k.q_lo = o.cuts.cut[level];
+  k.q_hi = o.cuts.cut[level + 1];
+  const int sh = level + o.block_shift;
+  if (sh < 63) {  // the block's texel range, as spans_from_samples defines it
+    const std::int64_t bu = sm.u >> sh, bv = sm.v >> sh;
+    const double p2 = std::bit_cast<double>(static_cast<std::uint64_t>(1023 + sh) << 52);  // 2^sh, exact
+    k.u_lo = std::max(0.0, static_cast<double>(bu) * p2);
+    k.u_hi = std::min(fr.tw, static_cast<double>(bu + 1) * p2);
+    k.v_lo = std::max(0.0, static_cast<double>(bv) * p2);
+    k.v_hi = std::min(fr.th, static_cast<double>(bv + 1) * p2);
+  } else {
+    k.u_lo = k.v_lo = 0.0;
+    k.u_hi = fr.tw;
+    k.v_hi = fr.th;
   }
-  while (i < n && in(i)) ++i;
-  return i - j;
+}
+
+// One row of render_spans, four columns at a time: the arithmetic of shade4, then the open span's
+// test on all four lanes at once. A group whose four samples all stay in the span only widens the
+// span's running bounding box (kept in vectors, folded into the span when the group test
+// fails); any other group goes through the lanes one by one, exactly as render() would.
+// Inlined into each target clone of span_row (a separate function would be compiled for the
+// default target only).
+template <bool kAniso, bool kFlat>
+[[gnu::always_inline]] inline void span_row_t(const PlaneFrame& fr, const RowConsts& rc, const double* col, int by, SpanOut& o) {
+  const RowFlat rf = kFlat ? row_flat(rc) : RowFlat{};
+  thread_local Batch b;
+  SpanBounds k{};
+  bool open = false;
+  bool acc = false;  // umin..vmax hold groups not yet folded into o.spans.back()
+  v4d umin{}, umax{}, vmin{}, vmax{};
+  const auto fold = [&] {
+    if (!acc) return;
+    ViewSpan& sp = o.spans.back();
+    const double ul = std::min(std::min(umin[0], umin[1]), std::min(umin[2], umin[3]));
+    const double uh = std::max(std::max(umax[0], umax[1]), std::max(umax[2], umax[3]));
+    const double vl = std::min(std::min(vmin[0], vmin[1]), std::min(vmin[2], vmin[3]));
+    const double vh = std::max(std::max(vmax[0], vmax[1]), std::max(vmax[2], vmax[3]));
+    // Texels are truncations (tu >= 0), and truncation is monotone.
+    sp.u_lo = std::min(sp.u_lo, static_cast<std::int64_t>(ul));
+    sp.u_hi = std::max(sp.u_hi, static_cast<std::int64_t>(uh));
+    sp.v_lo = std::min(sp.v_lo, static_cast<std::int64_t>(vl));
+    sp.v_hi = std::max(sp.v_hi, static_cast<std::int64_t>(vh));
+    acc = false;
+  };
+  const double oz = fr.oz, tn = fr.t_near, tf = fr.t_far;
+  const int bw = fr.bw;
+  for (int x = 0; x < bw; x += 4) {
+    Lanes l;
+    v4d av;
+    load4(col + x, av);
+    shade4<kAniso, kFlat>(av, rc, rf, l);
+    if (open && x + 4 <= bw) {
+      const auto m = (l.dz * oz < 0.0) & (l.t >= tn) & (l.t <= tf) & (l.q >= k.q_lo) & (l.q < k.q_hi) &
+                     (l.tu >= k.u_lo) & (l.tu < k.u_hi) & (l.tv >= k.v_lo) & (l.tv < k.v_hi);
+      if ((m[0] & m[1] & m[2] & m[3]) != 0) {
+        if (!acc) {
+          umin = umax = l.tu;
+          vmin = vmax = l.tv;
+          acc = true;
+        } else {
+          umin = l.tu < umin ? l.tu : umin;
+          umax = l.tu > umax ? l.tu : umax;
+          vmin = l.tv < vmin ? l.tv : vmin;
+          vmax = l.tv > vmax ? l.tv : vmax;
+        }
+        o.spans.back().count += 4;
+        o.n_samples += 4;
+        continue;
+      }
+    }
+    fold();
+    store4(b.dz, l.dz);
+    store4(b.t, l.t);
+    store4(b.tu, l.tu);
+    store4(b.tv, l.tv);
+    store4(b.q, l.q);
+    const int n = bw - x < 4 ? bw - x : 4;
+    for (int j = 0; j < n; ++j) {
+      if (open && (b.dz[j] * oz < 0.0) && b.t[j] >= tn && b.t[j] <= tf && b.q[j] >= k.q_lo && b.q[j] < k.q_hi &&
+          b.tu[j] >= k.u_lo && b.tu[j] < k.u_hi && b.tv[j] >= k.v_lo && b.tv[j] < k.v_hi) {
+        ViewSpan& sp = o.spans.back();
+        const std::int64_t u = static_cast<std::int64_t>(b.tu[j]), v = static_cast<std::int64_t>(b.tv[j]);
+        sp.u_lo = std::min(sp.u_lo, u);
+        sp.u_hi = std::max(sp.u_hi, u);
+        sp.v_lo = std::min(sp.v_lo, v);
+        sp.v_hi = std::max(sp.v_hi, v);
+        ++sp.count;
+        ++o.n_samples;
+        continue;
+      }
+      open = false;
+      if (!fr.classify(b, j, o.c)) continue;
+      open_span(fr, b, j, static_cast<std::uint32_t>(by * bw + x + j), o, k);
+      open = true;
+    }
+  }
+  fold();
+}
+__attribute__((target_clones("avx2", "default"))) void span_row(const PlaneFrame& fr, const RowConsts& rc,
+                                                                const double* col, int by, SpanOut& o) {
+  const bool flat = rc.Lz == 0.0 && rc.rz != 0.0;
+  if (fr.aniso) {
+    if (flat) span_row_t<true, true>(fr, rc, col, by, o);
+    else span_row_t<true, false>(fr, rc, col, by, o);
+  } else {
+    if (flat) span_row_t<false, true>(fr, rc, col, by, o);
+    else span_row_t<false, false>(fr, rc, col, by, o);
+  }
 }
 
 }  // namespace
@@ -287,71 +465,16 @@ void PlaneScene::render_spans(const Camera& cam, const ViewParams& p, SpanBuffer
   out.cam = cam;
   out.params = p;
   const double* col = column_offsets(cam, fr.div, fr.bw);
-  thread_local Batch b;
   ViewCounters c;
-  SpanBounds k{};
   std::uint32_t n_samples = 0;
+  SpanOut so{out.spans, c, n_samples, cuts, levels, out.block_shift};
   for (int by = 0; by < fr.bh; ++by) {
     const glm::dvec3 row = fr.row(cam, by);
     if (fr.sky_row(cam, row, col)) {
       c.sky += static_cast<std::uint64_t>(fr.bw);
       continue;
     }
-    bool open = false;  // out.spans.back() may grow
-    for (int x0 = 0; x0 < fr.bw; x0 += kChunk) {
-      const int n = fr.bw - x0 < kChunk ? fr.bw - x0 : kChunk;
-      fr.fill(b, col + x0, n, row, cam);
-      int j = 0;
-      while (j < n) {
-        if (open) {
-          const int len = run_length(b, j, n, k, fr.oz, fr.t_near, fr.t_far);
-          if (len > 0) {
-            double ulo = b.tu[j], uhi = ulo, vlo = b.tv[j], vhi = vlo;
-            for (int i = j + 1; i < j + len; ++i) {
-              ulo = b.tu[i] < ulo ? b.tu[i] : ulo;
-              uhi = b.tu[i] > uhi ? b.tu[i] : uhi;
-              vlo = b.tv[i] < vlo ? b.tv[i] : vlo;
-              vhi = b.tv[i] > vhi ? b.tv[i] : vhi;
-            }
-            // Texels are the truncations (tu >= 0), and truncation is monotone.
-            ViewSpan& s = out.spans.back();
-            s.u_lo = std::min(s.u_lo, static_cast<std::int64_t>(ulo));
-            s.u_hi = std::max(s.u_hi, static_cast<std::int64_t>(uhi));
-            s.v_lo = std::min(s.v_lo, static_cast<std::int64_t>(vlo));
-            s.v_hi = std::max(s.v_hi, static_cast<std::int64_t>(vhi));
-            s.count += static_cast<std::uint32_t>(len);
-            n_samples += static_cast<std::uint32_t>(len);
-            j += len;
-            if (j == n) break;
-          }
-          open = false;
-        }
-        if (!fr.classify(b, j, c)) {
-          ++j;
-          continue;
-        }
-        const ViewSample sm = fr.sample(b, j, static_cast<std::uint32_t>(by * fr.bw + x0 + j));
-        const int level = desired_level(sm.lod, levels);
-        out.spans.push_back(ViewSpan{sm.u, sm.u, sm.v, sm.v, sm.pixel, 1, n_samples, level});
-        ++n_samples;
-        k.q_lo = cuts.cut[level];
-        k.q_hi = cuts.cut[level + 1];
-        const int sh = level + out.block_shift;
-        if (sh < 63) {  // the block's texel range, as spans_from_samples defines it
-          const std::int64_t bu = sm.u >> sh, bv = sm.v >> sh;
-          k.u_lo = std::max(0.0, std::ldexp(static_cast<double>(bu), sh));
-          k.u_hi = std::min(fr.tw, std::ldexp(static_cast<double>(bu + 1), sh));
-          k.v_lo = std::max(0.0, std::ldexp(static_cast<double>(bv), sh));
-          k.v_hi = std::min(fr.th, std::ldexp(static_cast<double>(bv + 1), sh));
-        } else {
-          k.u_lo = k.v_lo = 0.0;
-          k.u_hi = fr.tw;
-          k.v_hi = fr.th;
-        }
-        open = true;
-        ++j;
-      }
-    }
+    span_row(fr, fr.consts(cam, row), col, by, so);
   }
   out.samples = n_samples;
   out.counters = c;
