@@ -272,19 +272,27 @@ struct SpanOut {
   std::uint32_t& n_samples;
   const LevelCuts& cuts;
   int levels, block_shift;
+  int last_level = 0;
 };
 
-// Opens a span at the sample in batch entry j.
+// Opens a span at the sample in batch entry j. Its level is where q falls among the level cuts
+// (the level sample() would give, without the logarithm), searched from the last span's level.
 void open_span(const PlaneFrame& fr, const Batch& b, int j, std::uint32_t pixel, SpanOut& o, SpanBounds& k) {
-  const ViewSample sm = fr.sample(b, j, pixel);
-  const int level = desired_level(sm.lod, o.levels);
-  o.spans.push_back(ViewSpan{sm.u, sm.u, sm.v, sm.v, sm.pixel, 1, o.n_samples, level});
+  std::int64_t u = static_cast<std::int64_t>(b.tu[j]), v = static_cast<std::int64_t>(b.tv[j]);
+  if (u >= fr.W) u = fr.W - 1;  // as sample()
+  if (v >= fr.H) v = fr.H - 1;
+  const double q = b.q[j];
+  int level = o.last_level;
+  while (level > 0 && q < o.cuts.cut[level]) --level;
+  while (level + 1 < o.levels && q >= o.cuts.cut[level + 1]) ++level;
+  o.last_level = level;
+  o.spans.push_back(ViewSpan{u, u, v, v, pixel, 1, o.n_samples, level});
   ++o.n_samples;
   k.q_lo = o.cuts.cut[level];
   k.q_hi = o.cuts.cut[level + 1];
   const int sh = level + o.block_shift;
   if (sh < 63) {  // the block's texel range, as spans_from_samples defines it
-    const std::int64_t bu = sm.u >> sh, bv = sm.v >> sh;
+    const std::int64_t bu = u >> sh, bv = v >> sh;
     const double p2 = std::bit_cast<double>(static_cast<std::uint64_t>(1023 + sh) << 52);  // 2^sh, exact
     k.u_lo = std::max(0.0, static_cast<double>(bu) * p2);
     k.u_hi = std::min(fr.tw, static_cast<double>(bu + 1) * p2);
@@ -309,7 +317,8 @@ template <bool kAniso, bool kFlat>
   thread_local Batch b;
   SpanBounds k{};
   bool open = false;
-  bool acc = false;  // umin..vmax hold groups not yet folded into o.spans.back()
+  bool acc = false;  // umin..vmax and run hold groups not yet folded into o.spans.back()
+  std::uint32_t run = 0;
   v4d umin{}, umax{}, vmin{}, vmax{};
   const auto fold = [&] {
     if (!acc) return;
@@ -323,6 +332,9 @@ template <bool kAniso, bool kFlat>
     sp.u_hi = std::max(sp.u_hi, static_cast<std::int64_t>(uh));
     sp.v_lo = std::min(sp.v_lo, static_cast<std::int64_t>(vl));
     sp.v_hi = std::max(sp.v_hi, static_cast<std::int64_t>(vh));
+    sp.count += run;
+    o.n_samples += run;
+    run = 0;
     acc = false;
   };
   const double oz = fr.oz, tn = fr.t_near, tf = fr.t_far;
@@ -333,9 +345,11 @@ template <bool kAniso, bool kFlat>
     load4(col + x, av);
     shade4<kAniso, kFlat>(av, rc, rf, l);
     if (open && x + 4 <= bw) {
-      const auto m = (l.dz * oz < 0.0) & (l.t >= tn) & (l.t <= tf) & (l.q >= k.q_lo) & (l.q < k.q_hi) &
-                     (l.tu >= k.u_lo) & (l.tu < k.u_hi) & (l.tv >= k.v_lo) & (l.tv < k.v_hi);
-      if ((m[0] & m[1] & m[2] & m[3]) != 0) {
+      auto m = (l.dz * oz < 0.0) & (l.t >= tn) & (l.t <= tf) & (l.q >= k.q_lo) & (l.q < k.q_hi) & (l.tu >= k.u_lo) &
+               (l.tu < k.u_hi) & (l.tv >= k.v_lo) & (l.tv < k.v_hi);
+      m &= __builtin_shufflevector(m, m, 2, 3, 0, 1);  // all four lanes set: reduce in registers
+      m &= __builtin_shufflevector(m, m, 1, 0, 3, 2);
+      if (m[0] != 0) {
         if (!acc) {
           umin = umax = l.tu;
           vmin = vmax = l.tv;
@@ -346,8 +360,7 @@ template <bool kAniso, bool kFlat>
           vmin = l.tv < vmin ? l.tv : vmin;
           vmax = l.tv > vmax ? l.tv : vmax;
         }
-        o.spans.back().count += 4;
-        o.n_samples += 4;
+        run += 4;
         continue;
       }
     }
