@@ -8,7 +8,9 @@
 //    fixed synthetic residency (mean and max over frames);
 //  - the same tile error after add_level_seams, its time, and the extra tiles it requests that
 //    divisor 1 does not touch (false positives, as a fraction of divisor 1's tile count).
-// Usage: bench_feedback [--scenes plane,heightfield,town] [--frames N] [--reps N] [--json FILE]
+// Then the fast paths at divisor 8 against their references (plane spans, town occlusion culling).
+// Usage: bench_feedback [--scenes plane,heightfield,town] [--frames N] [--reps N] [--fast-paths-only]
+//                       [--json FILE]
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
@@ -28,6 +30,7 @@
 #include "sim/popin.h"
 #include "sim/scene.h"
 #include "sim/scene_heightfield.h"
+#include "sim/scene_mesh.h"
 #include "sim/scene_town.h"
 
 using namespace vtsim;
@@ -140,6 +143,7 @@ struct Options {
   int reps = 3;     // renders per frame and divisor (the median is over all)
   std::string json_path;
   int width = 1920, height = 1080;
+  bool fast_only = false;  // only the fast paths against their references
 };
 
 Options parse(int argc, char** argv) {
@@ -165,14 +169,70 @@ Options parse(int argc, char** argv) {
       o.frames = std::max(1, std::atoi(next().c_str()));
     } else if (a == "--reps") {
       o.reps = std::max(1, std::atoi(next().c_str()));
+    } else if (a == "--fast-paths-only") {
+      o.fast_only = true;
     } else if (a == "--json") {
       o.json_path = next();
     } else {
-      fmt::print(stderr, "usage: bench_feedback [--scenes plane,heightfield,town] [--frames N] [--reps N] [--json FILE]\n");
+      fmt::print(stderr, "usage: bench_feedback [--scenes plane,heightfield,town] [--frames N] [--reps N] [--fast-paths-only] [--json FILE]\n");
       std::exit(2);
     }
   }
   return o;
+}
+
+// The fast paths at divisor 8 against their straightforward references, side by side on the
+// same frames (medians of thread CPU time per frame, one core): the plane's span renderer plus
+// span aggregation against render() plus per-sample aggregation (the replay's view work), and
+// the town with occlusion culling against drawing every chunk in the frustum in index order.
+// Both pairs give identical results (tests/test_view_spans.cpp, tests/test_view_town.cpp).
+void fast_paths(const Options& opt, nlohmann::json& report) {
+  fmt::print("\nfast paths at divisor 8 (median ms per frame; reference side by side)\n");
+  for (const std::string& name : {std::string("plane"), std::string("town")}) {
+    if (std::find(opt.scenes.begin(), opt.scenes.end(), name) == opt.scenes.end()) continue;
+    SceneConfig cfg;
+    cfg.kind = parse_scene_kind(name);
+    const std::unique_ptr<IScene> scene = make_scene(cfg);
+    const std::unique_ptr<IScene> ref_scene = make_scene(cfg);
+    if (cfg.kind == SceneKind::town) dynamic_cast<MeshScene&>(*ref_scene).set_occlusion_culling(false);
+    const TraceSpec at = cfg.kind == SceneKind::town ? TraceSpec{{30.0, 8.0, 0.0}, 0.0} : TraceSpec{{4096.0, 4096.0, 0.0}, 30.0};
+    const std::vector<Trace> traces = standard_traces(*scene, ground_plane, at, 2.0);
+    const int levels = mip_level_count(scene->texture());
+    ViewParams vp;
+    vp.divisor = 8;
+    ViewBuffer vb;
+    SpanBuffer sb;
+    std::vector<TileUse> tiles;
+    nlohmann::json jt = nlohmann::json::object();
+    for (const Trace& tr : traces) {
+      std::vector<double> fast_ms, ref_ms;
+      const int n = static_cast<int>(tr.poses.size());
+      for (int fi = 0; fi < opt.frames; ++fi) {
+        const Camera cam =
+            make_camera(tr.poses[static_cast<std::size_t>((static_cast<long long>(fi) * n) / opt.frames)], opt.width, opt.height);
+        for (int rep = 0; rep < opt.reps; ++rep) {
+          for (int side = 0; side < 2; ++side) {  // alternate, so drifts in machine load hit both
+            const bool fast = (rep + side) % 2 == 0;
+            const double t0 = thread_cpu_ms();
+            if (cfg.kind == SceneKind::plane && fast) {
+              scene->render_spans(cam, vp, sb);
+              aggregate_feedback(sb, kTileSize, levels, tiles);
+            } else if (cfg.kind == SceneKind::plane) {
+              scene->render(cam, vp, vb);
+              aggregate_feedback(vb, kTileSize, levels, tiles);
+            } else {
+              (fast ? *scene : *ref_scene).render(cam, vp, vb);
+            }
+            (fast ? fast_ms : ref_ms).push_back(thread_cpu_ms() - t0);
+          }
+        }
+      }
+      const double f = median(fast_ms), r = median(ref_ms);
+      fmt::print("  {:<6} {:<9} fast {:.4f} ms  reference {:.4f} ms  x{:.1f}\n", name, tr.name, f, r, r / f);
+      jt[tr.name] = {{"fast_ms", f}, {"reference_ms", r}};
+    }
+    report["fast_paths_divisor8"][name] = jt;
+  }
 }
 
 }  // namespace
@@ -187,6 +247,7 @@ int main(int argc, char** argv) {
   fmt::print("feedback renderer, {}x{} image, {} frames per trace x {} reps, tile {} texels, one core\n", opt.width,
              opt.height, opt.frames, opt.reps, kTileSize);
   for (const std::string& name : opt.scenes) {
+    if (opt.fast_only) break;
     SceneConfig cfg;
     cfg.kind = parse_scene_kind(name);
     TraceSpec at{{4096.0, 4096.0, 0.0}, 30.0};
@@ -338,6 +399,7 @@ int main(int argc, char** argv) {
     }
     report["scenes"][name] = {{"divisors", jdivs}, {"traces", jtr}};
   }
+  fast_paths(opt, report);
   const std::string js = report.dump(2);
   fmt::print("\n{}\n", js);
   if (!opt.json_path.empty()) std::ofstream(opt.json_path) << js << "\n";
