@@ -40,11 +40,13 @@ struct Lanes {
 
 // Row values that do not depend on the column when the camera has no roll (L.z = 0): then
 // d.z = r.z + a·L.z is r.z exactly for every column (a·0 = ±0, and r.z != 0 is required), and so
-// are 1/d.z, t, the footprint factors and s; hoisting them leaves every lane's value unchanged.
+// are 1/d.z, t, the footprint factors and s; and kx = L.z/d.z = ±0 makes ax = kx·dx − L.x = −L.x
+// (or ±0 when L.x = 0) for every finite dx, so ax² + ay² and lx2 are the same bits in every
+// column too. Hoisting them leaves every lane's value unchanged.
 struct RowFlat {
-  double dz, r, t, kx, ky, s;
+  double dz, r, t, kx, ky, s, lx2;
 };
-inline RowFlat row_flat(const RowConsts& k) {
+inline RowFlat row_flat(const RowConsts& k, double a0) {
   RowFlat f;
   f.dz = k.rz;
   f.r = 1.0 / f.dz;
@@ -52,6 +54,9 @@ inline RowFlat row_flat(const RowConsts& k) {
   f.kx = k.Lz * f.r;
   f.ky = k.Uz * f.r;
   f.s = f.t * f.t * k.tpm2;
+  const double dx = k.rx + a0 * k.Lx, dy = k.ry + a0 * k.Ly;
+  const double ax = f.kx * dx - k.Lx, ay = f.kx * dy - k.Ly;
+  f.lx2 = f.s * (ax * ax + ay * ay);
   return f;
 }
 
@@ -60,24 +65,25 @@ inline RowFlat row_flat(const RowConsts& k) {
 template <bool kAniso, bool kFlat>
 [[gnu::always_inline]] inline void shade4(const v4d& a, const RowConsts& k, const RowFlat& rf, Lanes& o) {
   const v4d dx = k.rx + a * k.Lx, dy = k.ry + a * k.Ly;
-  v4d dz, t, kx, ky, s;
+  v4d dz, t, ky, s, lx2;
   if constexpr (kFlat) {
     dz = v4d{} + rf.dz;
     t = v4d{} + rf.t;
-    kx = v4d{} + rf.kx;
     ky = v4d{} + rf.ky;
     s = v4d{} + rf.s;
+    lx2 = v4d{} + rf.lx2;
   } else {
     dz = k.rz + a * k.Lz;
     const v4d r = 1.0 / dz;
     t = -k.oz * r;
-    kx = k.Lz * r;
+    const v4d kx = k.Lz * r;
     ky = k.Uz * r;
     s = t * t * k.tpm2;
+    const v4d ax = kx * dx - k.Lx, ay = kx * dy - k.Ly;
+    lx2 = s * (ax * ax + ay * ay);
   }
-  const v4d ax = kx * dx - k.Lx, ay = kx * dy - k.Ly;
   const v4d bx = ky * dx - k.Ux, by = ky * dy - k.Uy;
-  const v4d lx2 = s * (ax * ax + ay * ay), ly2 = s * (bx * bx + by * by);
+  const v4d ly2 = s * (bx * bx + by * by);
   const v4d major = lx2 > ly2 ? lx2 : ly2;
   v4d q = major;
   if constexpr (kAniso) {
@@ -313,7 +319,7 @@ void open_span(const PlaneFrame& fr, const Batch& b, int j, std::uint32_t pixel,
 // default target only).
 template <bool kAniso, bool kFlat>
 [[gnu::always_inline]] inline void span_row_t(const PlaneFrame& fr, const RowConsts& rc, const double* col, int by, SpanOut& o) {
-  const RowFlat rf = kFlat ? row_flat(rc) : RowFlat{};
+  const RowFlat rf = kFlat ? row_flat(rc, col[0]) : RowFlat{};
   thread_local Batch b;
   SpanBounds k{};
   bool open = false;
@@ -345,8 +351,9 @@ template <bool kAniso, bool kFlat>
     load4(col + x, av);
     shade4<kAniso, kFlat>(av, rc, rf, l);
     if (open && x + 4 <= bw) {
-      auto m = (l.dz * oz < 0.0) & (l.t >= tn) & (l.t <= tf) & (l.q >= k.q_lo) & (l.q < k.q_hi) & (l.tu >= k.u_lo) &
-               (l.tu < k.u_hi) & (l.tv >= k.v_lo) & (l.tv < k.v_hi);
+      // Without roll d.z and t are the row's (RowFlat), and a span is open only if they passed.
+      auto m = (l.q >= k.q_lo) & (l.q < k.q_hi) & (l.tu >= k.u_lo) & (l.tu < k.u_hi) & (l.tv >= k.v_lo) & (l.tv < k.v_hi);
+      if constexpr (!kFlat) m &= (l.dz * oz < 0.0) & (l.t >= tn) & (l.t <= tf);
       m &= __builtin_shufflevector(m, m, 2, 3, 0, 1);  // all four lanes set: reduce in registers
       m &= __builtin_shufflevector(m, m, 1, 0, 3, 2);
       if (m[0] != 0) {
