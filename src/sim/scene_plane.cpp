@@ -311,6 +311,53 @@ void open_span(const PlaneFrame& fr, const Batch& b, int j, std::uint32_t pixel,
   }
 }
 
+// Without roll, a whole run of g columns [x, x + g) at once. Every quantity of the span test is
+// then a chain of rounded operations each monotone in the one input that varies along the row
+// (the column offset a; d.z, t, s and lx2 are the row's), so the computed tu and tv of the run lie
+// between those of its two end columns, and bounds of the computed q follow from interval
+// arithmetic with the same rounded operations at the interval ends (a rounded monotone operation
+// keeps the order of its inputs; the square of an interval through 0 starts at 0). If the bounds
+// lie inside the open span's test, every column passes: the span takes the run whole, with the
+// exact bounding box (truncation of the end values). Returns false to let the caller go lane by
+// lane.
+template <bool kAniso>
+[[gnu::always_inline]] inline bool flat_run(const RowConsts& k, const RowFlat& rf, const double* col, int x, int g,
+                                            const SpanBounds& b, ViewSpan& sp) {
+  const double a0 = col[x], a1 = col[x + g - 1];
+  const double dx0 = k.rx + a0 * k.Lx, dx1 = k.rx + a1 * k.Lx;
+  const double dy0 = k.ry + a0 * k.Ly, dy1 = k.ry + a1 * k.Ly;
+  const double tu0 = (k.ox + rf.t * dx0) * k.tpm, tu1 = (k.ox + rf.t * dx1) * k.tpm;
+  const double tv0 = (k.oy + rf.t * dy0) * k.tpm, tv1 = (k.oy + rf.t * dy1) * k.tpm;
+  const double ulo = std::min(tu0, tu1), uhi = std::max(tu0, tu1), vlo = std::min(tv0, tv1), vhi = std::max(tv0, tv1);
+  if (!(ulo >= b.u_lo && uhi < b.u_hi && vlo >= b.v_lo && vhi < b.v_hi)) return false;
+  const auto square = [](double e0, double e1, double& lo, double& hi) {
+    const double s0 = e0 * e0, s1 = e1 * e1;
+    lo = (e0 <= 0.0) != (e1 <= 0.0) || e0 == 0.0 || e1 == 0.0 ? 0.0 : std::min(s0, s1);
+    hi = std::max(s0, s1);
+  };
+  double bx_lo, bx_hi, by_lo, by_hi;
+  square(rf.ky * dx0 - k.Ux, rf.ky * dx1 - k.Ux, bx_lo, bx_hi);
+  square(rf.ky * dy0 - k.Uy, rf.ky * dy1 - k.Uy, by_lo, by_hi);
+  const auto q_of = [&](double sum) {  // shade4's q from ly2's sum, scalar
+    const double lx2 = rf.lx2, ly2 = rf.s * sum;
+    const double major = lx2 > ly2 ? lx2 : ly2;
+    double q = major;
+    if constexpr (kAniso) {
+      const double minor = lx2 > ly2 ? ly2 : lx2, am = major * k.inv_a2;
+      q = minor > am ? minor : am;
+    }
+    q = q >= kMinFootprint2 ? q : kMinFootprint2;
+    return q > kMaxFootprint2 ? kMaxFootprint2 : q;
+  };
+  if (!(q_of(bx_lo + by_lo) >= b.q_lo && q_of(bx_hi + by_hi) < b.q_hi)) return false;
+  sp.count += static_cast<std::uint32_t>(g);
+  sp.u_lo = std::min(sp.u_lo, static_cast<std::int64_t>(ulo));
+  sp.u_hi = std::max(sp.u_hi, static_cast<std::int64_t>(uhi));
+  sp.v_lo = std::min(sp.v_lo, static_cast<std::int64_t>(vlo));
+  sp.v_hi = std::max(sp.v_hi, static_cast<std::int64_t>(vhi));
+  return true;
+}
+
 // One row of render_spans, four columns at a time: the arithmetic of shade4, then the open span's
 // test on all four lanes at once. A group whose four samples all stay in the span only widens the
 // span's running bounding box (kept in vectors, folded into the span when the group test
@@ -345,7 +392,21 @@ template <bool kAniso, bool kFlat>
   };
   const double oz = fr.oz, tn = fr.t_near, tf = fr.t_far;
   const int bw = fr.bw;
+  int g = 32;  // flat runs: doubled after a run that passes, halved after one that does not
   for (int x = 0; x < bw; x += 4) {
+    if constexpr (kFlat) {
+      while (open && g >= 8 && x + g <= bw) {
+        if (flat_run<kAniso>(rc, rf, col, x, g, k, o.spans.back())) {
+          o.n_samples += static_cast<std::uint32_t>(g);
+          x += g;
+          g = g < 128 ? 2 * g : g;
+        } else {
+          g /= 2;
+        }
+      }
+      if (g < 8) g = 8;
+      if (x >= bw) break;
+    }
     Lanes l;
     v4d av;
     load4(col + x, av);
