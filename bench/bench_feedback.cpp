@@ -11,7 +11,8 @@
 // Usage: bench_feedback [--scenes plane,heightfield,town] [--frames N] [common harness flags:
 // --quick --reps N --json FILE --filter S ...]. The harness lines: render ms per frame at each
 // divisor against divisor 1 on the same frames (ratio = speed-up); the full report is the JSON's
-// params.report.
+// params.report. Then the fast paths at divisor 8 against their references (plane spans, town
+// occlusion culling); --fast-paths-only runs only those.
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
@@ -31,6 +32,7 @@
 #include "sim/popin.h"
 #include "sim/scene.h"
 #include "sim/scene_heightfield.h"
+#include "sim/scene_mesh.h"
 #include "sim/scene_town.h"
 #include "harness.h"
 
@@ -144,6 +146,7 @@ struct Options {
   int reps = 3;     // renders per frame and divisor (the median is over all)
   int width = 1920, height = 1080;
   std::vector<std::string> harness_args;  // the common flags, for bench::Harness
+  bool fast_only = false;  // only the fast paths against their references
 };
 
 // This benchmark's own flags; the common ones (--quick, --reps, --json, ...) go to the harness.
@@ -181,11 +184,13 @@ Options parse(int argc, char** argv) {
     } else if (a == "--json" || a == "--filter" || a == "--warmup") {
       o.harness_args.push_back(a);
       o.harness_args.push_back(next());
+    } else if (a == "--fast-paths-only") {
+      o.fast_only = true;
     } else if (a == "--quick" || a == "--strict" || a == "--help" || a == "-h") {
       o.harness_args.push_back(a);
     } else {
       fmt::print(stderr, "usage: bench_feedback [--scenes plane,heightfield,town] [--frames N] [--quick] [--reps N] "
-                         "[--json FILE] [--filter S]\n");
+                         "[--json FILE] [--filter S] [--fast-paths-only]\n");
       std::exit(2);
     }
   }
@@ -195,6 +200,60 @@ Options parse(int argc, char** argv) {
   if (quick && !frames_given) o.frames = 3;
   if (quick && !reps_given) o.reps = 1;
   return o;
+}
+
+// The fast paths at divisor 8 against their straightforward references, side by side on the
+// same frames (medians of thread CPU time per frame, one core): the plane's span renderer plus
+// span aggregation against render() plus per-sample aggregation (the replay's view work), and
+// the town with occlusion culling against drawing every chunk in the frustum in index order.
+// Both pairs give identical results (tests/test_view_spans.cpp, tests/test_view_town.cpp).
+void fast_paths(const Options& opt, nlohmann::json& report) {
+  fmt::print("\nfast paths at divisor 8 (median ms per frame; reference side by side)\n");
+  for (const std::string& name : {std::string("plane"), std::string("town")}) {
+    if (std::find(opt.scenes.begin(), opt.scenes.end(), name) == opt.scenes.end()) continue;
+    SceneConfig cfg;
+    cfg.kind = parse_scene_kind(name);
+    const std::unique_ptr<IScene> scene = make_scene(cfg);
+    const std::unique_ptr<IScene> ref_scene = make_scene(cfg);
+    if (cfg.kind == SceneKind::town) dynamic_cast<MeshScene&>(*ref_scene).set_occlusion_culling(false);
+    const TraceSpec at = cfg.kind == SceneKind::town ? TraceSpec{{30.0, 8.0, 0.0}, 0.0} : TraceSpec{{4096.0, 4096.0, 0.0}, 30.0};
+    const std::vector<Trace> traces = standard_traces(*scene, ground_plane, at, 2.0);
+    const int levels = mip_level_count(scene->texture());
+    ViewParams vp;
+    vp.divisor = 8;
+    ViewBuffer vb;
+    SpanBuffer sb;
+    std::vector<TileUse> tiles;
+    nlohmann::json jt = nlohmann::json::object();
+    for (const Trace& tr : traces) {
+      std::vector<double> fast_ms, ref_ms;
+      const int n = static_cast<int>(tr.poses.size());
+      for (int fi = 0; fi < opt.frames; ++fi) {
+        const Camera cam =
+            make_camera(tr.poses[static_cast<std::size_t>((static_cast<long long>(fi) * n) / opt.frames)], opt.width, opt.height);
+        for (int rep = 0; rep < opt.reps; ++rep) {
+          for (int side = 0; side < 2; ++side) {  // alternate, so drifts in machine load hit both
+            const bool fast = (rep + side) % 2 == 0;
+            const double t0 = thread_cpu_ms();
+            if (cfg.kind == SceneKind::plane && fast) {
+              scene->render_spans(cam, vp, sb);
+              aggregate_feedback(sb, kTileSize, levels, tiles);
+            } else if (cfg.kind == SceneKind::plane) {
+              scene->render(cam, vp, vb);
+              aggregate_feedback(vb, kTileSize, levels, tiles);
+            } else {
+              (fast ? *scene : *ref_scene).render(cam, vp, vb);
+            }
+            (fast ? fast_ms : ref_ms).push_back(thread_cpu_ms() - t0);
+          }
+        }
+      }
+      const double f = median(fast_ms), r = median(ref_ms);
+      fmt::print("  {:<6} {:<9} fast {:.4f} ms  reference {:.4f} ms  x{:.1f}\n", name, tr.name, f, r, r / f);
+      jt[tr.name] = {{"fast_ms", f}, {"reference_ms", r}};
+    }
+    report["fast_paths_divisor8"][name] = jt;
+  }
 }
 
 }  // namespace
@@ -212,6 +271,7 @@ int main(int argc, char** argv) {
   fmt::print("feedback renderer, {}x{} image, {} frames per trace x {} reps, tile {} texels, one core\n", opt.width,
              opt.height, opt.frames, opt.reps, kTileSize);
   for (const std::string& name : opt.scenes) {
+    if (opt.fast_only) break;
     SceneConfig cfg;
     cfg.kind = parse_scene_kind(name);
     TraceSpec at{{4096.0, 4096.0, 0.0}, 30.0};
@@ -372,6 +432,7 @@ int main(int argc, char** argv) {
                       .target_ratio = 0},
                      "divisor " + std::to_string(kDivisors[di]), res[di].render_ms, "divisor 1", res[0].render_ms);
   }
+  fast_paths(opt, report);
   h.param("report", report);
   return h.finish();
 }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <climits>
 #include <cmath>
 #include <stdexcept>
 
@@ -326,6 +327,62 @@ void Clipmap::resident_levels(const ViewSample* s, std::size_t n, std::int8_t* o
       }
     }
     out[i] = static_cast<std::int8_t>(resident_level(s[i].u, s[i].v, d));
+  }
+}
+
+void Clipmap::span_resident_levels(const ViewSpan* s, std::size_t n, std::int8_t* out) const {
+  const int levels = num_levels();
+  const std::int64_t m = p_.filter_margin_texels;
+  for (std::size_t i = 0; i < n; ++i) {
+    const ViewSpan& sp = s[i];
+    const int d = sp.level < levels - 1 ? sp.level : levels - 1;
+    int r = levels;  // nothing resident for any sample, unless a level below says otherwise
+    for (int l = std::max(d, clamp_); l < levels; ++l) {
+      const Level& L = levels_[static_cast<std::size_t>(l)];
+      if (!L.placed) continue;
+      // resident_level's rectangle test on one axis, max(0, c − m) >= lo && min(W − 1, c + m) < hi,
+      // holds exactly for centres c in [A, B]; the span's centres lie in [a, b].
+      const std::int64_t a = sp.u_lo >> l, b = sp.u_hi >> l, c = sp.v_lo >> l, e = sp.v_hi >> l;
+      const std::int64_t Au = L.vx0 <= 0 ? INT64_MIN : L.vx0 + m, Bu = L.texels_x - 1 < L.vx1 ? INT64_MAX : L.vx1 - m - 1;
+      const std::int64_t Av = L.vy0 <= 0 ? INT64_MIN : L.vy0 + m, Bv = L.texels_y - 1 < L.vy1 ? INT64_MAX : L.vy1 - m - 1;
+      if (b < Au || a > Bu || e < Av || c > Bv) continue;  // no sample passes
+      if (a < Au || b > Bu || c < Av || e > Bv) {          // some may pass, some not
+        r = -1;
+        break;
+      }
+      if (L.missing != 0) {
+        // Every sample's footprint tiles lie among the box footprint's tiles and include the
+        // sample's own tile: all resident → all pass, none resident → none pass.
+        const std::int64_t tx0 = tile_of(std::max<std::int64_t>(0, a - m)), tx1 = tile_of(std::min(L.texels_x - 1, b + m));
+        const std::int64_t ty0 = tile_of(std::max<std::int64_t>(0, c - m)), ty1 = tile_of(std::min(L.texels_y - 1, e + m));
+        if ((tx1 - tx0 + 1) * (ty1 - ty0 + 1) > 16) {
+          r = -1;
+          break;
+        }
+        int have = 0, total = 0;
+        for (std::int64_t ty = ty0; ty <= ty1; ++ty)
+          for (std::int64_t tx = tx0; tx <= tx1; ++tx) {
+            const Slot& sl = L.slots[window_slot(L, tx, ty)];
+            have += sl.tx == tx && sl.ty == ty && sl.mask == full_mask_;
+            ++total;
+          }
+        if (have == 0) continue;
+        if (have != total) {
+          r = -1;
+          break;
+        }
+      }
+      r = l;
+      if (mark_sampled_) {  // resident_level marks each sample's tile at the level it resolves to
+        if (tile_of(a) != tile_of(b) || tile_of(c) != tile_of(e)) {
+          r = -1;
+          break;
+        }
+        L.slots[window_slot(L, tile_of(a), tile_of(c))].sampled = true;
+      }
+      break;
+    }
+    out[i] = static_cast<std::int8_t>(r);
   }
 }
 

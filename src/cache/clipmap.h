@@ -114,6 +114,11 @@ class Clipmap final : public IResidency {
   // Fast path: a sample whose footprint lies in a complete level's valid rectangle resolves with a
   // few compares; everything else goes through resident_level.
   void resident_levels(const ViewSample* s, std::size_t n, std::int8_t* out) const override;
+  // Per span, O(levels tried) with a few slot probes: the footprints of a span's samples lie in
+  // the footprint of its bounding box, and each validity test (inside the valid rectangle, tiles
+  // resident) holds for all samples when it holds for that box, and for none when the box misses
+  // the rectangle or every tile under it is missing; otherwise −1 (the caller goes per sample).
+  void span_resident_levels(const ViewSpan* s, std::size_t n, std::int8_t* out) const override;
   // When on, resident_level marks the slot it resolves to as sampled (for wasted-upload metrics).
   void set_mark_sampled(bool on) { mark_sampled_ = on; }
 

@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "sim/view_spans.h"
+
 namespace vtsim {
 
 namespace {
@@ -27,45 +29,89 @@ struct Table {
 
 }  // namespace
 
-void aggregate_feedback(const ViewBuffer& vb, int tile_size_texels, int num_levels, std::vector<TileUse>& out) {
+namespace {
+
+void check_aggregate_args(int tile_size_texels, int num_levels) {
   if (tile_size_texels < 1 || tile_size_texels > (1 << 24))
     throw std::invalid_argument("aggregate_feedback: tile size must be in [1, 2^24] texels");
   if (num_levels < 1 || num_levels > 64) throw std::invalid_argument("aggregate_feedback: num_levels must be in [1, 64]");
-  out.clear();
-  thread_local Table table;
-  if (table.keys.empty()) table.reset_to(1024);
+}
+
+// Tile key of a level-0 texel at a level, with aggregate_feedback's checks.
+std::uint64_t tile_key(std::int64_t u, std::int64_t v, int level, std::int64_t ts, bool pow2, int tile_shift) {
+  if (u < 0 || v < 0)
+    throw std::invalid_argument("aggregate_feedback: sample texel (" + std::to_string(u) + ", " + std::to_string(v) +
+                                ") is negative");
+  const std::int64_t lu = u >> level, lv = v >> level;
+  const std::int64_t tx = pow2 ? lu >> tile_shift : lu / ts, ty = pow2 ? lv >> tile_shift : lv / ts;
+  if (!TileKey::fits(0, static_cast<std::uint32_t>(level), tx, ty))
+    throw std::invalid_argument("aggregate_feedback: tile (" + std::to_string(tx) + ", " + std::to_string(ty) +
+                                ") does not fit a TileKey");
+  return TileKey(0, static_cast<std::uint32_t>(level), tx, ty).bits;
+}
+
+// Merges (key, count) runs into `out` through the per-thread hash table; finish() clears the
+// table's used slots and sorts `out` by key.
+class TileCounter {
+ public:
+  explicit TileCounter(std::vector<TileUse>& out) : out_(out), table_(table()) {
+    out_.clear();
+    if (table_.keys.empty()) table_.reset_to(1024);
+  }
+  void add(std::uint64_t key, std::uint32_t count) {
+    std::uint64_t h = mix64(key) & table_.mask;
+    while (true) {
+      const std::uint64_t k = table_.keys[h];
+      if (k == key) {
+        out_[table_.slot_index[h]].samples += count;
+        return;
+      }
+      if (k == kEmpty) break;
+      h = (h + 1) & table_.mask;
+    }
+    table_.keys[h] = key;
+    table_.slot_index[h] = static_cast<std::uint32_t>(out_.size());
+    TileUse tu;
+    tu.key.bits = key;
+    tu.samples = count;
+    out_.push_back(tu);
+    if (out_.size() * 2 > table_.keys.size()) {  // keep the load factor <= 1/2
+      table_.reset_to(table_.keys.size() * 2);
+      for (std::size_t i = 0; i < out_.size(); ++i) {
+        std::uint64_t g = mix64(out_[i].key.bits) & table_.mask;
+        while (table_.keys[g] != kEmpty) g = (g + 1) & table_.mask;
+        table_.keys[g] = out_[i].key.bits;
+        table_.slot_index[g] = static_cast<std::uint32_t>(i);
+      }
+    }
+  }
+  void finish() {
+    for (const TileUse& t : out_) {  // clear the used slots for the next call
+      std::uint64_t h = mix64(t.key.bits) & table_.mask;
+      while (table_.keys[h] != t.key.bits) h = (h + 1) & table_.mask;
+      table_.keys[h] = kEmpty;
+    }
+    std::sort(out_.begin(), out_.end(), [](const TileUse& a, const TileUse& b) { return a.key < b.key; });
+  }
+
+ private:
+  static Table& table() {
+    thread_local Table t;
+    return t;
+  }
+  std::vector<TileUse>& out_;
+  Table& table_;
+};
+
+}  // namespace
+
+void aggregate_feedback(const ViewBuffer& vb, int tile_size_texels, int num_levels, std::vector<TileUse>& out) {
+  check_aggregate_args(tile_size_texels, num_levels);
+  TileCounter counter(out);
   const bool pow2 = std::has_single_bit(static_cast<unsigned>(tile_size_texels));
   const int tile_shift = std::countr_zero(static_cast<unsigned>(tile_size_texels));
   const int tile_bits = std::bit_width(static_cast<unsigned>(tile_size_texels));  // ts < 2^tile_bits
   const std::int64_t ts = tile_size_texels;
-
-  const auto add_run = [&](std::uint64_t key, std::uint32_t count) {
-    std::uint64_t h = mix64(key) & table.mask;
-    while (true) {
-      const std::uint64_t k = table.keys[h];
-      if (k == key) {
-        out[table.slot_index[h]].samples += count;
-        return;
-      }
-      if (k == kEmpty) break;
-      h = (h + 1) & table.mask;
-    }
-    table.keys[h] = key;
-    table.slot_index[h] = static_cast<std::uint32_t>(out.size());
-    TileUse tu;
-    tu.key.bits = key;
-    tu.samples = count;
-    out.push_back(tu);
-    if (out.size() * 2 > table.keys.size()) {  // keep the load factor <= 1/2
-      table.reset_to(table.keys.size() * 2);
-      for (std::size_t i = 0; i < out.size(); ++i) {
-        std::uint64_t g = mix64(out[i].key.bits) & table.mask;
-        while (table.keys[g] != kEmpty) g = (g + 1) & table.mask;
-        table.keys[g] = out[i].key.bits;
-        table.slot_index[g] = static_cast<std::uint32_t>(i);
-      }
-    }
-  };
 
   std::uint64_t run_key = 0;
   std::uint32_t run_count = 0;
@@ -79,43 +125,55 @@ void aggregate_feedback(const ViewBuffer& vb, int tile_size_texels, int num_leve
       ++run_count;
       continue;
     }
-    if (s.u < 0 || s.v < 0)
-      throw std::invalid_argument("aggregate_feedback: sample texel (" + std::to_string(s.u) + ", " +
-                                  std::to_string(s.v) + ") is negative");
-    const std::int64_t lu = s.u >> level, lv = s.v >> level;
-    const std::int64_t tx = pow2 ? lu >> tile_shift : lu / ts, ty = pow2 ? lv >> tile_shift : lv / ts;
-    if (!TileKey::fits(0, static_cast<std::uint32_t>(level), tx, ty))
-      throw std::invalid_argument("aggregate_feedback: tile (" + std::to_string(tx) + ", " + std::to_string(ty) +
-                                  ") does not fit a TileKey");
-    const std::uint64_t key = TileKey(0, static_cast<std::uint32_t>(level), tx, ty).bits;
+    const std::uint64_t key = tile_key(s.u, s.v, level, ts, pow2, tile_shift);
     if (run_count > 0 && key == run_key) {
       ++run_count;
       continue;
     }
-    if (run_count > 0) add_run(run_key, run_count);
+    if (run_count > 0) counter.add(run_key, run_count);
     run_key = key;
     run_count = 1;
     // Level-0 texel range of the tile, cached for the fast path; tx, ty < 2^27 (fits), so the
     // bounds stay below 2^62 when level + tile_bits < 35.
     if (level + tile_bits < 35) {
       const std::int64_t span = ts << level;
+      TileKey k;
+      k.bits = key;
       run_level = level;
-      u_lo = tx * span;
+      u_lo = k.x() * span;
       u_hi = u_lo + span;
-      v_lo = ty * span;
+      v_lo = k.y() * span;
       v_hi = v_lo + span;
     } else {
       run_level = -1;
     }
   }
-  if (run_count > 0) add_run(run_key, run_count);
+  if (run_count > 0) counter.add(run_key, run_count);
+  counter.finish();
+}
 
-  for (const TileUse& t : out) {  // clear the used slots for the next call
-    std::uint64_t h = mix64(t.key.bits) & table.mask;
-    while (table.keys[h] != t.key.bits) h = (h + 1) & table.mask;
-    table.keys[h] = kEmpty;
+void aggregate_feedback(const SpanBuffer& sb, int tile_size_texels, int num_levels, std::vector<TileUse>& out) {
+  check_aggregate_args(tile_size_texels, num_levels);
+  if (num_levels > sb.levels) throw std::invalid_argument("aggregate_feedback: num_levels exceeds the spans' levels");
+  TileCounter counter(out);
+  const bool pow2 = std::has_single_bit(static_cast<unsigned>(tile_size_texels));
+  const int tile_shift = std::countr_zero(static_cast<unsigned>(tile_size_texels));
+  const std::int64_t ts = tile_size_texels;
+  thread_local std::vector<ViewSample> expanded;
+  for (const ViewSpan& s : sb.spans) {
+    const int level = s.level < num_levels - 1 ? s.level : num_levels - 1;
+    // The bounding box's corners in one tile: so is every sample (tiles are boxes).
+    const std::uint64_t k0 = tile_key(s.u_lo, s.v_lo, level, ts, pow2, tile_shift);
+    const std::uint64_t k1 = tile_key(s.u_hi, s.v_hi, level, ts, pow2, tile_shift);
+    if (k0 == k1) {
+      counter.add(k0, s.count);
+      continue;
+    }
+    expanded.clear();  // a span across tiles (a tile size the spans' blocks do not nest in)
+    expand_span(sb, s, expanded);
+    for (const ViewSample& e : expanded) counter.add(tile_key(e.u, e.v, level, ts, pow2, tile_shift), 1);
   }
-  std::sort(out.begin(), out.end(), [](const TileUse& a, const TileUse& b) { return a.key < b.key; });
+  counter.finish();
 }
 
 std::size_t add_level_seams(const ViewBuffer& vb, int tile_size_texels, int num_levels, std::vector<TileUse>& out) {

@@ -7,6 +7,7 @@
 
 #include "core/tile_key.h"
 #include "sim/view.h"
+#include "sim/view_spans.h"
 
 namespace vtsim {
 
@@ -22,6 +23,12 @@ struct TileUse {
 // Throws std::invalid_argument for tile_size_texels outside [1, 2^24], num_levels outside
 // [1, 64], or a sample whose tile does not fit a TileKey (negative texel, beyond 2^27 tiles).
 void aggregate_feedback(const ViewBuffer& vb, int tile_size_texels, int num_levels, std::vector<TileUse>& out);
+
+// The same result from a span buffer: one table update per span whose bounding box lies in one
+// tile (every span when the tile size is a power of two >= 2^block_shift), the span's samples
+// (expand_span) otherwise. Cost O(spans + tiles·log tiles). Throws like the above, and
+// std::invalid_argument when num_levels exceeds sb.levels (the spans' levels would be clamped).
+void aggregate_feedback(const SpanBuffer& sb, int tile_size_texels, int num_levels, std::vector<TileUse>& out);
 
 // Conservative completion of a low-resolution buffer's tile set ("level seams", docs/view.md).
 // Where two neighbouring buffer samples (left/right or up/down) have desired levels l1 < l2, the

@@ -7,6 +7,7 @@
 
 #include "sim/residency.h"
 #include "sim/view.h"
+#include "sim/view_spans.h"
 
 namespace vtsim {
 
@@ -32,5 +33,24 @@ void resident_levels(const ViewBuffer& vb, const IResidency& residency, std::vec
 // num_levels is outside [1, 127].
 PopinFrame popin_stats(const ViewBuffer& vb, const std::vector<std::int8_t>& levels_now,
                        const std::vector<std::int8_t>* levels_before, int num_levels);
+
+// Resident levels of a span buffer's samples: per span one level when every sample resolves to
+// it (IResidency::span_resident_levels), otherwise the span's samples are expanded and asked one
+// by one (their levels go to `sample`, from `offset[i]`).
+struct SpanLevels {
+  std::vector<std::int8_t> span;       // per span: the level of all its samples, or −1: see `sample`
+  std::vector<std::uint32_t> offset;   // per span with −1: index of its first sample's level in `sample`
+  std::vector<std::int8_t> sample;     // per-sample levels of the spans marked −1
+};
+
+// The span form of resident_levels: the same levels (and side effects) for every sample, at
+// O(spans) when the residency resolves spans. Storage of `out` is reused. Throws like
+// resident_levels, and std::invalid_argument when residency.num_levels() exceeds sb.levels.
+void resident_levels(const SpanBuffer& sb, const IResidency& residency, SpanLevels& out);
+
+// The span form of popin_stats: the same PopinFrame as popin_stats over the spans' samples.
+// Throws std::invalid_argument when a SpanLevels does not match the spans or num_levels is
+// outside [1, 127].
+PopinFrame popin_stats(const SpanBuffer& sb, const SpanLevels& now, const SpanLevels* before, int num_levels);
 
 }  // namespace vtsim

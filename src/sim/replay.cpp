@@ -4,6 +4,7 @@
 #include <sys/resource.h>
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <glm/geometric.hpp>
@@ -150,8 +151,12 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
   const bool separate_popin = cfg.popin_divisor > 0 && cfg.popin_divisor != cfg.divisor;
   if (separate_popin) pp.divisor = cfg.popin_divisor;
 
-  ViewBuffer fb, pb;
-  std::vector<std::int8_t> lv_before, lv_after;
+  // Feedback in run-length form: spans of one tile at their level, so a system that resolves spans
+  // (the clipmap) works per span; others also get the per-sample buffer.
+  SpanBuffer fb, pb;
+  fb.block_shift = pb.block_shift = std::bit_width(static_cast<unsigned>(cfg.tile_size)) - 1;
+  fb.keep_samples = pb.keep_samples = !system->uses_spans();
+  SpanLevels lv_before, lv_after;
   std::vector<Need> needs;
   std::vector<UploadItem> uploads;
   std::vector<std::uint64_t> missing;
@@ -177,10 +182,9 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
     const bool render = f % cfg.feedback_every == 0;
     if (render) {
       const Camera cam = make_camera(pose, trace.image_width, trace.image_height);
-      scene.render(cam, vp, fb);
-      if (separate_popin) scene.render(cam, pp, pb);
-      finest_needed = num_levels;
-      for (const auto& s : fb.samples) finest_needed = std::min(finest_needed, desired_level(s.lod, num_levels));
+      scene.render_spans(cam, vp, fb);
+      if (separate_popin) scene.render_spans(cam, pp, pb);
+      finest_needed = finest_level(fb, num_levels);
     }
     // Motion: cuts, fast turns, velocity (for look-ahead).
     FrameRow row;
@@ -199,7 +203,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
       if (!cut && dt > 0) vel = d / dt;
     }
 
-    SystemFrame sf{f, now, &pose, vel, &fb, finest_needed};
+    SystemFrame sf{f, now, &pose, vel, fb.has_samples ? &fb.view : nullptr, finest_needed, &fb};
     system->begin_frame(sf);
     system->missing_bytes_by_level(missing);
     ThrottleInput ti;
@@ -229,7 +233,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
 
     uploads.clear();
     pipe.take_uploads(budget, uploads);
-    const ViewBuffer& mb = separate_popin ? pb : fb;
+    const SpanBuffer& mb = separate_popin ? pb : fb;
     if (render && !uploads.empty()) {
       system->set_mark_sampled(false);
       resident_levels(mb, *system, lv_before);

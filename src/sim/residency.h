@@ -6,6 +6,7 @@
 #include <cstdint>
 
 #include "sim/view.h"
+#include "sim/view_spans.h"
 
 namespace vtsim {
 
@@ -22,6 +23,15 @@ class IResidency {
     const int levels = num_levels();
     for (std::size_t i = 0; i < n; ++i)
       out[i] = static_cast<std::int8_t>(resident_level(s[i].u, s[i].v, desired_level(s[i].lod, levels)));
+  }
+  // Span form (view_spans.h): out[i] = the level every sample of span i resolves to (what
+  // resident_levels gives each, with desired level min(span.level, num_levels() − 1), including
+  // any side effect such as marking what is sampled), or −1 when the samples may differ or the
+  // system cannot tell from the span's bounding box; the caller then asks per sample. The
+  // default answers −1 for every span.
+  virtual void span_resident_levels(const ViewSpan* s, std::size_t n, std::int8_t* out) const {
+    (void)s;
+    for (std::size_t i = 0; i < n; ++i) out[i] = -1;
   }
 };
 

@@ -9,6 +9,7 @@
 
 #include "sim/camera.h"
 #include "sim/view.h"
+#include "sim/view_spans.h"
 
 namespace vtsim {
 
@@ -22,6 +23,19 @@ class IScene {
   // Thread-safe: render may run concurrently on one scene object from several threads.
   // Throws InputError for invalid ViewParams (validate_view_params).
   virtual void render(const Camera& cam, const ViewParams& params, ViewBuffer& out) const = 0;
+
+  // Renders one frame in run-length form (view_spans.h): spans, counters and sample count equal
+  // spans_from_samples of render()'s buffer exactly. `out`'s block_shift and keep_samples are
+  // the caller's. The default renders per sample (so has_samples is true) and derives the spans;
+  // a scene with a faster span renderer overrides this and render_pixels. Thread-safe; no
+  // allocation after warm-up. Throws like render, and std::invalid_argument for a bad block_shift.
+  virtual void render_spans(const Camera& cam, const ViewParams& params, SpanBuffer& out) const;
+
+  // Appends render()'s samples of the `count` buffer pixels from `pixel` (one row; callers pass a
+  // span's pixels, so every one of them is a sample). Needed only by scenes whose render_spans
+  // leaves has_samples false; the default throws std::logic_error.
+  virtual void render_pixels(const Camera& cam, const ViewParams& params, std::uint32_t pixel, std::uint32_t count,
+                             std::vector<ViewSample>& out) const;
 };
 
 enum class SceneKind { plane, heightfield, mesh, town };

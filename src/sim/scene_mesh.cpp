@@ -20,6 +20,10 @@ constexpr std::uint32_t kChunkSize = 64;  // triangles per culling box: few boxe
 // The part of a triangle between view depth near/1024 and near is rasterised only to tell
 // "clipped" from "sky" in the counters; nearer than that it is ignored (projection blows up).
 constexpr double kNearFlagFraction = 1.0 / 1024.0;
+// Relative margin of the occlusion test: a triangle's rasterised 1/z exceeds the exact bound of
+// its chunk's box only by rounding (a few ulps, far more for a sliver whose plane equation
+// cancels); 2^-20 leaves 2^32 ulps.
+constexpr double kOccludeMargin = 0x1p-20;
 
 std::uint32_t spread_bits10(std::uint32_t x) {  // 10 bits -> every third bit (Morton)
   x &= 0x3ffu;
@@ -156,7 +160,9 @@ void raster_poly(const PV* v, int n, std::uint32_t tag, bool depth, int div, int
           continue;
         }
         const double iz = P * sx + rz;
-        if (iz > s.invz[idx]) {
+        // Nearest wins; an exact tie goes to the smaller triangle index, which is what drawing in
+        // index order gave, so the chunks may be drawn in any order (nearest first, below).
+        if (iz > s.invz[idx] || (iz == s.invz[idx] && (tag & ~kBackBit) < (s.id[idx] & ~kBackBit))) {
           s.invz[idx] = iz;
           s.id[idx] = tag;
         }
@@ -267,7 +273,15 @@ void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) 
   };
   CV cv[3], clip_a[4], clip_b[5], tmp[4];
   PV pv[5];
-  for (const Chunk& ch : chunks_) {
+  // Chunks in the frustum, nearest first by the least view depth of their box (a linear function
+  // is least at a corner). Drawn front to back, a chunk whose box lies wholly beyond near and,
+  // at every sample its projection can cover, behind what is already drawn there, is skipped:
+  // none of its triangles could win a sample (occlusion culling). The margin kOccludeMargin
+  // covers the rounding of the rasteriser's interpolated 1/z against the box's exact bound.
+  thread_local std::vector<std::pair<double, std::uint32_t>> order;
+  order.clear();
+  for (std::uint32_t ci = 0; ci < chunks_.size(); ++ci) {
+    const Chunk& ch = chunks_[ci];
     bool outside = false;
     for (const glm::dvec3& pl : planes) {
       const glm::dvec3 corner(pl.x >= 0.0 ? ch.hi.x : ch.lo.x, pl.y >= 0.0 ? ch.hi.y : ch.lo.y,
@@ -278,6 +292,35 @@ void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) 
       }
     }
     if (outside) continue;
+    const glm::dvec3 nearest(F.x >= 0.0 ? ch.lo.x : ch.hi.x, F.y >= 0.0 ? ch.lo.y : ch.hi.y, F.z >= 0.0 ? ch.lo.z : ch.hi.z);
+    order.emplace_back(glm::dot(nearest - o, F), ci);
+  }
+  if (occlusion_culling_) std::sort(order.begin(), order.end());
+  const auto occluded = [&](const Chunk& ch, double zmin) {
+    double X0 = INFINITY, X1 = -INFINITY, Y0 = INFINITY, Y1 = -INFINITY;
+    for (int c = 0; c < 8; ++c) {
+      const glm::dvec3 q = glm::dvec3(c & 1 ? ch.hi.x : ch.lo.x, c & 2 ? ch.hi.y : ch.lo.y, c & 4 ? ch.hi.z : ch.lo.z) - o;
+      const double iz = 1.0 / glm::dot(q, F);
+      const double X = cam.cx + f * glm::dot(q, R) * iz, Y = cam.cy - f * glm::dot(q, U) * iz;
+      X0 = std::min(X0, X);
+      X1 = std::max(X1, X);
+      Y0 = std::min(Y0, Y);
+      Y1 = std::max(Y1, Y);
+    }
+    int x0, x1, y0, y1;
+    sample_range(X0, X1, div, bw, x0, x1);
+    sample_range(Y0, Y1, div, bh, y0, y1);
+    const double bound = (1.0 / zmin) * (1.0 + kOccludeMargin);
+    for (int y = y0; y <= y1; ++y) {
+      const double* row = s.invz.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(bw);
+      for (int x = x0; x <= x1; ++x)
+        if (!(row[x] > bound)) return false;
+    }
+    return true;  // also when the projection covers no sample at all
+  };
+  for (const auto& [zmin, ci] : order) {
+    const Chunk& ch = chunks_[ci];
+    if (occlusion_culling_ && zmin > near && occluded(ch, zmin)) continue;
     for (std::uint32_t k = ch.first; k < ch.first + ch.count; ++k) {
       const Tri& t = tris_[k];
       bool all_near = true, any_flag = false;

@@ -13,7 +13,8 @@
 namespace vtsim {
 
 // Render cost O(visible chunks' triangles + covered samples); chunks of 64 spatially sorted
-// triangles are frustum-culled by their bounding boxes. The depth buffer is per-thread scratch
+// triangles are frustum-culled by their bounding boxes and, drawn nearest first, occlusion-culled
+// against the depth drawn so far. The depth buffer is per-thread scratch
 // (thread_local, reused, so no allocation after warm-up): render is thread-safe.
 // Back faces (seen from behind, per triangle: the camera is behind its plane) are rasterised as
 // occluders and never sampled: a camera inside a closed wall sees nothing, as on a solid.
@@ -26,6 +27,10 @@ class MeshScene final : public IScene {
   void render(const Camera& cam, const ViewParams& params, ViewBuffer& out) const override;
 
   std::size_t triangle_count() const { return tris_.size(); }
+  // Occlusion culling (on by default): chunks drawn nearest first, those hidden behind what is
+  // drawn skipped. Off: every chunk in the frustum, in index order — the reference the tests
+  // compare with. Not to be changed while another thread renders.
+  void set_occlusion_culling(bool on) { occlusion_culling_ = on; }
 
  private:
   struct Tri {
@@ -42,6 +47,7 @@ class MeshScene final : public IScene {
   TextureExtent extent_;
   std::vector<Tri> tris_;
   std::vector<Chunk> chunks_;
+  bool occlusion_culling_ = true;
 };
 
 }  // namespace vtsim

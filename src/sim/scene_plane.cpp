@@ -1,5 +1,9 @@
 #include "sim/scene_plane.h"
 
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <stdexcept>
 #include <vector>
 
 #include "sim/render_util.h"
@@ -8,10 +12,15 @@ namespace vtsim {
 
 namespace {
 
-constexpr int kChunk = 64;  // pixels per vectorised batch: arrays stay in L1, loops long enough
+constexpr int kChunk = 64;  // pixels per batch: arrays stay in L1, loops long enough
 
-// Per-pixel values of one batch of a row, computed branch-free so that the compiler vectorises
-// them; classification and the logarithm follow in a scalar pass.
+// Four doubles (GCC vector extension): one AVX register in the avx2 clones below, two SSE2
+// registers otherwise. Every lane does exactly the scalar IEEE operations in the same order, and
+// no clone enables FMA, so the values are the same bits whichever clone runs.
+typedef double v4d __attribute__((vector_size(32)));
+
+// Per-pixel values of one batch of a row; classification and the logarithm follow in a scalar
+// pass.
 struct Batch {
   alignas(32) double dz[kChunk];
   alignas(32) double t[kChunk];
@@ -20,34 +29,446 @@ struct Batch {
   alignas(32) double q[kChunk];   // squared footprint for the LOD rule, clamped
 };
 
-// Branch-free per-pixel arithmetic of a batch (vectorised by the compiler).
+// Row constants of the arithmetic.
+struct RowConsts {
+  double rx, ry, rz, Lx, Ly, Lz, Ux, Uy, Uz, ox, oy, oz, tpm, tpm2, inv_a2;
+};
+
+struct Lanes {
+  v4d dz, t, tu, tv, q;
+};
+
+// Row values that do not depend on the column when the camera has no roll (L.z = 0): then
+// d.z = r.z + a·L.z is r.z exactly for every column (a·0 = ±0, and r.z != 0 is required), and so
+// are 1/d.z, t, the footprint factors and s; and kx = L.z/d.z = ±0 makes ax = kx·dx − L.x = −L.x
+// (or ±0 when L.x = 0) for every finite dx, so ax² + ay² and lx2 are the same bits in every
+// column too. Hoisting them leaves every lane's value unchanged.
+struct RowFlat {
+  double dz, r, t, kx, ky, s, lx2;
+};
+inline RowFlat row_flat(const RowConsts& k, double a0) {
+  RowFlat f;
+  f.dz = k.rz;
+  f.r = 1.0 / f.dz;
+  f.t = -k.oz * f.r;
+  f.kx = k.Lz * f.r;
+  f.ky = k.Uz * f.r;
+  f.s = f.t * f.t * k.tpm2;
+  const double dx = k.rx + a0 * k.Lx, dy = k.ry + a0 * k.Ly;
+  const double ax = f.kx * dx - k.Lx, ay = f.kx * dy - k.Ly;
+  f.lx2 = f.s * (ax * ax + ay * ay);
+  return f;
+}
+
+// The per-pixel arithmetic of four columns a (branch-free); kFlat takes the column-independent
+// values from `rf` (see RowFlat).
+template <bool kAniso, bool kFlat>
+[[gnu::always_inline]] inline void shade4(const v4d& a, const RowConsts& k, const RowFlat& rf, Lanes& o) {
+  const v4d dx = k.rx + a * k.Lx, dy = k.ry + a * k.Ly;
+  v4d dz, t, ky, s, lx2;
+  if constexpr (kFlat) {
+    dz = v4d{} + rf.dz;
+    t = v4d{} + rf.t;
+    ky = v4d{} + rf.ky;
+    s = v4d{} + rf.s;
+    lx2 = v4d{} + rf.lx2;
+  } else {
+    dz = k.rz + a * k.Lz;
+    const v4d r = 1.0 / dz;
+    t = -k.oz * r;
+    const v4d kx = k.Lz * r;
+    ky = k.Uz * r;
+    s = t * t * k.tpm2;
+    const v4d ax = kx * dx - k.Lx, ay = kx * dy - k.Ly;
+    lx2 = s * (ax * ax + ay * ay);
+  }
+  const v4d bx = ky * dx - k.Ux, by = ky * dy - k.Uy;
+  const v4d ly2 = s * (bx * bx + by * by);
+  const v4d major = lx2 > ly2 ? lx2 : ly2;
+  v4d q = major;
+  if constexpr (kAniso) {
+    const v4d minor = lx2 > ly2 ? ly2 : lx2, am = major * k.inv_a2;
+    q = minor > am ? minor : am;
+  }
+  const v4d qmin = v4d{} + kMinFootprint2, qmax = v4d{} + kMaxFootprint2;
+  q = q >= qmin ? q : qmin;  // also NaN -> min (as lod_from_lengths2)
+  q = q > qmax ? qmax : q;
+  o.dz = dz;
+  o.t = t;
+  o.tu = (k.ox + t * dx) * k.tpm;
+  o.tv = (k.oy + t * dy) * k.tpm;
+  o.q = q;
+}
+
+// By reference: a 32-byte vector passed or returned by value would change the ABI between the
+// clones (-Wpsabi).
+[[gnu::always_inline]] inline void load4(const double* p, v4d& v) { __builtin_memcpy(&v, p, sizeof v); }
+[[gnu::always_inline]] inline void store4(double* p, const v4d& v) { __builtin_memcpy(p, &v, sizeof v); }
+
+// Batch values of n columns (reads ceil(n/4)·4 entries of a: column arrays are padded).
 template <bool kAniso>
-void fill_batch(Batch& b, const double* a, int n, const glm::dvec3& row, const glm::dvec3& L, const glm::dvec3& U,
-                double ox, double oy, double oz, double tpm, double tpm2, double inv_a2) {
-  const double Lx = L.x, Ly = L.y, Lz = L.z, Ux = U.x, Uy = U.y, Uz = U.z;
-  const double rx = row.x, ry = row.y, rz = row.z;
-  for (int j = 0; j < n; ++j) {
-    const double dx = rx + a[j] * Lx, dy = ry + a[j] * Ly, dz = rz + a[j] * Lz;
-    const double r = 1.0 / dz;
-    const double t = -oz * r;
-    const double kx = Lz * r, ky = Uz * r;
-    const double ax = kx * dx - Lx, ay = kx * dy - Ly;
-    const double bx = ky * dx - Ux, by = ky * dy - Uy;
-    const double s = t * t * tpm2;
-    const double lx2 = s * (ax * ax + ay * ay), ly2 = s * (bx * bx + by * by);
+[[gnu::always_inline]] inline void fill_batch_t(Batch& b, const double* a, int n, const RowConsts& k) {
+  for (int j = 0; j < n; j += 4) {
+    Lanes o;
+    v4d av;
+    load4(a + j, av);
+    shade4<kAniso, false>(av, k, RowFlat{}, o);
+    store4(b.dz + j, o.dz);
+    store4(b.t + j, o.t);
+    store4(b.tu + j, o.tu);
+    store4(b.tv + j, o.tv);
+    store4(b.q + j, o.q);
+  }
+}
+__attribute__((target_clones("avx2", "default"))) void fill_batch(Batch& b, const double* a, int n, const RowConsts& k,
+                                                                  bool aniso) {
+  if (aniso) fill_batch_t<true>(b, a, n, k);
+  else fill_batch_t<false>(b, a, n, k);
+}
+
+// Per-frame constants of the plane, shared by render, render_spans and render_pixels: one code
+// path computes every sample, so the three agree bit for bit.
+struct PlaneFrame {
+  LodRule rule;
+  double oz, ox, oy, tpm, tpm2, t_near, t_far, tw, th, inv_a2;
+  std::int64_t W, H;
+  int div, bw, bh;
+  bool aniso;
+
+  PlaneFrame(const Camera& cam, const ViewParams& p, const GroundTexture& tex, double z) {
+    validate_view_params(p);
+    rule = detail::lod_rule(p);
+    oz = cam.pos_m.z - z;
+    ox = cam.pos_m.x - tex.x0_m;
+    oy = cam.pos_m.y - tex.y0_m;
+    tpm = tex.texels_per_m;
+    tpm2 = tpm * tpm;
+    t_near = p.near_m / cam.focal_px;  // view depth = t·focal_px
+    t_far = p.far_m / cam.focal_px;
+    W = tex.extent.width;
+    H = tex.extent.height;
+    tw = static_cast<double>(W);
+    th = static_cast<double>(H);
+    div = p.divisor;
+    bw = buffer_extent(cam.width, div);
+    bh = buffer_extent(cam.height, div);
+    aniso = rule.anisotropic;
+    inv_a2 = rule.inv_aniso2;
+  }
+  glm::dvec3 row(const Camera& cam, int by) const {
+    const double py = sample_pos(by, div, cam.height);
+    return cam.focal_px * cam.fwd + (cam.cy - py) * cam.up;
+  }
+  // A row whose two end rays miss the plane is sky throughout (d.z is linear along a row and its
+  // rounded evaluation monotone).
+  bool sky_row(const Camera& cam, const glm::dvec3& r, const double* col) const {
+    const double dz_first = r.z + col[0] * cam.left.z, dz_last = r.z + col[bw - 1] * cam.left.z;
+    return oz != 0.0 && dz_first * oz >= 0.0 && dz_last * oz >= 0.0;
+  }
+  RowConsts consts(const Camera& cam, const glm::dvec3& r) const {
+    return RowConsts{r.x,      r.y,      r.z,      cam.left.x, cam.left.y, cam.left.z, cam.up.x, cam.up.y,
+                     cam.up.z, ox,       oy,       oz,         tpm,        tpm2,       inv_a2};
+  }
+  void fill(Batch& b, const double* a, int n, const glm::dvec3& r, const Camera& cam) const {
+    fill_batch(b, a, n, consts(cam, r), aniso);
+  }
+  // True when batch entry j is a sample; otherwise counts why not and returns false.
+  bool classify(const Batch& b, int j, ViewCounters& c) const {
+    const double dz = b.dz[j], t = b.t[j];
+    if (!(dz * oz < 0.0)) {  // parallel, pointing away from the plane, or camera on it
+      if (oz == 0.0 && dz != 0.0) ++c.clipped;  // hit at depth 0 < near
+      else ++c.sky;
+      return false;
+    }
+    if (!(t >= t_near && t <= t_far)) {
+      ++c.clipped;
+      return false;
+    }
+    if (oz < 0.0) {  // camera below the plane sees its back
+      ++c.backfacing;
+      return false;
+    }
+    const double tu = b.tu[j], tv = b.tv[j];
+    if (!(tu >= 0.0 && tu < tw && tv >= 0.0 && tv < th)) {
+      ++c.outside_texture;
+      return false;
+    }
+    return true;
+  }
+  ViewSample sample(const Batch& b, int j, std::uint32_t pixel) const {
+    std::int64_t u = static_cast<std::int64_t>(b.tu[j]), v = static_cast<std::int64_t>(b.tv[j]);
+    if (u >= W) u = W - 1;  // within an ulp of W above 2^53
+    if (v >= H) v = H - 1;
+    const double lod = 0.5 * fast_log2(b.q[j]) + rule.bias;
+    return ViewSample{u, v, static_cast<float>(lod), pixel};
+  }
+};
+
+// cx − px of each buffer column, per thread; padded with 8 copies of the last so that groups of
+// four starting anywhere in the row stay inside.
+const double* column_offsets(const Camera& cam, int div, int bw) {
+  thread_local std::vector<double> col;
+  col.resize(static_cast<std::size_t>(bw) + 8);
+  for (int bx = 0; bx < bw; ++bx) col[static_cast<std::size_t>(bx)] = cam.cx - sample_pos(bx, div, cam.width);
+  for (std::size_t i = static_cast<std::size_t>(bw); i < col.size(); ++i) col[i] = col[static_cast<std::size_t>(bw) - 1];
+  return col.data();
+}
+
+// Level cuts of the LOD rule: cut[k] = the least squared footprint q whose desired level
+// desired_level(float(0.5·fast_log2(q) + bias), levels) is >= k. The level is a monotone step
+// function of q (fast_log2 is monotone, so are the addition, the rounding to float and floor),
+// so a sample is at level k exactly when cut[k] <= q < cut[k + 1]: the span test compares q and
+// never takes a logarithm. Found by bisection over the bit patterns of positive doubles (ordered
+// like the values) in [kMinFootprint2, kMaxFootprint2], the range fill_batch clamps q to; cached
+// per thread for the last (bias, levels), which a replay never changes. Monotonicity is what the
+// cuts rest on; rounding could only break it within a few ulps of q around a cut (the LOD's
+// rounding error is an ulp or two), so each cut is checked over ±kCheckUlps ulps and a failed
+// check sends render_spans to the per-sample path (`ok` false) rather than risk a wrong span.
+struct LevelCuts {
+  double bias = 0.0;
+  int levels = 0;
+  bool ok = true;
+  double cut[66] = {};
+};
+constexpr std::uint64_t kCheckUlps = 256;
+int level_of_q(double q, double bias, int levels) {
+  return desired_level(static_cast<float>(0.5 * fast_log2(q) + bias), levels);
+}
+const LevelCuts& level_cuts(double bias, int levels) {
+  thread_local LevelCuts lc;
+  if (lc.levels == levels && std::bit_cast<std::uint64_t>(lc.bias) == std::bit_cast<std::uint64_t>(bias)) return lc;
+  lc.bias = bias;
+  lc.levels = levels;
+  lc.ok = true;
+  const std::uint64_t lo_bits = std::bit_cast<std::uint64_t>(kMinFootprint2), hi_bits = std::bit_cast<std::uint64_t>(kMaxFootprint2);
+  lc.cut[0] = -INFINITY;
+  for (int k = 1; k <= levels; ++k) {
+    if (level_of_q(kMinFootprint2, bias, levels) >= k) {
+      lc.cut[k] = -INFINITY;
+    } else if (level_of_q(kMaxFootprint2, bias, levels) < k) {
+      lc.cut[k] = INFINITY;
+    } else {  // level(lo) < k <= level(hi)
+      std::uint64_t lo = lo_bits, hi = hi_bits;
+      while (hi - lo > 1) {
+        const std::uint64_t mid = lo + (hi - lo) / 2;
+        if (level_of_q(std::bit_cast<double>(mid), bias, levels) >= k) hi = mid;
+        else lo = mid;
+      }
+      lc.cut[k] = std::bit_cast<double>(hi);
+      for (std::uint64_t d = 1; d <= kCheckUlps; ++d) {
+        if (hi - d >= lo_bits && level_of_q(std::bit_cast<double>(hi - d), bias, levels) >= k) lc.ok = false;
+        if (hi + d <= hi_bits && level_of_q(std::bit_cast<double>(hi + d), bias, levels) < k) lc.ok = false;
+      }
+    }
+  }
+  return lc;
+}
+
+// The open span's test, as double comparisons on a sample's values: a sample (as classify) at
+// the span's level (q in [q_lo, q_hi)) whose texel lies in the span's block (u in [u_lo, u_hi),
+// bounds clipped to the texture, so the texture test is included).
+struct SpanBounds {
+  double q_lo, q_hi, u_lo, u_hi, v_lo, v_hi;
+};
+
+// Where render_spans writes, across rows.
+struct SpanOut {
+  std::vector<ViewSpan>& spans;
+  ViewCounters& c;
+  std::uint32_t& n_samples;
+  const LevelCuts& cuts;
+  int levels, block_shift;
+  int last_level = 0;
+};
+
+// Opens a span at the sample in batch entry j. Its level is where q falls among the level cuts
+// (the level sample() would give, without the logarithm), searched from the last span's level.
+void open_span(const PlaneFrame& fr, const Batch& b, int j, std::uint32_t pixel, SpanOut& o, SpanBounds& k) {
+  std::int64_t u = static_cast<std::int64_t>(b.tu[j]), v = static_cast<std::int64_t>(b.tv[j]);
+  if (u >= fr.W) u = fr.W - 1;  // as sample()
+  if (v >= fr.H) v = fr.H - 1;
+  const double q = b.q[j];
+  int level = o.last_level;
+  while (level > 0 && q < o.cuts.cut[level]) --level;
+  while (level + 1 < o.levels && q >= o.cuts.cut[level + 1]) ++level;
+  o.last_level = level;
+  o.spans.push_back(ViewSpan{u, u, v, v, pixel, 1, o.n_samples, level});
+  ++o.n_samples;
+  k.q_lo = o.cuts.cut[level];
+  k.q_hi = o.cuts.cut[level + 1];
+  const int sh = level + o.block_shift;
+  if (sh < 63) {  // the block's texel range, as spans_from_samples defines it
+    const std::int64_t bu = u >> sh, bv = v >> sh;
+    const double p2 = std::bit_cast<double>(static_cast<std::uint64_t>(1023 + sh) << 52);  // 2^sh, exact
+    k.u_lo = std::max(0.0, static_cast<double>(bu) * p2);
+    k.u_hi = std::min(fr.tw, static_cast<double>(bu + 1) * p2);
+    k.v_lo = std::max(0.0, static_cast<double>(bv) * p2);
+    k.v_hi = std::min(fr.th, static_cast<double>(bv + 1) * p2);
+  } else {
+    k.u_lo = k.v_lo = 0.0;
+    k.u_hi = fr.tw;
+    k.v_hi = fr.th;
+  }
+}
+
+// Without roll, a whole run of g columns [x, x + g) at once. Every quantity of the span test is
+// then a chain of rounded operations each monotone in the one input that varies along the row
+// (the column offset a; d.z, t, s and lx2 are the row's), so the computed tu and tv of the run lie
+// between those of its two end columns, and bounds of the computed q follow from interval
+// arithmetic with the same rounded operations at the interval ends (a rounded monotone operation
+// keeps the order of its inputs; the square of an interval through 0 starts at 0). If the bounds
+// lie inside the open span's test, every column passes: the span takes the run whole, with the
+// exact bounding box (truncation of the end values). Returns false to let the caller go lane by
+// lane.
+template <bool kAniso>
+[[gnu::always_inline]] inline bool flat_run(const RowConsts& k, const RowFlat& rf, const double* col, int x, int g,
+                                            const SpanBounds& b, ViewSpan& sp) {
+  const double a0 = col[x], a1 = col[x + g - 1];
+  const double dx0 = k.rx + a0 * k.Lx, dx1 = k.rx + a1 * k.Lx;
+  const double dy0 = k.ry + a0 * k.Ly, dy1 = k.ry + a1 * k.Ly;
+  const double tu0 = (k.ox + rf.t * dx0) * k.tpm, tu1 = (k.ox + rf.t * dx1) * k.tpm;
+  const double tv0 = (k.oy + rf.t * dy0) * k.tpm, tv1 = (k.oy + rf.t * dy1) * k.tpm;
+  const double ulo = std::min(tu0, tu1), uhi = std::max(tu0, tu1), vlo = std::min(tv0, tv1), vhi = std::max(tv0, tv1);
+  if (!(ulo >= b.u_lo && uhi < b.u_hi && vlo >= b.v_lo && vhi < b.v_hi)) return false;
+  const auto square = [](double e0, double e1, double& lo, double& hi) {
+    const double s0 = e0 * e0, s1 = e1 * e1;
+    lo = (e0 <= 0.0) != (e1 <= 0.0) || e0 == 0.0 || e1 == 0.0 ? 0.0 : std::min(s0, s1);
+    hi = std::max(s0, s1);
+  };
+  double bx_lo, bx_hi, by_lo, by_hi;
+  square(rf.ky * dx0 - k.Ux, rf.ky * dx1 - k.Ux, bx_lo, bx_hi);
+  square(rf.ky * dy0 - k.Uy, rf.ky * dy1 - k.Uy, by_lo, by_hi);
+  const auto q_of = [&](double sum) {  // shade4's q from ly2's sum, scalar
+    const double lx2 = rf.lx2, ly2 = rf.s * sum;
     const double major = lx2 > ly2 ? lx2 : ly2;
     double q = major;
     if constexpr (kAniso) {
-      const double minor = lx2 > ly2 ? ly2 : lx2, am = major * inv_a2;
+      const double minor = lx2 > ly2 ? ly2 : lx2, am = major * k.inv_a2;
       q = minor > am ? minor : am;
     }
-    q = q >= kMinFootprint2 ? q : kMinFootprint2;  // also NaN -> min (as lod_from_lengths2)
-    q = q > kMaxFootprint2 ? kMaxFootprint2 : q;
-    b.dz[j] = dz;
-    b.t[j] = t;
-    b.tu[j] = (ox + t * dx) * tpm;
-    b.tv[j] = (oy + t * dy) * tpm;
-    b.q[j] = q;
+    q = q >= kMinFootprint2 ? q : kMinFootprint2;
+    return q > kMaxFootprint2 ? kMaxFootprint2 : q;
+  };
+  if (!(q_of(bx_lo + by_lo) >= b.q_lo && q_of(bx_hi + by_hi) < b.q_hi)) return false;
+  sp.count += static_cast<std::uint32_t>(g);
+  sp.u_lo = std::min(sp.u_lo, static_cast<std::int64_t>(ulo));
+  sp.u_hi = std::max(sp.u_hi, static_cast<std::int64_t>(uhi));
+  sp.v_lo = std::min(sp.v_lo, static_cast<std::int64_t>(vlo));
+  sp.v_hi = std::max(sp.v_hi, static_cast<std::int64_t>(vhi));
+  return true;
+}
+
+// One row of render_spans, four columns at a time: the arithmetic of shade4, then the open span's
+// test on all four lanes at once. A group whose four samples all stay in the span only widens the
+// span's running bounding box (kept in vectors, folded into the span when the group test
+// fails); any other group goes through the lanes one by one, exactly as render() would.
+// Inlined into each target clone of span_row (a separate function would be compiled for the
+// default target only).
+template <bool kAniso, bool kFlat>
+[[gnu::always_inline]] inline void span_row_t(const PlaneFrame& fr, const RowConsts& rc, const double* col, int by, SpanOut& o) {
+  const RowFlat rf = kFlat ? row_flat(rc, col[0]) : RowFlat{};
+  thread_local Batch b;
+  SpanBounds k{};
+  bool open = false;
+  bool acc = false;  // umin..vmax and run hold groups not yet folded into o.spans.back()
+  std::uint32_t run = 0;
+  v4d umin{}, umax{}, vmin{}, vmax{};
+  const auto fold = [&] {
+    if (!acc) return;
+    ViewSpan& sp = o.spans.back();
+    const double ul = std::min(std::min(umin[0], umin[1]), std::min(umin[2], umin[3]));
+    const double uh = std::max(std::max(umax[0], umax[1]), std::max(umax[2], umax[3]));
+    const double vl = std::min(std::min(vmin[0], vmin[1]), std::min(vmin[2], vmin[3]));
+    const double vh = std::max(std::max(vmax[0], vmax[1]), std::max(vmax[2], vmax[3]));
+    // Texels are truncations (tu >= 0), and truncation is monotone.
+    sp.u_lo = std::min(sp.u_lo, static_cast<std::int64_t>(ul));
+    sp.u_hi = std::max(sp.u_hi, static_cast<std::int64_t>(uh));
+    sp.v_lo = std::min(sp.v_lo, static_cast<std::int64_t>(vl));
+    sp.v_hi = std::max(sp.v_hi, static_cast<std::int64_t>(vh));
+    sp.count += run;
+    o.n_samples += run;
+    run = 0;
+    acc = false;
+  };
+  const double oz = fr.oz, tn = fr.t_near, tf = fr.t_far;
+  const int bw = fr.bw;
+  int g = 32;  // flat runs: doubled after a run that passes, halved after one that does not
+  for (int x = 0; x < bw; x += 4) {
+    if constexpr (kFlat) {
+      while (open && g >= 8 && x + g <= bw) {
+        if (flat_run<kAniso>(rc, rf, col, x, g, k, o.spans.back())) {
+          o.n_samples += static_cast<std::uint32_t>(g);
+          x += g;
+          g = g < 128 ? 2 * g : g;
+        } else {
+          g /= 2;
+        }
+      }
+      if (g < 8) g = 8;
+      if (x >= bw) break;
+    }
+    Lanes l;
+    v4d av;
+    load4(col + x, av);
+    shade4<kAniso, kFlat>(av, rc, rf, l);
+    if (open && x + 4 <= bw) {
+      // Without roll d.z and t are the row's (RowFlat), and a span is open only if they passed.
+      auto m = (l.q >= k.q_lo) & (l.q < k.q_hi) & (l.tu >= k.u_lo) & (l.tu < k.u_hi) & (l.tv >= k.v_lo) & (l.tv < k.v_hi);
+      if constexpr (!kFlat) m &= (l.dz * oz < 0.0) & (l.t >= tn) & (l.t <= tf);
+      m &= __builtin_shufflevector(m, m, 2, 3, 0, 1);  // all four lanes set: reduce in registers
+      m &= __builtin_shufflevector(m, m, 1, 0, 3, 2);
+      if (m[0] != 0) {
+        if (!acc) {
+          umin = umax = l.tu;
+          vmin = vmax = l.tv;
+          acc = true;
+        } else {
+          umin = l.tu < umin ? l.tu : umin;
+          umax = l.tu > umax ? l.tu : umax;
+          vmin = l.tv < vmin ? l.tv : vmin;
+          vmax = l.tv > vmax ? l.tv : vmax;
+        }
+        run += 4;
+        continue;
+      }
+    }
+    fold();
+    store4(b.dz, l.dz);
+    store4(b.t, l.t);
+    store4(b.tu, l.tu);
+    store4(b.tv, l.tv);
+    store4(b.q, l.q);
+    const int n = bw - x < 4 ? bw - x : 4;
+    for (int j = 0; j < n; ++j) {
+      if (open && (b.dz[j] * oz < 0.0) && b.t[j] >= tn && b.t[j] <= tf && b.q[j] >= k.q_lo && b.q[j] < k.q_hi &&
+          b.tu[j] >= k.u_lo && b.tu[j] < k.u_hi && b.tv[j] >= k.v_lo && b.tv[j] < k.v_hi) {
+        ViewSpan& sp = o.spans.back();
+        const std::int64_t u = static_cast<std::int64_t>(b.tu[j]), v = static_cast<std::int64_t>(b.tv[j]);
+        sp.u_lo = std::min(sp.u_lo, u);
+        sp.u_hi = std::max(sp.u_hi, u);
+        sp.v_lo = std::min(sp.v_lo, v);
+        sp.v_hi = std::max(sp.v_hi, v);
+        ++sp.count;
+        ++o.n_samples;
+        continue;
+      }
+      open = false;
+      if (!fr.classify(b, j, o.c)) continue;
+      open_span(fr, b, j, static_cast<std::uint32_t>(by * bw + x + j), o, k);
+      open = true;
+    }
+  }
+  fold();
+}
+__attribute__((target_clones("avx2", "default"))) void span_row(const PlaneFrame& fr, const RowConsts& rc,
+                                                                const double* col, int by, SpanOut& o) {
+  const bool flat = rc.Lz == 0.0 && rc.rz != 0.0;
+  if (fr.aniso) {
+    if (flat) span_row_t<true, true>(fr, rc, col, by, o);
+    else span_row_t<true, false>(fr, rc, col, by, o);
+  } else {
+    if (flat) span_row_t<false, true>(fr, rc, col, by, o);
+    else span_row_t<false, false>(fr, rc, col, by, o);
   }
 }
 
@@ -58,69 +479,85 @@ void fill_batch(Batch& b, const double* a, int n, const glm::dvec3& row, const g
 // at t = −o.z·r, one pixel right moves the hit by t·(−L + (L.z·r)·d) and one pixel down by
 // t·(−U + (U.z·r)·d) (lod.h, Igehy's plane differential with n = z). Each sample is computed from
 // its own row and column only, so a buffer of any divisor reproduces divisor 1's values bit for
-// bit. Rows whose two end rays both miss the plane are sky throughout (d.z is linear along a row
-// and its rounded evaluation monotone) and cost O(1).
+// bit. Rows whose two end rays both miss the plane are sky throughout and cost O(1).
 void PlaneScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) const {
   detail::begin_frame(cam, p, out);
-  const LodRule rule = detail::lod_rule(p);
-  const double oz = cam.pos_m.z - z_;
-  const double ox = cam.pos_m.x - tex_.x0_m, oy = cam.pos_m.y - tex_.y0_m;
-  const double tpm = tex_.texels_per_m, tpm2 = tpm * tpm;
-  const double f = cam.focal_px;
-  const double t_near = p.near_m / f, t_far = p.far_m / f;  // view depth = t·focal_px
-  const double Lz = cam.left.z;
-  const double tw = static_cast<double>(tex_.extent.width), th = static_cast<double>(tex_.extent.height);
-  const int div = p.divisor, bw = out.width, bh = out.height;
-  const bool aniso = rule.anisotropic;
-  const double inv_a2 = rule.inv_aniso2;
-
-  thread_local std::vector<double> col;  // cx − px of each buffer column
-  col.resize(static_cast<std::size_t>(bw));
-  for (int bx = 0; bx < bw; ++bx) col[static_cast<std::size_t>(bx)] = cam.cx - sample_pos(bx, div, cam.width);
+  const PlaneFrame fr(cam, p, tex_, z_);
+  const double* col = column_offsets(cam, fr.div, fr.bw);
   thread_local Batch b;
-
   ViewCounters c;
-  for (int by = 0; by < bh; ++by) {
-    const double py = sample_pos(by, div, cam.height);
-    const glm::dvec3 row = f * cam.fwd + (cam.cy - py) * cam.up;
-    const double dz_first = row.z + col[0] * Lz, dz_last = row.z + col[static_cast<std::size_t>(bw - 1)] * Lz;
-    if (oz != 0.0 && dz_first * oz >= 0.0 && dz_last * oz >= 0.0) {
-      c.sky += static_cast<std::uint64_t>(bw);
+  for (int by = 0; by < fr.bh; ++by) {
+    const glm::dvec3 row = fr.row(cam, by);
+    if (fr.sky_row(cam, row, col)) {
+      c.sky += static_cast<std::uint64_t>(fr.bw);
       continue;
     }
-    for (int x0 = 0; x0 < bw; x0 += kChunk) {
-      const int n = bw - x0 < kChunk ? bw - x0 : kChunk;
-      const double* a = col.data() + x0;
-      if (aniso) fill_batch<true>(b, a, n, row, cam.left, cam.up, ox, oy, oz, tpm, tpm2, inv_a2);
-      else fill_batch<false>(b, a, n, row, cam.left, cam.up, ox, oy, oz, tpm, tpm2, inv_a2);
-      for (int j = 0; j < n; ++j) {
-        const double dz = b.dz[j], t = b.t[j];
-        if (!(dz * oz < 0.0)) {  // parallel, pointing away from the plane, or camera on it
-          if (oz == 0.0 && dz != 0.0) ++c.clipped;  // hit at depth 0 < near
-          else ++c.sky;
-          continue;
-        }
-        if (!(t >= t_near && t <= t_far)) {
-          ++c.clipped;
-          continue;
-        }
-        if (oz < 0.0) {  // camera below the plane sees its back
-          ++c.backfacing;
-          continue;
-        }
-        const double tu = b.tu[j], tv = b.tv[j];
-        if (!(tu >= 0.0 && tu < tw && tv >= 0.0 && tv < th)) {
-          ++c.outside_texture;
-          continue;
-        }
-        std::int64_t u = static_cast<std::int64_t>(tu), v = static_cast<std::int64_t>(tv);
-        if (u >= tex_.extent.width) u = tex_.extent.width - 1;  // within an ulp of W above 2^53
-        if (v >= tex_.extent.height) v = tex_.extent.height - 1;
-        const double lod = 0.5 * fast_log2(b.q[j]) + rule.bias;
-        out.samples.push_back(ViewSample{u, v, static_cast<float>(lod), static_cast<std::uint32_t>(by * bw + x0 + j)});
-      }
+    for (int x0 = 0; x0 < fr.bw; x0 += kChunk) {
+      const int n = fr.bw - x0 < kChunk ? fr.bw - x0 : kChunk;
+      fr.fill(b, col + x0, n, row, cam);
+      for (int j = 0; j < n; ++j)
+        if (fr.classify(b, j, c)) out.samples.push_back(fr.sample(b, j, static_cast<std::uint32_t>(by * fr.bw + x0 + j)));
     }
   }
+  out.counters = c;
+}
+
+void PlaneScene::render_pixels(const Camera& cam, const ViewParams& p, std::uint32_t pixel, std::uint32_t count,
+                               std::vector<ViewSample>& out) const {
+  const PlaneFrame fr(cam, p, tex_, z_);
+  const std::uint32_t bw = static_cast<std::uint32_t>(fr.bw);
+  if (pixel / bw >= static_cast<std::uint32_t>(fr.bh) || pixel % bw + count > bw)
+    throw std::invalid_argument("render_pixels: the pixels are not within one buffer row");
+  const int by = static_cast<int>(pixel / bw), xb = static_cast<int>(pixel % bw);
+  const double* col = column_offsets(cam, fr.div, fr.bw);
+  const glm::dvec3 row = fr.row(cam, by);
+  thread_local Batch b;
+  ViewCounters c;
+  for (int x0 = xb; x0 < xb + static_cast<int>(count); x0 += kChunk) {
+    const int n = xb + static_cast<int>(count) - x0 < kChunk ? xb + static_cast<int>(count) - x0 : kChunk;
+    fr.fill(b, col + x0, n, row, cam);
+    for (int j = 0; j < n; ++j) {
+      if (!fr.classify(b, j, c)) throw std::logic_error("render_pixels: a pixel of the span is not a sample");
+      out.push_back(fr.sample(b, j, static_cast<std::uint32_t>(by * fr.bw + x0 + j)));
+    }
+  }
+}
+
+void PlaneScene::render_spans(const Camera& cam, const ViewParams& p, SpanBuffer& out) const {
+  const PlaneFrame fr(cam, p, tex_, z_);
+  const int levels = mip_level_count(tex_.extent);
+  const LevelCuts& cuts = level_cuts(fr.rule.bias, levels);
+  // The per-sample buffer is wanted anyway, or the level cuts are not trustworthy: derive the
+  // spans from render()'s samples.
+  if (out.keep_samples || !cuts.ok) {
+    IScene::render_spans(cam, p, out);
+    return;
+  }
+  if (out.block_shift < 0 || out.block_shift > 62) throw std::invalid_argument("spans: block_shift must be in [0, 62]");
+  out.width = fr.bw;
+  out.height = fr.bh;
+  out.divisor = fr.div;
+  out.levels = levels;
+  out.spans.clear();
+  out.samples = 0;
+  out.has_samples = false;
+  out.view.samples.clear();
+  out.scene = this;
+  out.cam = cam;
+  out.params = p;
+  const double* col = column_offsets(cam, fr.div, fr.bw);
+  ViewCounters c;
+  std::uint32_t n_samples = 0;
+  SpanOut so{out.spans, c, n_samples, cuts, levels, out.block_shift};
+  for (int by = 0; by < fr.bh; ++by) {
+    const glm::dvec3 row = fr.row(cam, by);
+    if (fr.sky_row(cam, row, col)) {
+      c.sky += static_cast<std::uint64_t>(fr.bw);
+      continue;
+    }
+    span_row(fr, fr.consts(cam, row), col, by, so);
+  }
+  out.samples = n_samples;
   out.counters = c;
 }
 

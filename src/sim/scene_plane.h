@@ -19,6 +19,13 @@ class PlaneScene final : public IScene {
   PlaneScene(const GroundTexture& tex, double plane_z_m) : tex_(tex), z_(plane_z_m) {}
   TextureExtent texture() const override { return tex_.extent; }
   void render(const Camera& cam, const ViewParams& params, ViewBuffer& out) const override;
+  // Spans without materialising samples: per row, the batch arithmetic of render(), then a
+  // branch-free test of whether each next sample stays in the open span (same class, level and
+  // block as double comparisons); only a span's first sample takes the logarithm. O(pixels) with
+  // a small constant, O(spans) scalar work. keep_samples falls back to render() + spans.
+  void render_spans(const Camera& cam, const ViewParams& params, SpanBuffer& out) const override;
+  void render_pixels(const Camera& cam, const ViewParams& params, std::uint32_t pixel, std::uint32_t count,
+                     std::vector<ViewSample>& out) const override;
 
  private:
   GroundTexture tex_;

@@ -19,7 +19,8 @@ void ClipmapSystem::begin_frame(const SystemFrame& f) {
   gu_ = ground_u(f.pose->pos_m.x);
   gv_ = ground_v(f.pose->pos_m.y);
   finest_active_ = std::min(f.finest_needed, cm_.num_levels());
-  if (f.view) aggregate_feedback(*f.view, p_.clipmap.tile_size, cm_.num_levels(), uses_);
+  if (f.spans) aggregate_feedback(*f.spans, p_.clipmap.tile_size, cm_.num_levels(), uses_);
+  else if (f.view) aggregate_feedback(*f.view, p_.clipmap.tile_size, cm_.num_levels(), uses_);
   else uses_.clear();
   prefetch_ = p_.prefetch_lookahead_s > 0 && (f.velocity_mps.x != 0.0 || f.velocity_mps.y != 0.0);
   if (prefetch_) {

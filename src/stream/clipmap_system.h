@@ -31,6 +31,10 @@ class ClipmapSystem final : public IStreamingSystem {
   void resident_levels(const ViewSample* s, std::size_t n, std::int8_t* out) const override {
     cm_.resident_levels(s, n, out);
   }
+  void span_resident_levels(const ViewSpan* s, std::size_t n, std::int8_t* out) const override {
+    cm_.span_resident_levels(s, n, out);
+  }
+  bool uses_spans() const override { return true; }
   void begin_frame(const SystemFrame& f) override;
   void missing_bytes_by_level(std::vector<std::uint64_t>& out) const override;
   int coarsest_clamp() const override { return cm_.first_pyramid_level(); }

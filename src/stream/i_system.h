@@ -25,6 +25,7 @@ struct SystemFrame {
   glm::dvec3 velocity_mps{0.0};    // camera velocity (zero across a cut)
   const ViewBuffer* view = nullptr;  // feedback of this frame (may be an earlier frame's, see view.feedback_every)
   int finest_needed = 0;           // finest desired level of any sample (num_levels: nothing visible)
+  const SpanBuffer* spans = nullptr;  // the same feedback in run-length form (systems that use_spans)
 };
 
 class IStreamingSystem : public IResidency {
@@ -40,6 +41,9 @@ class IStreamingSystem : public IResidency {
   // An uploaded tile becomes resident; false if it is no longer wanted (stale).
   virtual bool commit(TileKey key, int frame) = 0;
   virtual void set_mark_sampled(bool on) = 0;
+  // True when the system reads SystemFrame::spans and resolves spans (span_resident_levels); the
+  // frame loop then renders spans only. Otherwise it also passes the per-sample buffer (`view`).
+  virtual bool uses_spans() const { return false; }
   virtual double pool_occupancy() const { return 0.0; }
   virtual double pool_pressure() const { return 0.0; }
   // Virtual texturing: pages wanted per level and pool slots (ThrottleInput); clipmaps: none.

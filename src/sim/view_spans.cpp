@@ -1,0 +1,85 @@
+#include "sim/view_spans.h"
+
+#include <stdexcept>
+
+#include "sim/scene.h"
+
+namespace vtsim {
+
+namespace {
+
+void check_block_shift(int block_shift) {
+  if (block_shift < 0 || block_shift > 62) throw std::invalid_argument("spans: block_shift must be in [0, 62]");
+}
+
+}  // namespace
+
+void expand_span(const SpanBuffer& sb, const ViewSpan& s, std::vector<ViewSample>& out) {
+  if (sb.has_samples) {
+    const auto b = sb.view.samples.begin() + static_cast<std::ptrdiff_t>(s.first);
+    out.insert(out.end(), b, b + static_cast<std::ptrdiff_t>(s.count));
+    return;
+  }
+  if (!sb.scene) throw std::logic_error("expand_span: the span buffer has neither samples nor a scene");
+  sb.scene->render_pixels(sb.cam, sb.params, s.pixel, s.count, out);
+}
+
+void spans_from_samples(const ViewBuffer& vb, int num_levels, int block_shift, std::vector<ViewSpan>& out) {
+  check_block_shift(block_shift);
+  if (num_levels < 1 || num_levels > 64) throw std::invalid_argument("spans: num_levels must be in [1, 64]");
+  out.clear();
+  const std::uint32_t w = static_cast<std::uint32_t>(vb.width > 0 ? vb.width : 1);
+  std::int64_t bu = 0, bv = 0;  // block of the open span
+  for (std::size_t i = 0; i < vb.samples.size(); ++i) {
+    const ViewSample& s = vb.samples[i];
+    const int level = desired_level(s.lod, num_levels);
+    const int sh = level + block_shift;
+    const std::int64_t su = sh < 63 ? s.u >> sh : 0, sv = sh < 63 ? s.v >> sh : 0;
+    if (!out.empty()) {
+      ViewSpan& b = out.back();
+      if (s.pixel == b.pixel + b.count && s.pixel % w != 0 && level == b.level && su == bu && sv == bv) {
+        ++b.count;
+        b.u_lo = s.u < b.u_lo ? s.u : b.u_lo;
+        b.u_hi = s.u > b.u_hi ? s.u : b.u_hi;
+        b.v_lo = s.v < b.v_lo ? s.v : b.v_lo;
+        b.v_hi = s.v > b.v_hi ? s.v : b.v_hi;
+        continue;
+      }
+    }
+    out.push_back(ViewSpan{s.u, s.u, s.v, s.v, s.pixel, 1, static_cast<std::uint32_t>(i), level});
+    bu = su;
+    bv = sv;
+  }
+}
+
+int finest_level(const SpanBuffer& sb, int num_levels) {
+  int finest = num_levels;
+  for (const ViewSpan& s : sb.spans) {
+    const int d = s.level < num_levels - 1 ? s.level : num_levels - 1;
+    finest = d < finest ? d : finest;
+  }
+  return finest;
+}
+
+// IScene's defaults live here, beside the span definitions they implement.
+void IScene::render_spans(const Camera& cam, const ViewParams& params, SpanBuffer& out) const {
+  check_block_shift(out.block_shift);
+  render(cam, params, out.view);
+  out.width = out.view.width;
+  out.height = out.view.height;
+  out.divisor = out.view.divisor;
+  out.counters = out.view.counters;
+  out.samples = out.view.samples.size();
+  out.has_samples = true;
+  out.scene = this;
+  out.cam = cam;
+  out.params = params;
+  out.levels = mip_level_count(texture());
+  spans_from_samples(out.view, out.levels, out.block_shift, out.spans);
+}
+
+void IScene::render_pixels(const Camera&, const ViewParams&, std::uint32_t, std::uint32_t, std::vector<ViewSample>&) const {
+  throw std::logic_error("render_pixels: this scene keeps its samples (render_spans sets has_samples)");
+}
+
+}  // namespace vtsim
