@@ -296,18 +296,3 @@ ReplayConfig load_replay_config(const std::string& config_path, const std::vecto
 }
 
 }  // namespace vtsim
-
-namespace vtsim {
-
-ReplayConfig load_replay_config(const std::string& config_path, const std::vector<std::string>& sets,
-                                const std::string& system) {
-  ReplayConfig cfg;
-  const auto& table = replay_config_table();
-  if (!config_path.empty()) load_toml_file(table, cfg, config_path);
-  if (!system.empty()) table.set(cfg, "run.system", ConfigValue{system}, "--system");
-  for (const auto& s : sets) apply_set(table, cfg, s);
-  validate(cfg);
-  return cfg;
-}
-
-}  // namespace vtsim
