@@ -14,11 +14,11 @@ for v in $variants; do
     tsan)    dir=build-tsan; args=(-DVTSIM_SANITIZE=thread  -DCMAKE_BUILD_TYPE=RelWithDebInfo -DVTSIM_BUILD_BENCH=OFF) ;;
     *) echo "test.sh: unknown variant '$v' (release|asan|tsan)" >&2; exit 2 ;;
   esac
-  echo "== $v: build ($dir)"
+  echo "== $v: build ($dir) at $(date -u +%T), ${SECONDS}s into the run"
   bash scripts/setup.sh "$dir" "${args[@]}"
-  echo "== $v: ctest"
+  echo "== $v: ctest at $(date -u +%T), ${SECONDS}s into the run"
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
   export TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1
   ctest --test-dir "$dir" --output-on-failure -j"$jobs" --timeout 600
 done
-echo "== all test variants passed: $variants"
+echo "== all test variants passed: $variants (${SECONDS}s)"
