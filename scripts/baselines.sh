@@ -22,6 +22,7 @@ CASES=(
   "flight_clipmap       clipmap  0  traces/flight.csv"
   "drive_hdd_clipmap    clipmap  1  traces/drive.csv  disk.preset=hdd"
   "walk_faults_clipmap  clipmap  0  traces/walk.csv   io.fault_rate=0.02"
+  "flight_vt            vt       1  traces/flight.csv vt.pool_pages=160 texture.border=4 throttle.policy=rage_watermarks"
 )
 dir=tests/baselines
 tolerances=$dir/tolerances.toml
