@@ -571,8 +571,9 @@ __attribute__((target_clones("avx2", "default"))) void level_runs(const RowConst
 // The first column in (x, xe] where `pred` fails (xe if none), given pred(x) and that pred holds
 // on a prefix of [x, xe). Tries the predicted end `guess` first (pred at guess − 1, and at guess
 // unless it is xe: right in almost every span, as the row's slope predicts the crossing), then
-// gallops and bisects. lo only moves to a column pred just accepted, and the result is lo + 1, so
-// pred's last acceptance (if any) was at the result − 1.
+// gallops and bisects. lo only moves to a column pred just accepted, hi to one it just rejected,
+// and the result is hi = lo + 1: pred's last acceptance (if any) was at the result − 1, its last
+// rejection (if any) at the result.
 template <class P>
 int prefix_end(int x, int xe, int guess, P pred) {
   int lo = x, hi = xe;  // pred(lo); hi == xe or !pred(hi)
@@ -646,10 +647,14 @@ void span_row_runs(const PlaneFrame& fr, const RowConsts& k, const RowFlat& rf, 
   if (in1 < in0) in1 = in0;
   o.c.outside_texture += static_cast<std::uint64_t>(bw - (in1 - in0));
   int x = in0;
+  // tu, tv at column `known`: pred's last rejection, which is where the next span starts
+  // (prefix_end's hi only moves to rejected columns).
+  int known = -1;
+  double known_u = 0.0, known_v = 0.0;
   for (const LevelRun* r = runs; r != runs_end && x < in1; ++r) {
     const int xe = std::min(r->x_end, in1), level = r->level;
     while (x < xe) {
-      const double tu = tu_at(x), tv = tv_at(x);
+      const double tu = x == known ? known_u : tu_at(x), tv = x == known ? known_v : tv_at(x);
       std::int64_t u = static_cast<std::int64_t>(tu), v = static_cast<std::int64_t>(tv);
       if (u >= fr.W) u = fr.W - 1;  // as open_span
       if (v >= fr.H) v = fr.H - 1;
@@ -667,7 +672,12 @@ void span_row_runs(const PlaneFrame& fr, const RowConsts& k, const RowFlat& rf, 
       double last_u = tu, last_v = tv;  // at the greatest column pred accepted: e − 1 when it returns
       const int e = prefix_end(x, xe, to_col(x, n, xe), [&](int c) {
         const double cu = tu_at(c), cv = tv_at(c);
-        if (!(cu >= ulo && cu < uhi && cv >= vlo && cv < vhi)) return false;
+        if (!(cu >= ulo && cu < uhi && cv >= vlo && cv < vhi)) {
+          known = c;
+          known_u = cu;
+          known_v = cv;
+          return false;
+        }
         last_u = cu;
         last_v = cv;
         return true;
