@@ -333,23 +333,38 @@ void Clipmap::resident_levels(const ViewSample* s, std::size_t n, std::int8_t* o
 void Clipmap::span_resident_levels(const ViewSpan* s, std::size_t n, std::int8_t* out) const {
   const int levels = num_levels();
   const std::int64_t m = p_.filter_margin_texels;
+  // Per level, once per call: resident_level's rectangle test on one axis, max(0, c − m) >= lo &&
+  // min(W − 1, c + m) < hi, holds exactly for centres c in [A, B]; unplaced levels never pass.
+  struct Rect {
+    std::int64_t Au, Bu, Av, Bv;
+  };
+  Rect rect[TileKey::kMaxLevels];
+  for (int l = 0; l < levels; ++l) {
+    const Level& L = levels_[static_cast<std::size_t>(l)];
+    Rect& R = rect[l];
+    if (!L.placed) {
+      R = {INT64_MAX, INT64_MIN, INT64_MAX, INT64_MIN};
+      continue;
+    }
+    R.Au = L.vx0 <= 0 ? INT64_MIN : L.vx0 + m;
+    R.Bu = L.texels_x - 1 < L.vx1 ? INT64_MAX : L.vx1 - m - 1;
+    R.Av = L.vy0 <= 0 ? INT64_MIN : L.vy0 + m;
+    R.Bv = L.texels_y - 1 < L.vy1 ? INT64_MAX : L.vy1 - m - 1;
+  }
   for (std::size_t i = 0; i < n; ++i) {
     const ViewSpan& sp = s[i];
     const int d = sp.level < levels - 1 ? sp.level : levels - 1;
     int r = levels;  // nothing resident for any sample, unless a level below says otherwise
     for (int l = std::max(d, clamp_); l < levels; ++l) {
-      const Level& L = levels_[static_cast<std::size_t>(l)];
-      if (!L.placed) continue;
-      // resident_level's rectangle test on one axis, max(0, c − m) >= lo && min(W − 1, c + m) < hi,
-      // holds exactly for centres c in [A, B]; the span's centres lie in [a, b].
+      const Rect& R = rect[l];
+      // The span's centres lie in [a, b] × [c, e].
       const std::int64_t a = sp.u_lo >> l, b = sp.u_hi >> l, c = sp.v_lo >> l, e = sp.v_hi >> l;
-      const std::int64_t Au = L.vx0 <= 0 ? INT64_MIN : L.vx0 + m, Bu = L.texels_x - 1 < L.vx1 ? INT64_MAX : L.vx1 - m - 1;
-      const std::int64_t Av = L.vy0 <= 0 ? INT64_MIN : L.vy0 + m, Bv = L.texels_y - 1 < L.vy1 ? INT64_MAX : L.vy1 - m - 1;
-      if (b < Au || a > Bu || e < Av || c > Bv) continue;  // no sample passes
-      if (a < Au || b > Bu || c < Av || e > Bv) {          // some may pass, some not
+      if (b < R.Au || a > R.Bu || e < R.Av || c > R.Bv) continue;  // no sample passes (or unplaced)
+      if (a < R.Au || b > R.Bu || c < R.Av || e > R.Bv) {          // some may pass, some not
         r = -1;
         break;
       }
+      const Level& L = levels_[static_cast<std::size_t>(l)];
       if (L.missing != 0) {
         // Every sample's footprint tiles lie among the box footprint's tiles and include the
         // sample's own tile: all resident → all pass, none resident → none pass.

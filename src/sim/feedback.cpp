@@ -162,6 +162,16 @@ void aggregate_feedback(const SpanBuffer& sb, int tile_size_texels, int num_leve
   thread_local std::vector<ViewSample> expanded;
   for (const ViewSpan& s : sb.spans) {
     const int level = s.level < num_levels - 1 ? s.level : num_levels - 1;
+    // Power-of-two tiles: (u >> level) >> shift = u >> (level + shift) for u >= 0, so the corners'
+    // tiles come from two shifts per axis; anything unusual takes tile_key's checked path below.
+    if (pow2 && s.u_lo >= 0 && s.v_lo >= 0 && level + tile_shift < 63) {
+      const int sh = level + tile_shift;
+      const std::int64_t tx = s.u_lo >> sh, ty = s.v_lo >> sh;
+      if (tx == (s.u_hi >> sh) && ty == (s.v_hi >> sh) && TileKey::fits(0, static_cast<std::uint32_t>(level), tx, ty)) {
+        counter.add(TileKey(0, static_cast<std::uint32_t>(level), tx, ty).bits, s.count);
+        continue;
+      }
+    }
     // The bounding box's corners in one tile: so is every sample (tiles are boxes).
     const std::uint64_t k0 = tile_key(s.u_lo, s.v_lo, level, ts, pow2, tile_shift);
     const std::uint64_t k1 = tile_key(s.u_hi, s.v_hi, level, ts, pow2, tile_shift);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
 #include <vector>
 
@@ -472,6 +473,231 @@ __attribute__((target_clones("avx2", "default"))) void span_row(const PlaneFrame
   }
 }
 
+
+// Level runs of the valid rows without roll, for render_spans on a camera that only translates.
+// In such a row (RowFlat) q depends on the row's and column's ray only: the camera orientation,
+// intrinsics, the height above the plane and the view parameters — not on its x, y (which enter
+// tu and tv only). So two frames with the same bits of those inputs have the same q bits at every
+// pixel, hence the same levels, and a row is a list of runs of one level. Only tu and tv move:
+// each is monotone along the row (flat_run's argument), so within a level run the pixels in one
+// block form one interval of columns, as do those outside the texture, and a span's end is found
+// by a few evaluations of tu and tv at single columns instead of every column.
+struct LevelRun {
+  int x_end;  // columns [previous run's x_end (0 first), x_end) are at `level`
+  int level;
+};
+struct FlatRuns {
+  static constexpr int kKey = 27;
+  std::uint64_t key[kKey] = {};
+  bool valid = false;  // key holds a frame's inputs
+  bool built = false;  // rows/runs hold the level runs of that key
+  std::uint64_t last_use = 0;
+  std::vector<std::uint32_t> row_begin;  // row r's runs are runs[row_begin[r], row_begin[r + 1]); empty: not a flat valid row
+  std::vector<LevelRun> runs;
+};
+
+// Every input of q and of the row classes, bit for bit (see FlatRuns).
+void flat_key(const Camera& cam, const ViewParams& p, const PlaneFrame& fr, int levels, std::uint64_t* key) {
+  const double v[] = {cam.fwd.x, cam.fwd.y, cam.fwd.z, cam.left.x, cam.left.y, cam.left.z, cam.up.x, cam.up.y, cam.up.z,
+                      cam.focal_px, cam.cx, cam.cy, fr.oz, fr.tpm, fr.tpm2, fr.inv_a2, fr.t_near, fr.t_far, fr.rule.bias};
+  int i = 0;
+  for (const double d : v) key[i++] = std::bit_cast<std::uint64_t>(d);
+  key[i++] = static_cast<std::uint64_t>(cam.width);
+  key[i++] = static_cast<std::uint64_t>(cam.height);
+  key[i++] = static_cast<std::uint64_t>(p.divisor);
+  key[i++] = static_cast<std::uint64_t>(fr.aniso);
+  key[i++] = static_cast<std::uint64_t>(levels);
+  key[i++] = static_cast<std::uint64_t>(fr.bw);
+  key[i++] = static_cast<std::uint64_t>(fr.bh);
+  key[i++] = 0;
+}
+
+// The cache entry for this frame's key, per thread: two entries, so that a replay rendering the
+// feedback and the pop-in buffers at different divisors keeps both.
+FlatRuns& flat_runs_for(const std::uint64_t* key, bool& seen) {
+  thread_local FlatRuns entries[2];
+  thread_local std::uint64_t clock = 0;
+  ++clock;
+  for (FlatRuns& e : entries)
+    if (e.valid && std::equal(key, key + FlatRuns::kKey, e.key)) {
+      e.last_use = clock;
+      seen = true;
+      return e;
+    }
+  seen = false;
+  FlatRuns& e = entries[0].last_use <= entries[1].last_use ? entries[0] : entries[1];
+  std::copy(key, key + FlatRuns::kKey, e.key);
+  e.valid = true;
+  e.built = false;
+  e.last_use = clock;
+  return e;
+}
+
+// A row without roll whose every pixel passes classify's ray tests (d.z sign, near/far, front
+// face): only the texture test can fail, column by column.
+bool flat_valid_row(const PlaneFrame& fr, const RowConsts& rc, const RowFlat& rf) {
+  return rc.Lz == 0.0 && rc.rz != 0.0 && rf.dz * fr.oz < 0.0 && rf.t >= fr.t_near && rf.t <= fr.t_far && !(fr.oz < 0.0);
+}
+
+// Appends the level runs of a flat valid row: shade4's q at every column, located among the cuts.
+template <bool kAniso>
+[[gnu::always_inline]] inline void level_runs_t(const RowConsts& rc, const RowFlat& rf, const double* col, int bw,
+                                                const LevelCuts& cuts, int levels, std::vector<LevelRun>& out) {
+  int level = -1;
+  for (int x = 0; x < bw; x += 4) {
+    Lanes l;
+    v4d av;
+    load4(col + x, av);
+    shade4<kAniso, true>(av, rc, rf, l);
+    const int n = bw - x < 4 ? bw - x : 4;
+    for (int j = 0; j < n; ++j) {
+      const double q = l.q[j];
+      if (level >= 0 && q >= cuts.cut[level] && q < cuts.cut[level + 1]) continue;
+      if (level >= 0) out.push_back(LevelRun{x + j, level});
+      if (level < 0) level = 0;
+      while (level > 0 && q < cuts.cut[level]) --level;
+      while (level + 1 < levels && q >= cuts.cut[level + 1]) ++level;
+    }
+  }
+  out.push_back(LevelRun{bw, level});
+}
+__attribute__((target_clones("avx2", "default"))) void level_runs(const RowConsts& rc, const RowFlat& rf, const double* col,
+                                                                  int bw, const LevelCuts& cuts, int levels, bool aniso,
+                                                                  std::vector<LevelRun>& out) {
+  if (aniso) level_runs_t<true>(rc, rf, col, bw, cuts, levels, out);
+  else level_runs_t<false>(rc, rf, col, bw, cuts, levels, out);
+}
+
+// The first column in (x, xe] where `pred` fails (xe if none), given pred(x) and that pred holds
+// on a prefix of [x, xe). Tries the predicted end `guess` first (pred at guess − 1, and at guess
+// unless it is xe: right in almost every span, as the row's slope predicts the crossing), then
+// gallops and bisects. lo only moves to a column pred just accepted, hi to one it just rejected,
+// and the result is hi = lo + 1: pred's last acceptance (if any) was at the result − 1, its last
+// rejection (if any) at the result.
+template <class P>
+int prefix_end(int x, int xe, int guess, P pred) {
+  int lo = x, hi = xe;  // pred(lo); hi == xe or !pred(hi)
+  guess = guess < x + 1 ? x + 1 : (guess > xe ? xe : guess);
+  const int g1 = guess - 1;
+  if (g1 > lo) {
+    if (pred(g1)) lo = g1;
+    else hi = g1;
+  }
+  if (lo == g1 && guess < xe) {
+    if (!pred(guess)) return guess;
+    lo = guess;
+  }
+  for (int step = 1; lo + step < hi; step *= 2) {
+    if (!pred(lo + step)) {
+      hi = lo + step;
+      break;
+    }
+    lo += step;
+  }
+  while (hi - lo > 1) {
+    const int mid = lo + (hi - lo) / 2;
+    if (pred(mid)) lo = mid;
+    else hi = mid;
+  }
+  return hi;
+}
+
+// One flat valid row from its level runs; the same spans, counts and counters as span_row.
+void span_row_runs(const PlaneFrame& fr, const RowConsts& k, const RowFlat& rf, const double* col, int by,
+                   const LevelRun* runs, const LevelRun* runs_end, SpanOut& o) {
+  const int bw = fr.bw;
+  const auto tu_at = [&](int x) { return (k.ox + rf.t * (k.rx + col[x] * k.Lx)) * k.tpm; };
+  const auto tv_at = [&](int x) { return (k.oy + rf.t * (k.ry + col[x] * k.Ly)) * k.tpm; };
+  // Reciprocal slopes per column for the guesses (hints only: every end is checked).
+  const double iu = bw > 1 ? (bw - 1) / (tu_at(bw - 1) - tu_at(0)) : 0.0;
+  const double iv = bw > 1 ? (bw - 1) / (tv_at(bw - 1) - tv_at(0)) : 0.0;
+  const auto guess_exit = [](double t, double inv_slope, double lo, double hi) {  // columns until t leaves [lo, hi)
+    if (inv_slope > 0.0) return (hi - t) * inv_slope;
+    if (inv_slope < 0.0) return (lo - t) * inv_slope;
+    return static_cast<double>(INFINITY);
+  };
+  const auto to_col = [](int x, double n, int xe) {
+    if (!(n < static_cast<double>(xe - x))) return xe;
+    return x + 1 + (n > 0.0 ? static_cast<int>(n) : 0);
+  };
+  // The columns inside the texture: tu and tv each in range on an interval of columns (monotone).
+  int in0 = 0, in1 = bw;
+  const auto clip_axis = [&](auto f, double extent) {
+    const double f0 = f(0), f1 = f(bw - 1);
+    if (f0 >= 0.0 && f0 < extent && f1 >= 0.0 && f1 < extent) return;  // the whole row
+    const auto first_true = [&](auto pred) {  // pred monotone false → true over the columns
+      int lo = 0, hi = bw;
+      while (lo < hi) {
+        const int mid = lo + (hi - lo) / 2;
+        if (pred(mid)) hi = mid;
+        else lo = mid + 1;
+      }
+      return lo;
+    };
+    if (f0 <= f1) {  // non-decreasing
+      in0 = std::max(in0, first_true([&](int c) { return f(c) >= 0.0; }));
+      in1 = std::min(in1, first_true([&](int c) { return !(f(c) < extent); }));
+    } else {
+      in0 = std::max(in0, first_true([&](int c) { return f(c) < extent; }));
+      in1 = std::min(in1, first_true([&](int c) { return !(f(c) >= 0.0); }));
+    }
+  };
+  clip_axis(tu_at, fr.tw);
+  clip_axis(tv_at, fr.th);
+  if (in1 < in0) in1 = in0;
+  o.c.outside_texture += static_cast<std::uint64_t>(bw - (in1 - in0));
+  int x = in0;
+  // tu, tv at column `known`: pred's last rejection, which is where the next span starts
+  // (prefix_end's hi only moves to rejected columns).
+  int known = -1;
+  double known_u = 0.0, known_v = 0.0;
+  for (const LevelRun* r = runs; r != runs_end && x < in1; ++r) {
+    const int xe = std::min(r->x_end, in1), level = r->level;
+    while (x < xe) {
+      const double tu = x == known ? known_u : tu_at(x), tv = x == known ? known_v : tv_at(x);
+      std::int64_t u = static_cast<std::int64_t>(tu), v = static_cast<std::int64_t>(tv);
+      if (u >= fr.W) u = fr.W - 1;  // as open_span
+      if (v >= fr.H) v = fr.H - 1;
+      double ulo = 0.0, uhi = fr.tw, vlo = 0.0, vhi = fr.th;
+      const int sh = level + o.block_shift;
+      if (sh < 63) {  // as open_span
+        const std::int64_t bu = u >> sh, bv = v >> sh;
+        const double p2 = std::bit_cast<double>(static_cast<std::uint64_t>(1023 + sh) << 52);
+        ulo = std::max(0.0, static_cast<double>(bu) * p2);
+        uhi = std::min(fr.tw, static_cast<double>(bu + 1) * p2);
+        vlo = std::max(0.0, static_cast<double>(bv) * p2);
+        vhi = std::min(fr.th, static_cast<double>(bv + 1) * p2);
+      }
+      const double n = std::min(guess_exit(tu, iu, ulo, uhi), guess_exit(tv, iv, vlo, vhi));
+      double last_u = tu, last_v = tv;  // at the greatest column pred accepted: e − 1 when it returns
+      const int e = prefix_end(x, xe, to_col(x, n, xe), [&](int c) {
+        const double cu = tu_at(c), cv = tv_at(c);
+        if (!(cu >= ulo && cu < uhi && cv >= vlo && cv < vhi)) {
+          known = c;
+          known_u = cu;
+          known_v = cv;
+          return false;
+        }
+        last_u = cu;
+        last_v = cv;
+        return true;
+      });
+      ViewSpan sp{u, u, v, v, static_cast<std::uint32_t>(by * bw + x), static_cast<std::uint32_t>(e - x), o.n_samples, level};
+      if (e - x > 1) {  // the run's texels lie between those of its ends (monotone)
+        const std::int64_t ul = static_cast<std::int64_t>(last_u), vl = static_cast<std::int64_t>(last_v);
+        sp.u_lo = std::min(sp.u_lo, ul);
+        sp.u_hi = std::max(sp.u_hi, ul);
+        sp.v_lo = std::min(sp.v_lo, vl);
+        sp.v_hi = std::max(sp.v_hi, vl);
+      }
+      o.spans.push_back(sp);
+      o.n_samples += sp.count;
+      o.last_level = level;
+      x = e;
+    }
+  }
+}
+
 }  // namespace
 
 // The plane is the hot case of the benchmark target (≈ 7.7 ns per sample at divisor 8), so the
@@ -549,14 +775,44 @@ void PlaneScene::render_spans(const Camera& cam, const ViewParams& p, SpanBuffer
   ViewCounters c;
   std::uint32_t n_samples = 0;
   SpanOut so{out.spans, c, n_samples, cuts, levels, out.block_shift};
+  // Level runs: used when this frame's key was built, built when it was seen on an earlier frame
+  // (so a rotating camera, new every frame, pays only the key).
+  std::uint64_t key[FlatRuns::kKey];
+  flat_key(cam, p, fr, levels, key);
+  bool seen = false;
+  FlatRuns& fc = flat_runs_for(key, seen);
+  const bool build = seen && !fc.built;
+  if (build) {
+    fc.row_begin.assign(static_cast<std::size_t>(fr.bh) + 1, 0);
+    fc.runs.clear();
+  }
+  const bool use = fc.built || build;
   for (int by = 0; by < fr.bh; ++by) {
+    const auto r = static_cast<std::size_t>(by);
     const glm::dvec3 row = fr.row(cam, by);
     if (fr.sky_row(cam, row, col)) {
       c.sky += static_cast<std::uint64_t>(fr.bw);
+      if (build) fc.row_begin[r + 1] = static_cast<std::uint32_t>(fc.runs.size());
       continue;
     }
-    span_row(fr, fr.consts(cam, row), col, by, so);
+    const RowConsts rc = fr.consts(cam, row);
+    if (use && rc.Lz == 0.0 && rc.rz != 0.0) {
+      const RowFlat rf = row_flat(rc, col[0]);
+      if (flat_valid_row(fr, rc, rf)) {
+        if (build) level_runs(rc, rf, col, fr.bw, cuts, levels, fr.aniso, fc.runs);
+        if (build) fc.row_begin[r + 1] = static_cast<std::uint32_t>(fc.runs.size());
+        const LevelRun* b = fc.runs.data() + fc.row_begin[r];
+        const LevelRun* e = fc.runs.data() + fc.row_begin[r + 1];
+        if (b != e) {
+          span_row_runs(fr, rc, rf, col, by, b, e, so);
+          continue;
+        }
+      }
+    }
+    if (build) fc.row_begin[r + 1] = static_cast<std::uint32_t>(fc.runs.size());
+    span_row(fr, rc, col, by, so);
   }
+  if (build) fc.built = true;
   out.samples = n_samples;
   out.counters = c;
 }

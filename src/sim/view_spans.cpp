@@ -54,8 +54,9 @@ void spans_from_samples(const ViewBuffer& vb, int num_levels, int block_shift, s
 
 int finest_level(const SpanBuffer& sb, int num_levels) {
   int finest = num_levels;
-  for (const ViewSpan& s : sb.spans) {
-    const int d = s.level < num_levels - 1 ? s.level : num_levels - 1;
+  // From the last span: the bottom rows are the nearest ground, where level 0 usually is.
+  for (auto it = sb.spans.rbegin(); it != sb.spans.rend() && finest > 0; ++it) {
+    const int d = it->level < num_levels - 1 ? it->level : num_levels - 1;
     finest = d < finest ? d : finest;
   }
   return finest;
