@@ -9,6 +9,15 @@
 
 #include "sim/render_util.h"
 
+// An avx2 clone beside the default one, chosen at load by an ifunc resolver. TSan instruments the
+// resolver, which then runs before the TSan runtime is up and crashes the binary at load (GCC 12),
+// so the TSan build (VTSIM_NO_TARGET_CLONES, cmake/sanitizers.cmake) keeps the default code only.
+#if defined(VTSIM_NO_TARGET_CLONES)
+#define VTSIM_CLONES_AVX2
+#else
+#define VTSIM_CLONES_AVX2 __attribute__((target_clones("avx2", "default")))
+#endif
+
 namespace vtsim {
 
 namespace {
@@ -121,7 +130,7 @@ template <bool kAniso>
     store4(b.q + j, o.q);
   }
 }
-__attribute__((target_clones("avx2", "default"))) void fill_batch(Batch& b, const double* a, int n, const RowConsts& k,
+VTSIM_CLONES_AVX2 void fill_batch(Batch& b, const double* a, int n, const RowConsts& k,
                                                                   bool aniso) {
   if (aniso) fill_batch_t<true>(b, a, n, k);
   else fill_batch_t<false>(b, a, n, k);
@@ -461,7 +470,7 @@ template <bool kAniso, bool kFlat>
   }
   fold();
 }
-__attribute__((target_clones("avx2", "default"))) void span_row(const PlaneFrame& fr, const RowConsts& rc,
+VTSIM_CLONES_AVX2 void span_row(const PlaneFrame& fr, const RowConsts& rc,
                                                                 const double* col, int by, SpanOut& o) {
   const bool flat = rc.Lz == 0.0 && rc.rz != 0.0;
   if (fr.aniso) {
@@ -561,7 +570,7 @@ template <bool kAniso>
   }
   out.push_back(LevelRun{bw, level});
 }
-__attribute__((target_clones("avx2", "default"))) void level_runs(const RowConsts& rc, const RowFlat& rf, const double* col,
+VTSIM_CLONES_AVX2 void level_runs(const RowConsts& rc, const RowFlat& rf, const double* col,
                                                                   int bw, const LevelCuts& cuts, int levels, bool aniso,
                                                                   std::vector<LevelRun>& out) {
   if (aniso) level_runs_t<true>(rc, rf, col, bw, cuts, levels, out);
