@@ -227,7 +227,7 @@ TEST_CASE("a store truncated under a running executor: the lost records fail as 
   CHECK(ex_msgs[0].find("tile (") != std::string::npos);
 }
 
-TEST_CASE("a record corrupted on disk fails its checksum; one that passes its checksum but does not decode is a decode error") {
+TEST_CASE("a record corrupted on disk fails its checksum, and one that passes its checksum but does not decode is a decode error") {
   test::RealScratch dir;
   const std::string p = dir.file("bad.vts");
   auto bytes = test::file_bytes(test::small_store());

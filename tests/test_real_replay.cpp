@@ -39,7 +39,7 @@ Trace still_trace(double seconds) {
 
 }  // namespace
 
-TEST_CASE("bind_store_texture: the texture comes from the store; a disagreeing config is rejected naming the field") {
+TEST_CASE("bind_store_texture: the texture comes from the store, and a disagreeing config is rejected naming the field") {
   const TileStore store = TileStore::open(test::small_store());
   ReplayConfig c = bound_cfg(store);
   CHECK(c.width == 1024);
@@ -81,7 +81,7 @@ TEST_CASE("bind_store_texture: the texture comes from the store; a disagreeing c
   CHECK_NOTHROW(bind_store_texture(ok, store));
 }
 
-TEST_CASE("store sizer: disk bytes are the aligned reads, decoded bytes the tile; nothing outside the store") {
+TEST_CASE("store sizer: disk bytes are the aligned reads, decoded bytes the tile, and nothing outside the store") {
   const TileStore store = TileStore::open(test::small_store());
   const TileSizer sizer = store_sizer(store);
   const TileKey k(1, 2, 2, 1);
@@ -90,7 +90,7 @@ TEST_CASE("store sizer: disk bytes are the aligned reads, decoded bytes the tile
   CHECK(sizer(TileKey(0, 0, 999, 0)).disk_bytes == 0);
 }
 
-TEST_CASE("apply_speed: the trace plays faster in both clocks; a bad factor names --speed") {
+TEST_CASE("apply_speed: the trace plays faster in both clocks, and a bad factor names --speed") {
   ReplayConfig c;
   Trace t = still_trace(1.0);
   const double last = t.poses.back().t_s;
@@ -215,7 +215,7 @@ TEST_CASE("real clock with injected faults: retried or failed, every fault count
   }
 }
 
-TEST_CASE("real clock: the frame loop never waits for IO (every read takes 10 s; the replay does not)") {
+TEST_CASE("real clock: the frame loop never waits for IO (every read takes 10 s, and the replay does not)") {
   const TileStore store = TileStore::open(test::small_store());
   const ReplayConfig cfg = bound_cfg(store, {"io.fault.slow_rate=1", "io.fault.slow_ms=10000"});
   const auto scene = make_scene_from_config(cfg);

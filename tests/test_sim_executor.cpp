@@ -73,7 +73,7 @@ TEST_CASE("sim executor: cancel drops queued jobs for free and reports reads und
   CHECK(ex.in_flight() == 0);
 }
 
-TEST_CASE("sim executor: decode workers queue decodes; per-tile cost and throughput add up") {
+TEST_CASE("sim executor: decode workers queue decodes, and per-tile cost and throughput add up") {
   // Instant disk; one decode worker at 1 MB/s + 100 us per tile: 1000 bytes decode in 1.1 ms.
   SimExecutor ex(DiskModel{0.0, 0.0, 0}, DecodeModel{1.0, 100.0, 1}, 16);
   ex.submit(job(1, 10, 1000));

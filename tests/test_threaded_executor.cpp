@@ -105,7 +105,7 @@ TEST_CASE("threaded executor: the bound on jobs in flight and duplicate ids are 
   CHECK_THROWS_AS(ex.restart_clock(), std::logic_error);  // jobs in flight
 }
 
-TEST_CASE("threaded executor: cancel — queued: dropped for free; being read: read paid, decode skipped") {
+TEST_CASE("threaded executor: cancel — queued: dropped for free, and being read: read paid, decode skipped") {
   const TileStore store = TileStore::open(test::small_store());
   FaultConfig slow;
   slow.slow_rate = 1.0;

@@ -27,21 +27,22 @@ DecodeResult decode_record(const TileStore& store, TileKey key, const std::uint8
                            const std::shared_ptr<TileBufferPool>& buffers) {
   DecodeResult r;
   r.key = key;
-  const std::string where = store.path() + ": " + store::describe(key);
+  // The tile named for error messages only: a successful decode formats no string.
+  const auto where = [&] { return store.path() + ": " + store::describe(key); };
   if (!store.contains(key)) {
     r.fault = Fault::bad_record;
-    r.error = where + ": is outside the store";
+    r.error = where() + ": is outside the store";
     return r;
   }
   const store::IndexEntry& e = store.index()[store.geometry().slot(key)];
   if (size < e.stored_bytes) {
     r.fault = Fault::bad_record;
-    r.error = where + ": record has " + std::to_string(size) + " bytes, the index says " + std::to_string(e.stored_bytes);
+    r.error = where() + ": record has " + std::to_string(size) + " bytes, the index says " + std::to_string(e.stored_bytes);
     return r;
   }
   if (verify && store::checksum64(record, e.stored_bytes) != e.checksum) {
     r.fault = Fault::checksum;
-    r.error = where + ": checksum mismatch: the record is corrupt";
+    r.error = where() + ": checksum mismatch: the record is corrupt";
     return r;
   }
   try {
@@ -65,10 +66,10 @@ DecodeResult decode_record(const TileStore& store, TileKey key, const std::uint8
     r.data = std::move(t);
   } catch (const CodecError& err) {
     r.fault = Fault::decode_error;
-    r.error = where + ": does not decode: " + err.what();
+    r.error = where() + ": does not decode: " + err.what();
   } catch (const std::exception& err) {
     r.fault = Fault::decode_error;
-    r.error = where + ": decode failed: " + err.what();
+    r.error = where() + ": decode failed: " + err.what();
   }
   return r;
 }
