@@ -11,6 +11,9 @@
 #include "stream/threaded_executor.h"
 #include "stream/tile_data.h"
 
+// Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
+TEST_SUITE_BEGIN("threads");
+
 using namespace vtsim;
 using vtsim::test::eventually;
 
@@ -298,3 +301,5 @@ TEST_CASE("corrupt stores given to the real clock are clear errors naming the fi
     CHECK(r.err.find("bad.vts") != std::string::npos);
   }
 }
+
+TEST_SUITE_END();

@@ -8,6 +8,9 @@
 #include "real_test_util.h"
 #include "stream/io_pool.h"
 
+// Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
+TEST_SUITE_BEGIN("threads");
+
 using namespace vtsim;
 using vtsim::test::eventually;
 
@@ -215,3 +218,5 @@ TEST_CASE("io pool: a key outside the store is a bad_record result naming the ti
     CHECK(r.error.find("outside the store") != std::string::npos);
   }
 }
+
+TEST_SUITE_END();

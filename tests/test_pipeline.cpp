@@ -66,7 +66,7 @@ TEST_CASE("pipeline: a tile no longer needed is cancelled before IO when still q
   CHECK(p.counters().disk_reads == 1);  // nothing else cost IO
 }
 
-TEST_CASE("pipeline: cancelling a read under way wastes the read; needing it again revives it") {
+TEST_CASE("pipeline: cancelling a read under way wastes the read, needing it again revives it") {
   SimExecutor ex(DiskModel{10000.0, 0.0, 1}, DecodeModel{}, 64);
   Pipeline p(PipelineConfig{}, ex, fixed_sizer());
   frame(p, 0, 0, {need(1)});
@@ -112,7 +112,7 @@ TEST_CASE("pipeline: the RAM cache never exceeds its capacity, and a miss soon a
   CHECK(p.counters().ram_thrash == 1);
 }
 
-TEST_CASE("pipeline: the upload budget is never exceeded; coarse levels upload first") {
+TEST_CASE("pipeline: the upload budget is never exceeded, coarse levels upload first") {
   SimExecutor ex(DiskModel{0.0, 0.0, 0}, DecodeModel{}, 1024);
   Pipeline p(PipelineConfig{}, ex, fixed_sizer());
   std::mt19937 rng(42);
@@ -141,7 +141,7 @@ TEST_CASE("pipeline: the upload budget is never exceeded; coarse levels upload f
   }
 }
 
-TEST_CASE("pipeline: faulted reads retry, then fail and are not requested again; the frame loop never blocks") {
+TEST_CASE("pipeline: faulted reads retry, then fail and are not requested again, the frame loop never blocks") {
   SimExecutor ex(DiskModel{0.0, 0.0, 0}, DecodeModel{}, 64, SimFaultModel{1.0, 3});  // every read fails
   PipelineConfig pc;
   pc.max_retries = 2;
@@ -155,7 +155,7 @@ TEST_CASE("pipeline: faulted reads retry, then fail and are not requested again;
   CHECK(p.live_requests() == 0);
 }
 
-TEST_CASE("pipeline: prefetch fills RAM without uploading; a later need is a prefetch hit") {
+TEST_CASE("pipeline: prefetch fills RAM without uploading, a later need is a prefetch hit") {
   SimExecutor ex(DiskModel{0.0, 0.0, 0}, DecodeModel{}, 64);
   Pipeline p(PipelineConfig{}, ex, fixed_sizer());
   CHECK(frame(p, 0, 0, {need(1, 0, true)}).empty());

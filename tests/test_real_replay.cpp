@@ -12,6 +12,9 @@
 #include "sim/trace_gen.h"
 #include "stream/calibrate.h"
 
+// Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
+TEST_SUITE_BEGIN("threads");
+
 using namespace vtsim;
 
 namespace {
@@ -317,3 +320,5 @@ TEST_CASE("fit_disk_model recovers the latency and bandwidth of a device that fo
   CHECK(m2.latency_us == doctest::Approx(120.0).epsilon(0.01));
   CHECK_THROWS_AS(fit_disk_model({}, 4, 4096), std::invalid_argument);
 }
+
+TEST_SUITE_END();

@@ -11,6 +11,9 @@
 #include "stream/store_builder.h"
 #include "stream/tile_store.h"
 
+// Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
+TEST_SUITE_BEGIN("threads");
+
 using namespace vtsim;
 using store::CodecId;
 using store::Transfer;
@@ -186,7 +189,7 @@ TEST_CASE("bilinear sampling inside one tile, border included, matches the full 
   CHECK(samples > 100);
 }
 
-TEST_CASE("an interrupted build leaves no output and no temporary file; an existing store survives") {
+TEST_CASE("an interrupted build leaves no output and no temporary file, an existing store survives") {
   test::TempDir dir;
   write_image8(dir.file("in.png"), test::make_image(300, 300, 3));
   BuildOptions o;
@@ -298,3 +301,5 @@ TEST_CASE("vtsim store build / info --json / verify work end to end, bad options
   CHECK(cli("store info " + dir.file("a.png")).first == 2);  // not a store: bad magic
   CHECK_FALSE(std::filesystem::exists(dir.file("x.vts")));
 }
+
+TEST_SUITE_END();

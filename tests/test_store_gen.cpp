@@ -14,6 +14,9 @@
 #include "stream/store_generator.h"
 #include "stream/tile_store.h"
 
+// Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
+TEST_SUITE_BEGIN("threads");
+
 using namespace vtsim;
 using store::CodecId;
 
@@ -175,3 +178,5 @@ TEST_CASE("a generation interrupted by SIGINT exits 130 and leaves no output and
   CHECK_FALSE(std::filesystem::exists(out));
   CHECK(std::filesystem::is_empty(dir.path));
 }
+
+TEST_SUITE_END();

@@ -117,7 +117,7 @@ TEST_CASE("every record offset and read size is 4 KiB-aligned, records do not ov
   }
 }
 
-TEST_CASE("a flipped byte in a record is a checksum error naming the tile; verify reports it") {
+TEST_CASE("a flipped byte in a record is a checksum error naming the tile, verify reports it") {
   test::TempDir dir;
   const std::string path = make_store(dir);
   const TileKey k(0, 1, 2, 1);

@@ -12,6 +12,9 @@
 #include "stream/threaded_executor.h"
 #include "stream/tile_data.h"
 
+// Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
+TEST_SUITE_BEGIN("threads");
+
 using namespace vtsim;
 using vtsim::test::eventually;
 
@@ -211,3 +214,5 @@ TEST_CASE("threaded executor: destroyed with reads and decodes under way, no thr
   CHECK(count("/proc/self/task") == threads0);
   CHECK(count("/proc/self/fd") == fds0);
 }
+
+TEST_SUITE_END();

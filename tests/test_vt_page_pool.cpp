@@ -111,7 +111,7 @@ TEST_CASE("page pool: releasing a reservation returns its victim in LRU order") 
   CHECK(pool.resident_pages() == 3);
 }
 
-TEST_CASE("page pool: layers fill a slot; a released partial page leaves through the hook") {
+TEST_CASE("page pool: layers fill a slot, a released partial page leaves through the hook") {
   std::vector<PagePool::Removed> removed;
   PagePool pool(2, 3, 99, [&](const PagePool::Removed& r) { removed.push_back(r); });
   const std::uint32_t s = pool.reserve(pg(0, 0), 1);
