@@ -7,8 +7,10 @@ set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 cd "$here"
 
+# openimageio-tools: Debian's OpenImageIOTargets.cmake references /usr/bin/iconvert etc., and
+# --no-install-recommends would leave them out, failing find_package(OpenImageIO).
 PKGS=(build-essential cmake pkg-config git
-      libopenimageio-dev libglm-dev doctest-dev libcli11-dev nlohmann-json3-dev
+      libopenimageio-dev openimageio-tools libglm-dev doctest-dev libcli11-dev nlohmann-json3-dev
       libtomlplusplus-dev libfmt-dev libzstd-dev liblz4-dev libxxhash-dev fio python3 ninja-build)
 
 missing=()
