@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# The test command: installs what is missing, builds, and runs the whole suite three times —
-# Release (-Werror), ASan+UBSan, and TSan (the threaded tests) — with ctest. Idempotent; exits non-zero on any failure.
+# The test command: installs what is missing, builds, and runs the suite in three builds —
+# Release (-Werror) and ASan+UBSan run all of ctest; TSan runs the doctest suite "threads" (the
+# threaded code). Idempotent; exits non-zero on any failure.
 # VTSIM_TEST_VARIANTS="release asan tsan" selects variants (all three by default).
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
