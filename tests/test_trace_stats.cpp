@@ -109,9 +109,16 @@ TEST_CASE("trace info figures of the three full real recordings match the Python
       {"tum_fr2_desk_groundtruth.txt", 20956, 99.3645, 20.338724912715975, 1.152105437350935},
       {"euroc_V1_02_groundtruth.csv", 16702, 83.504999936, 75.89131656927523, 2.1944649801121994},
   };
+  // The recordings live beside the checkout (../shared, as in CI), not in the repository: a clone
+  // without them skips this case loudly instead of failing the README's test command.
+  const std::string dir = std::string(VTSIM_SHARED_DIR) + "/traces-real";
+  if (!std::ifstream(dir + "/" + refs[0].file).good()) {
+    MESSAGE("skipped: " << dir << " is absent (full real recordings; CI has them)");
+    return;
+  }
   for (const Ref& r : refs) {
     CAPTURE(r.file);
-    const std::string path = std::string(VTSIM_SHARED_DIR) + "/traces-real/" + r.file;
+    const std::string path = dir + "/" + r.file;
     REQUIRE(std::ifstream(path).good());
     TraceLoadReport rep;
     const Trace t = import_trace(path, {}, &rep);
