@@ -6,6 +6,7 @@
 #include <mutex>
 
 #include "real_test_util.h"
+#include "stream/decode_pool.h"
 #include "stream/io_pool.h"
 
 // Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
@@ -96,6 +97,30 @@ TEST_CASE("O_DIRECT fallback: a filesystem that refuses O_DIRECT gives buffered 
   CHECK(std::string(reinterpret_cast<const char*>(b.data()), 5) == "Linux");
   // Not asked for: no warning.
   CHECK(open_for_read("/proc/version", false).warning.empty());
+}
+
+TEST_CASE("io pool: verify checks the checksum on the IO worker, verify = false hands the bytes on for the decode stage") {
+  const TileStore store = TileStore::open(test::small_store());
+  FaultConfig fc;
+  fc.checksum_rate = 1.0;  // every payload gets a flipped byte after the read
+  for (const bool verify : {true, false}) {
+    CAPTURE(verify);
+    WallClock clock;
+    Sink sink;
+    FaultLayer faults(fc);
+    IoPool pool(store, IoPoolConfig{1, true, verify}, clock, std::ref(sink), &faults);
+    const TileKey k(0, 0, 1, 1);
+    REQUIRE(pool.submit(ReadRequest{1, k, 0}));
+    REQUIRE(eventually([&] { return sink.size() == 1; }));
+    const ReadResult& r = sink.results[0];
+    CHECK(r.fault == (verify ? Fault::checksum : Fault::none));
+    CHECK(r.bytes_read == store.locate(k).read_bytes);
+    if (!verify) {  // the decode stage's check still catches it
+      const DecodeResult d = decode_record(store, k, r.record.data(), r.bytes_read, /*verify=*/true);
+      CHECK(d.fault == Fault::checksum);
+      CHECK_FALSE(d.data);
+    }
+  }
 }
 
 TEST_CASE("io pool: queued requests are served by priority, then submission order") {

@@ -214,7 +214,7 @@ Calibration calibrate(const TileStore& store, const CalibrateOptions& o, const C
         throw InputError(store.path() + ": " + store::describe(k), "short read while sampling tiles");
       by_layer[L].push_back(std::move(s));
     }
-  // One worker, per layer (= per codec): the decode pool's work on this thread.
+  // One worker, per layer (= per codec): the decode pool's work (checksum, then decode) on this thread.
   auto tile_buffers = std::make_shared<TileBufferPool>();
   std::vector<double> layer_us, layer_decoded;
   for (std::uint32_t L = 0; L < store.layer_count(); ++L) {
@@ -225,7 +225,7 @@ Calibration calibrate(const TileStore& store, const CalibrateOptions& o, const C
     double stored = 0, decoded = 0;
     while (Clock::now() < deadline || n < by_layer[L].size())
       for (const Sample& s : by_layer[L]) {
-        const DecodeResult r = decode_record(store, s.key, s.record.data(), s.record.size(), false, tile_buffers);
+        const DecodeResult r = decode_record(store, s.key, s.record.data(), s.record.size(), /*verify=*/true, tile_buffers);
         if (r.fault != Fault::none) throw InputError(r.error, "calibration decode failed");
         stored += s.stored;
         decoded += s.decoded;
@@ -268,14 +268,16 @@ Calibration calibrate(const TileStore& store, const CalibrateOptions& o, const C
         done.fetch_add(1, std::memory_order_release);
       });
       const auto deadline = t0 + std::chrono::duration<double>(o.seconds_per_point);
-      // Keep 4 tasks per worker queued, as the executor's bound keeps the pool fed.
+      // Keep 32 tasks per worker queued: this thread refills after sleeping >= 50 us, and with only a
+      // few tasks (~25 us each) per worker the workers ran dry between refills, which measured the
+      // refill loop rather than the pool (2 workers "reached 1.05x one worker" on 2 idle cores).
       std::size_t i = 0;
       std::vector<const Sample*> order;
       for (std::size_t j = 0; j < by_layer[0].size(); ++j)
         for (const auto& v : by_layer)
           if (j < v.size()) order.push_back(&v[j]);
       while (Clock::now() < deadline) {
-        while (submitted - done.load(std::memory_order_acquire) < static_cast<std::uint64_t>(4 * w)) {
+        while (submitted - done.load(std::memory_order_acquire) < static_cast<std::uint64_t>(32 * w)) {
           const Sample& s = *order[i++ % order.size()];
           RecordBuffer b = buffers->acquire();
           std::copy(s.record.begin(), s.record.end(), b.data());

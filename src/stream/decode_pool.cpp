@@ -74,8 +74,8 @@ DecodeResult decode_record(const TileStore& store, TileKey key, const std::uint8
   return r;
 }
 
-DecodePool::DecodePool(const TileStore& store, int workers, const WallClock& clock, Sink sink)
-    : store_(store), clock_(clock), sink_(std::move(sink)) {
+DecodePool::DecodePool(const TileStore& store, int workers, const WallClock& clock, Sink sink, bool verify)
+    : store_(store), clock_(clock), sink_(std::move(sink)), verify_(verify) {
   if (workers < 1 || workers > 1024) throw InputError("decode.workers", "must be in 1..1024, got " + std::to_string(workers));
   workers_.reserve(static_cast<std::size_t>(workers));
   for (int i = 0; i < workers; ++i) workers_.emplace_back([this] { worker(); });
@@ -112,7 +112,7 @@ void DecodePool::worker() {
     active_.fetch_add(1, std::memory_order_relaxed);
     DecodeTask& t = item->task;
     const Ticks start = clock_.now();
-    DecodeResult r = decode_record(store_, t.key, t.record.data(), t.size, /*verify=*/false, tiles_);
+    DecodeResult r = decode_record(store_, t.key, t.record.data(), t.size, verify_, tiles_);
     r.id = t.id;
     r.decode_start = start;
     r.decode_end = clock_.now();

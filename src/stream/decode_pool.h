@@ -1,7 +1,7 @@
 #pragma once
 // The decode stage (seed 000 §4-3: decompression off the main thread): std::thread workers, separate
-// from the IO pool's, decode each record (its checksum already verified by the IO pool) with the
-// tile's codec into a TileData, in priority order (lower first, then submission order). Decoded
+// from the IO pool's, check each record's XXH64 checksum (unless the IO pool already did: `verify`)
+// and decode it with the tile's codec into a TileData, in priority order (lower first, then submission order). Decoded
 // tiles' buffers are recycled (TileBufferPool), so a warm pool neither allocates nor page-faults
 // per tile. docs/real-engine.md.
 //
@@ -73,7 +73,9 @@ class DecodePool {
   enum class State : std::uint8_t { running, stopping, stopped };
   using Sink = std::function<void(DecodeResult&&)>;
 
-  DecodePool(const TileStore& store, int workers, const WallClock& clock, Sink sink);
+  // verify: check each record's checksum before decoding (a mismatch is Fault::checksum); the
+  // threaded executor's IO pool leaves it to this stage.
+  DecodePool(const TileStore& store, int workers, const WallClock& clock, Sink sink, bool verify = true);
   ~DecodePool();
   DecodePool(const DecodePool&) = delete;
   DecodePool& operator=(const DecodePool&) = delete;
@@ -96,6 +98,7 @@ class DecodePool {
   const TileStore& store_;
   const WallClock& clock_;
   Sink sink_;
+  const bool verify_;
   std::shared_ptr<TileBufferPool> tiles_ = std::make_shared<TileBufferPool>();
   WorkQueue<DecodeTask> queue_;
   std::atomic<int> active_{0};

@@ -53,7 +53,7 @@ std::size_t largest_read(const TileStore& store) {
 }  // namespace
 
 IoPool::IoPool(const TileStore& store, const IoPoolConfig& cfg, const WallClock& clock, Sink sink, FaultLayer* faults)
-    : store_(store), clock_(clock), sink_(std::move(sink)), faults_(faults) {
+    : store_(store), clock_(clock), sink_(std::move(sink)), faults_(faults), verify_(cfg.verify) {
   if (cfg.threads < 1 || cfg.threads > 1024) throw InputError("io.threads", "must be in 1..1024, got " + std::to_string(cfg.threads));
   DirectOpen o = open_for_read(store.path(), cfg.direct);
   file_ = std::move(o.file);
@@ -89,7 +89,7 @@ std::vector<ReadRequest> IoPool::stop() {
 }
 
 ReadResult IoPool::read_record(const TileStore& store, const ReadFile& file, BufferPool& buffers, TileKey key,
-                               const FaultPlan& plan, const WallClock& clock) {
+                               const FaultPlan& plan, const WallClock& clock, bool verify) {
   ReadResult r;
   r.key = key;
   r.read_start = clock.now();
@@ -143,9 +143,7 @@ ReadResult IoPool::read_record(const TileStore& store, const ReadFile& file, Buf
     return r;
   }
   if (plan.fault == Fault::checksum) r.record.data()[loc.stored_bytes / 2] ^= 0x5A;  // caught just below
-  // Integrity is checked where the bytes arrive: the IO workers mostly wait on the device, so the
-  // checksum costs them little wall time, and the decode workers only decode.
-  if (store::checksum64(r.record.data(), loc.stored_bytes) != loc.checksum) {
+  if (verify && store::checksum64(r.record.data(), loc.stored_bytes) != loc.checksum) {
     r.fault = Fault::checksum;
     r.error = store.path() + ": " + store::describe(key) + ": checksum mismatch: the record is corrupt" +
               (plan.fault == Fault::checksum ? " (injected)" : "");
@@ -162,7 +160,7 @@ void IoPool::worker() {
     // A slow request: the device takes `delay` longer (part of the read's time); shutdown does
     // not wait for it.
     if (plan.delay > 0) queue_.sleep_unless_closed(std::chrono::nanoseconds(plan.delay));
-    ReadResult r = read_record(store_, file_, *buffers_, q.key, plan, clock_);
+    ReadResult r = read_record(store_, file_, *buffers_, q.key, plan, clock_, verify_);
     r.read_start = start;
     r.id = q.id;
     r.priority = q.priority;

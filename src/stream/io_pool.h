@@ -10,9 +10,12 @@
 //
 // Requests wait in a priority queue (lower value first, then submission order); cancel() removes
 // a queued request; `threads` workers each have one read in flight, so reads in flight <= threads.
-// Each record's XXH64 checksum is verified on the IO worker as soon as it arrives (the worker is
-// otherwise waiting on the device; the decode workers then only decode). A read's faults come from
-// an optional FaultLayer (EIO, short read, corrupted payload, slow).
+// With IoPoolConfig::verify each record's XXH64 checksum is checked on the IO worker as it arrives;
+// the threaded executor turns that off and has the decode worker check it instead (where the
+// simulated clock finds a corrupt record too): on a 2-core machine with a 1.2 GB/s device the
+// checksum on the IO workers cost 10-15 % of the read bandwidth (docs/real-engine.md §8), since
+// the kernel's side of every O_DIRECT read needs the same cores. A read's faults come from an
+// optional FaultLayer (EIO, short read, corrupted payload, slow).
 // Each accepted request yields exactly one ReadResult through the sink, on a worker thread,
 // unless cancel() removed it or stop() dropped it (stop returns those).
 //
@@ -80,6 +83,7 @@ bool direct_io_aligned(const void* buf, std::uint64_t offset, std::size_t bytes)
 struct IoPoolConfig {
   int threads = 4;     // workers, = reads in flight at once (config io.threads)
   bool direct = true;  // O_DIRECT reads (config io.direct); false = through the page cache
+  bool verify = true;  // check each record's checksum on the IO worker; false when the decode stage does
 };
 
 struct ReadRequest {
@@ -128,9 +132,10 @@ class IoPool {
   std::size_t max_read_bytes() const { return buffers_->buffer_bytes(); }
 
   // One read as a worker performs it (also used by benchmarks and calibration): the record of
-  // `key` into a buffer from `buffers`, with `plan`'s faults, checksum verified. Never throws.
+  // `key` into a buffer from `buffers`, with `plan`'s faults, checksum verified if `verify`.
+  // Never throws.
   static ReadResult read_record(const TileStore& store, const ReadFile& file, BufferPool& buffers, TileKey key,
-                                const FaultPlan& plan, const WallClock& clock);
+                                const FaultPlan& plan, const WallClock& clock, bool verify = true);
 
  private:
   void worker();
@@ -139,6 +144,7 @@ class IoPool {
   const WallClock& clock_;
   Sink sink_;
   FaultLayer* faults_;
+  const bool verify_;
   ReadFile file_;
   std::string warning_;
   std::shared_ptr<BufferPool> buffers_;
