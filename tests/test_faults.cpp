@@ -278,7 +278,7 @@ TEST_CASE("corrupt stores given to the real clock are clear errors naming the fi
   const std::vector<Case> cases = {
       {"bad magic", [](auto& b) { b[0] = 'X'; }, "field 'magic'"},
       {"wrong version", [](auto& b) { store::store_u32(&b[store::hdr::version_major], 2); }, "field 'version_major'"},
-      {"truncated", [](auto& b) { b.resize(b.size() - 8192); }, "truncated"},
+      {"truncated", [](auto& b) { b.erase(b.end() - 8192, b.end()); }, "truncated"},
       {"offset past the end",
        [&](auto& b) {
          const TileStore s = TileStore::open(test::small_store());
