@@ -1,9 +1,9 @@
 #pragma once
 // The decode stage (seed 000 §4-3: decompression off the main thread): std::thread workers, separate
 // from the IO pool's, check each record's XXH64 checksum (unless the IO pool already did: `verify`)
-// and decode it with the tile's codec into a TileData, in priority order (lower first, then submission order). Decoded
-// tiles' buffers are recycled (TileBufferPool), so a warm pool neither allocates nor page-faults
-// per tile. docs/real-engine.md.
+// and decode it with the tile's codec into a TileData, in priority order (lower first, then
+// submission order). Decoded tiles' buffers are recycled (TileBufferPool), so a warm pool neither
+// allocates nor page-faults per tile. docs/real-engine.md.
 //
 // Each accepted task yields exactly one DecodeResult through the sink, on a worker thread, unless
 // cancel() removed it (still queued) or stop() dropped it (returned). The record buffer goes back
