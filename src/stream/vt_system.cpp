@@ -98,17 +98,40 @@ void VtSystem::build_wanted() {
       }
     };
     const std::int64_t W = geo_.extent().width, H = geo_.extent().height;
-    for (const ViewSample& s : view_->samples) {
+    const auto add_sample = [&](const ViewSample& s) {
       const int l = desired_level(s.lod + bias, n);
       const std::int64_t u = std::clamp<std::int64_t>(s.u, 0, W - 1), v = std::clamp<std::int64_t>(s.v, 0, H - 1);
       const std::uint64_t key = page_key(l, geo_.page_of(u >> l), geo_.page_of(v >> l)).bits;
       if (key == run_key) {
         ++run;
-        continue;
+        return;
       }
       flush();
       run_key = key;
       run = 1;
+    };
+    // Spans (one page of one level each when cut at pages) stand for their samples when the bias
+    // is zero: desired_level(lod + 0, n) = min(span.level, n − 1). Same runs, same order.
+    if (bias == 0.0f && spans_ && spans_->has_samples && &spans_->view == view_ && spans_->levels >= n) {
+      for (const ViewSpan& sp : spans_->spans) {
+        const int l = std::min(sp.level, n - 1);
+        const std::int64_t u0 = std::clamp<std::int64_t>(sp.u_lo, 0, W - 1), u1 = std::clamp<std::int64_t>(sp.u_hi, 0, W - 1);
+        const std::int64_t v0 = std::clamp<std::int64_t>(sp.v_lo, 0, H - 1), v1 = std::clamp<std::int64_t>(sp.v_hi, 0, H - 1);
+        const std::int64_t px = geo_.page_of(u0 >> l), py = geo_.page_of(v0 >> l);
+        if (px != geo_.page_of(u1 >> l) || py != geo_.page_of(v1 >> l)) {
+          for (std::uint32_t k = 0; k < sp.count; ++k) add_sample(view_->samples[sp.first + k]);
+          continue;
+        }
+        const std::uint64_t key = page_key(l, px, py).bits;
+        if (key != run_key) {
+          flush();
+          run_key = key;
+          run = 0;
+        }
+        run += sp.count;
+      }
+    } else {
+      for (const ViewSample& s : view_->samples) add_sample(s);
     }
     flush();
   }
@@ -151,6 +174,7 @@ void VtSystem::begin_frame(const SystemFrame& f) {
   max_baked_frame_ = std::max(max_baked_frame_, baked_prev);
   frame_ = f.frame;
   view_ = f.view;
+  spans_ = f.spans;
   frame_start_mapped_ = pages_mapped_;
   frame_start_evictions_ = pool_.stats().evictions;
   frame_start_baked_ = pt_.counters().texels_written_baked;
@@ -374,6 +398,21 @@ void VtSystem::resident_levels(const ViewSample* s, std::size_t count, std::int8
   for (std::size_t i = 0; i < count; ++i) {
     const int from = std::max(desired_level(s[i].lod + sb, n), std::min(clamp_, n - 1));
     out[i] = static_cast<std::int8_t>(resolve_from(from, s[i].u, s[i].v));
+  }
+}
+
+void VtSystem::span_resident_levels(const ViewSpan* s, std::size_t count, std::int8_t* out) const {
+  const int n = geo_.levels();
+  const std::int64_t W = geo_.extent().width, H = geo_.extent().height;
+  for (std::size_t i = 0; i < count; ++i) {
+    out[i] = -1;
+    if (sample_bias_ != 0.0) continue;  // floor(lod + bias) may differ within the span
+    const int from = std::max(std::min(s[i].level, n - 1), std::min(clamp_, n - 1));
+    const std::int64_t u0 = std::clamp<std::int64_t>(s[i].u_lo, 0, W - 1), u1 = std::clamp<std::int64_t>(s[i].u_hi, 0, W - 1);
+    const std::int64_t v0 = std::clamp<std::int64_t>(s[i].v_lo, 0, H - 1), v1 = std::clamp<std::int64_t>(s[i].v_hi, 0, H - 1);
+    if (geo_.page_of(u0 >> from) != geo_.page_of(u1 >> from) || geo_.page_of(v0 >> from) != geo_.page_of(v1 >> from))
+      continue;
+    out[i] = static_cast<std::int8_t>(resolve_from(from, u0, v0));  // marks the page sampled, as each sample would
   }
 }
 

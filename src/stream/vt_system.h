@@ -60,6 +60,9 @@ class VtSystem final : public IStreamingSystem {
   int num_levels() const override { return geo_.levels(); }
   int resident_level(std::int64_t u, std::int64_t v, int desired_level) const override;
   void resident_levels(const ViewSample* s, std::size_t n, std::int8_t* out) const override;
+  // A span resolves at once when no sampling bias is set and its texel box lies in one page of
+  // the level it samples (always, when spans are cut at pages: block = page size).
+  void span_resident_levels(const ViewSpan* s, std::size_t n, std::int8_t* out) const override;
   void begin_frame(const SystemFrame& f) override;
   void missing_bytes_by_level(std::vector<std::uint64_t>& out) const override;
   int coarsest_clamp() const override;
@@ -117,6 +120,7 @@ class VtSystem final : public IStreamingSystem {
   // Frame state.
   int frame_ = 0;
   const ViewBuffer* view_ = nullptr;
+  const SpanBuffer* spans_ = nullptr;  // the same feedback in runs (null: per sample only)
   int clamp_ = 0;
   double bias_ = 0.0;          // feedback bias in force (requests)
   double built_bias_ = -1.0;   // bias the wanted set was built with
