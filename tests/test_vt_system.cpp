@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <set>
 
+#include "sim/view_spans.h"
 #include "stream/vt_system.h"
 
 using namespace vtsim;
@@ -252,4 +253,80 @@ TEST_CASE("vt system: prefetch asks for the finer children of desired pages, int
     }
   CHECK(prefetch == 4 + 16);
   CHECK(vt.frame_counts().prefetch_pages == 20);
+}
+
+TEST_CASE("vt system: spans give the same wanted pages, requests and resident levels as their samples") {
+  // Rows of samples whose texel and lod drift along the row, as a rendered surface's do, so that
+  // spans run over several samples and break at pages, levels and rows.
+  std::uint64_t seed = 12345;
+  const auto rnd = [&](std::uint64_t n) {
+    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+    return (seed >> 33) % n;
+  };
+  SpanBuffer sb;
+  sb.block_shift = 7;  // spans cut at 128-texel pages, as the frame loop does for 128-texel pages
+  sb.levels = 13;      // mip levels of a 4096² texture
+  const int width = 40;
+  for (int y = 0; y < 30; ++y) {
+    double u = static_cast<double>(rnd(4096)), v = static_cast<double>(rnd(4096)), lod = static_cast<double>(rnd(500)) / 100.0;
+    const double du = static_cast<double>(rnd(200)) - 100.0, dl = (static_cast<double>(rnd(100)) - 50.0) / 400.0;
+    for (int x = 0; x < width; ++x) {
+      if (rnd(10) == 0) continue;  // a pixel without a sample
+      u = std::clamp(u + du, 0.0, 4095.0);
+      lod = std::clamp(lod + dl, -1.0, 7.0);
+      sb.view.samples.push_back(sample(static_cast<std::int64_t>(u), static_cast<std::int64_t>(v),
+                                       static_cast<float>(lod), static_cast<std::uint32_t>(y * width + x)));
+    }
+  }
+  sb.view.width = width;
+  sb.has_samples = true;
+  spans_from_samples(sb.view, sb.levels, sb.block_shift, sb.spans);
+  REQUIRE(sb.spans.size() < sb.view.samples.size() / 2);  // runs of several samples
+  for (const ThrottleDecision& d : {ThrottleDecision{}, ThrottleDecision{2, 0.0, 0.0, ""}, ThrottleDecision{0, 1.5, 0.0, ""},
+                                    ThrottleDecision{0, 0.0, 1.0, ""}}) {
+    CAPTURE(d.clamp);
+    CAPTURE(d.bias);
+    CAPTURE(d.sample_bias);
+    VtSystem with_spans(small_params(256)), per_sample(small_params(256));
+    SystemFrame a, b;
+    a.view = &sb.view;
+    a.spans = &sb;
+    b.view = &sb.view;
+    std::vector<Need> na, nb;
+    for (int f = 0; f < 3; ++f) {
+      a.frame = b.frame = f;
+      with_spans.begin_frame(a);
+      per_sample.begin_frame(b);
+      with_spans.apply_throttle(d);
+      per_sample.apply_throttle(d);
+      na.clear();
+      nb.clear();
+      with_spans.emit_needs(na);
+      per_sample.emit_needs(nb);
+      REQUIRE(with_spans.wanted().size() == per_sample.wanted().size());
+      for (std::size_t i = 0; i < with_spans.wanted().size(); ++i) {
+        CHECK(with_spans.wanted()[i].page == per_sample.wanted()[i].page);
+        CHECK(with_spans.wanted()[i].samples == per_sample.wanted()[i].samples);
+        CHECK(with_spans.wanted()[i].desired == per_sample.wanted()[i].desired);
+      }
+      REQUIRE(na.size() == nb.size());
+      for (std::size_t i = 0; i < na.size(); ++i) CHECK(na[i].key == nb[i].key);
+      // Commit every other need: the page table falls back unevenly.
+      for (std::size_t i = 0; i < na.size(); i += 2) {
+        with_spans.commit(na[i].key, f);
+        per_sample.commit(na[i].key, f);
+      }
+      std::vector<std::int8_t> span_lv(sb.spans.size()), sample_lv(sb.view.samples.size());
+      with_spans.span_resident_levels(sb.spans.data(), sb.spans.size(), span_lv.data());
+      per_sample.resident_levels(sb.view.samples.data(), sb.view.samples.size(), sample_lv.data());
+      std::size_t resolved = 0;
+      for (std::size_t i = 0; i < sb.spans.size(); ++i) {
+        if (span_lv[i] == -1) continue;
+        ++resolved;
+        for (std::uint32_t k = 0; k < sb.spans[i].count; ++k) CHECK(span_lv[i] == sample_lv[sb.spans[i].first + k]);
+      }
+      // Without a sampling bias every span resolves at once; with one, none does.
+      CHECK(resolved == (d.sample_bias == 0.0 ? sb.spans.size() : 0));
+    }
+  }
 }

@@ -171,6 +171,12 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
   auto last_progress = wall0;
   m.set_system_columns(system->frame_counter_names());
 
+  bool rendered = false;
+  Pose last_rendered;
+  const auto same_view = [](const Pose& a, const Pose& b) {
+    return a.pos_m == b.pos_m && a.q.w == b.q.w && a.q.x == b.q.x && a.q.y == b.q.y && a.q.z == b.q.z &&
+           a.vfov_deg == b.vfov_deg;
+  };
   for (int f = 0; f < frames; ++f) {
     const Pose& pose = trace.poses[static_cast<std::size_t>(f)];
     const Ticks target = seconds_to_ticks(pose.t_s - t0);
@@ -178,13 +184,16 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
     const PipelineCounters c0 = pipe.counters();
     pipe.begin_frame(f, now);
 
-    // The view: feedback every k frames (the last one stands in between).
+    // The view: feedback every k frames (the last one stands in between). A pose equal to the
+    // last rendered one (position, orientation, field of view) renders the same buffers: reused.
     const bool render = f % cfg.feedback_every == 0;
-    if (render) {
+    if (render && !(rendered && same_view(pose, last_rendered))) {
       const Camera cam = make_camera(pose, trace.image_width, trace.image_height);
       scene.render_spans(cam, vp, fb);
       if (separate_popin) scene.render_spans(cam, pp, pb);
       finest_needed = finest_level(fb, num_levels);
+      rendered = true;
+      last_rendered = pose;
     }
     // Motion: cuts, fast turns, velocity (for look-ahead).
     FrameRow row;

@@ -205,6 +205,16 @@ void raster_poly(const PV* v, int n, std::uint32_t tag, bool depth, int div, int
     const double ia0 = e0.A != 0.0 ? -1.0 / e0.A : 0.0, ia1 = e1.A != 0.0 ? -1.0 / e1.A : 0.0,
                  ia2 = e2.A != 0.0 ? -1.0 / e2.A : 0.0;
     const double bx0 = std::min({a.X, b.X, c.X}), bx1 = std::max({a.X, b.X, c.X});
+    // Sample inside: E > 0 for all three edges, or E == 0 on an edge this triangle owns (NaN: out).
+    const auto inside = [&](double f0, double f1, double f2) {
+      return (f0 > 0.0 || (f0 == 0.0 && e0.own)) && (f1 > 0.0 || (f1 == 0.0 && e1.own)) &&
+             (f2 > 0.0 || (f2 == 0.0 && e2.own));
+    };
+    // Locals, not members: the scratch is thread_local and byte stores could alias its members.
+    const double* const sxp = s.sx.data();
+    double* const invz = s.invz.data();
+    std::uint32_t* const ids = s.id.data();
+    std::uint8_t* const near_cut = s.near_cut.data();
     for (int y = y0; y <= y1; ++y) {
       const double sy = s.sy[static_cast<std::size_t>(y)];
       const double r0 = e0.B * sy + e0.C, r1 = e1.B * sy + e1.C, r2 = e2.B * sy + e2.C, rz = Q * sy + R;
@@ -226,26 +236,33 @@ void raster_poly(const PV* v, int n, std::uint32_t tag, bool depth, int div, int
       xa = std::max(xa, x0);
       xb = std::min(xb, x1);
       const std::size_t rowi = static_cast<std::size_t>(y) * static_cast<std::size_t>(bw);
-      std::uint8_t* stale = s.tile_stale.data() + static_cast<std::size_t>(y >> kTileShift) * static_cast<std::size_t>(s.tw);
-      for (int x = xa; x <= xb; ++x) {
-        const double sx = s.sx[static_cast<std::size_t>(x)];
-        const double f0 = e0.A * sx + r0, f1 = e1.A * sx + r1, f2 = e2.A * sx + r2;
-        if (!(f0 > 0.0 || (f0 == 0.0 && e0.own)) || !(f1 > 0.0 || (f1 == 0.0 && e1.own)) ||
-            !(f2 > 0.0 || (f2 == 0.0 && e2.own)))
-          continue;
-        const std::size_t idx = rowi + static_cast<std::size_t>(x);
-        if (!depth) {
-          s.near_cut[idx] = 1;
-          continue;
+      if (!depth) {
+        for (int x = xa; x <= xb; ++x) {
+          const double sx = sxp[x];
+          const double f0 = e0.A * sx + r0, f1 = e1.A * sx + r1, f2 = e2.A * sx + r2;
+          if (inside(f0, f1, f2)) near_cut[rowi + static_cast<std::size_t>(x)] = 1;
         }
+        continue;
+      }
+      int wx0 = bw, wx1 = -1;  // columns written in this row: their tiles become stale
+      for (int x = xa; x <= xb; ++x) {
+        const double sx = sxp[x];
+        const double f0 = e0.A * sx + r0, f1 = e1.A * sx + r1, f2 = e2.A * sx + r2;
+        if (!inside(f0, f1, f2)) continue;
+        const std::size_t idx = rowi + static_cast<std::size_t>(x);
         const double iz = P * sx + rz;
         // Nearest wins; an exact tie goes to the smaller triangle index, which is what drawing in
         // index order gave, so the chunks may be drawn in any order (nearest first, below).
-        if (iz > s.invz[idx] || (iz == s.invz[idx] && (tag & ~kBackBit) < (s.id[idx] & ~kBackBit))) {
-          s.invz[idx] = iz;
-          s.id[idx] = tag;
-          stale[x >> kTileShift] = 1;
+        if (iz > invz[idx] || (iz == invz[idx] && (tag & ~kBackBit) < (ids[idx] & ~kBackBit))) {
+          invz[idx] = iz;
+          ids[idx] = tag;
+          wx0 = std::min(wx0, x);
+          wx1 = std::max(wx1, x);
         }
+      }
+      if (wx1 >= 0) {
+        std::uint8_t* stale = s.tile_stale.data() + static_cast<std::size_t>(y >> kTileShift) * static_cast<std::size_t>(s.tw);
+        for (int t = wx0 >> kTileShift; t <= wx1 >> kTileShift; ++t) stale[t] = 1;
       }
     }
   }
@@ -467,25 +484,27 @@ void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) 
   ViewCounters c;
   for (int y = 0; y < bh; ++y) {
     const double py = s.sy[static_cast<std::size_t>(y)];
-    for (int x = 0; x < bw; ++x) {
-      const std::size_t idx = static_cast<std::size_t>(y) * static_cast<std::size_t>(bw) + static_cast<std::size_t>(x);
+    const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(bw);
+    for (int x = 0; x < bw;) {
+      const std::size_t idx = row + static_cast<std::size_t>(x);
       const std::uint32_t id = s.id[idx];
       if (id == kNoTri) {
         if (s.near_cut[idx]) ++c.clipped;
         else ++c.sky;
-        continue;
-      }
-      if (s.invz[idx] < far_iz) {
-        ++c.clipped;
+        ++x;
         continue;
       }
       if (id & kBackBit) {
-        ++c.backfacing;
+        if (s.invz[idx] < far_iz) ++c.clipped;
+        else ++c.backfacing;
+        ++x;
         continue;
       }
       const Tri& t = tris_[id];
       if (!t.textured) {
-        ++c.untextured;
+        if (s.invz[idx] < far_iz) ++c.clipped;
+        else ++c.untextured;
+        ++x;
         continue;
       }
       Shade& h = s.shade[id];
@@ -499,26 +518,36 @@ void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) 
         h.cu = t.tu0 + glm::dot(t.gu, op);
         h.cv = t.tv0 + glm::dot(t.gv, op);
       }
-      const double px = s.sx[static_cast<std::size_t>(x)];
-      const double dn = h.dn.x + h.dn.y * px + h.dn.z * py;
-      if (!(dn < 0.0)) {  // edge-on within rounding
-        ++c.backfacing;
-        continue;
-      }
-      const double inv_dn = 1.0 / dn;
-      const double tt = -h.kn * inv_dn;
-      const double gdu = h.gdu.x + h.gdu.y * px + h.gdu.z * py, gdv = h.gdv.x + h.gdv.y * px + h.gdv.z * py;
-      std::int64_t u, v;
-      if (!detail::texel_index(h.cu + tt * gdu, extent_.width, u) ||
-          !detail::texel_index(h.cv + tt * gdv, extent_.height, v)) {
-        ++c.outside_texture;
-        continue;
-      }
-      const double ru = gdu * inv_dn, rv = gdv * inv_dn;
-      const double ux = tt * (h.gdu.y - h.dn.y * ru), vx = tt * (h.gdv.y - h.dn.y * rv);
-      const double uy = tt * (h.gdu.z - h.dn.z * ru), vy = tt * (h.gdv.z - h.dn.z * rv);
-      const double lod = lod_from_lengths2(ux * ux + vx * vx, uy * uy + vy * vy, rule);
-      out.samples.push_back(ViewSample{u, v, static_cast<float>(lod), static_cast<std::uint32_t>(idx)});
+      // The run of this row's samples the same front face owns: per-row terms once.
+      const double dn_row = h.dn.x + h.dn.z * py, gu_row = h.gdu.x + h.gdu.z * py, gv_row = h.gdv.x + h.gdv.z * py;
+      do {
+        const std::size_t k = row + static_cast<std::size_t>(x);
+        const double px = s.sx[static_cast<std::size_t>(x)];
+        ++x;
+        if (s.invz[k] < far_iz) {
+          ++c.clipped;
+          continue;
+        }
+        const double dn = dn_row + h.dn.y * px;
+        if (!(dn < 0.0)) {  // edge-on within rounding
+          ++c.backfacing;
+          continue;
+        }
+        const double inv_dn = 1.0 / dn;
+        const double tt = -h.kn * inv_dn;
+        const double gdu = gu_row + h.gdu.y * px, gdv = gv_row + h.gdv.y * px;
+        std::int64_t u, v;
+        if (!detail::texel_index(h.cu + tt * gdu, extent_.width, u) ||
+            !detail::texel_index(h.cv + tt * gdv, extent_.height, v)) {
+          ++c.outside_texture;
+          continue;
+        }
+        const double ru = gdu * inv_dn, rv = gdv * inv_dn;
+        const double ux = tt * (h.gdu.y - h.dn.y * ru), vx = tt * (h.gdv.y - h.dn.y * rv);
+        const double uy = tt * (h.gdu.z - h.dn.z * ru), vy = tt * (h.gdv.z - h.dn.z * rv);
+        const double lod = lod_from_lengths2(ux * ux + vx * vx, uy * uy + vy * vy, rule);
+        out.samples.push_back(ViewSample{u, v, static_cast<float>(lod), static_cast<std::uint32_t>(k)});
+      } while (x < bw && s.id[row + static_cast<std::size_t>(x)] == id);
     }
   }
   out.counters = c;

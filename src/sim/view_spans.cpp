@@ -30,6 +30,7 @@ void spans_from_samples(const ViewBuffer& vb, int num_levels, int block_shift, s
   out.clear();
   const std::uint32_t w = static_cast<std::uint32_t>(vb.width > 0 ? vb.width : 1);
   std::int64_t bu = 0, bv = 0;  // block of the open span
+  std::uint64_t row_end = 0;    // first pixel of the row after the open span's (spans stay in a row)
   for (std::size_t i = 0; i < vb.samples.size(); ++i) {
     const ViewSample& s = vb.samples[i];
     const int level = desired_level(s.lod, num_levels);
@@ -37,7 +38,7 @@ void spans_from_samples(const ViewBuffer& vb, int num_levels, int block_shift, s
     const std::int64_t su = sh < 63 ? s.u >> sh : 0, sv = sh < 63 ? s.v >> sh : 0;
     if (!out.empty()) {
       ViewSpan& b = out.back();
-      if (s.pixel == b.pixel + b.count && s.pixel % w != 0 && level == b.level && su == bu && sv == bv) {
+      if (s.pixel == b.pixel + b.count && s.pixel < row_end && level == b.level && su == bu && sv == bv) {
         ++b.count;
         b.u_lo = s.u < b.u_lo ? s.u : b.u_lo;
         b.u_hi = s.u > b.u_hi ? s.u : b.u_hi;
@@ -49,6 +50,7 @@ void spans_from_samples(const ViewBuffer& vb, int num_levels, int block_shift, s
     out.push_back(ViewSpan{s.u, s.u, s.v, s.v, s.pixel, 1, static_cast<std::uint32_t>(i), level});
     bu = su;
     bv = sv;
+    row_end = (static_cast<std::uint64_t>(s.pixel / w) + 1) * w;
   }
 }
 
