@@ -16,7 +16,9 @@ namespace {
 
 constexpr std::uint32_t kNoTri = 0xffffffffu;
 constexpr std::uint32_t kBackBit = 0x80000000u;
-constexpr std::uint32_t kChunkSize = 64;  // triangles per culling box: few boxes, tight bounds
+// Triangles per culling box: the town replay ran fastest at 16 (8 the same, 64 15 % slower).
+// Chunk tests are linear in the chunk count: a very large mesh would want a hierarchy.
+constexpr std::uint32_t kChunkSize = 16;
 // The part of a triangle between view depth near/1024 and near is rasterised only to tell
 // "clipped" from "sky" in the counters; nearer than that it is ignored (projection blows up).
 constexpr double kNearFlagFraction = 1.0 / 1024.0;

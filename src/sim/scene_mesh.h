@@ -12,7 +12,7 @@
 
 namespace vtsim {
 
-// Render cost O(visible chunks' triangles + covered samples); chunks of 64 spatially sorted
+// Render cost O(visible chunks' triangles + covered samples); chunks of 16 spatially sorted
 // triangles are frustum-culled by their bounding boxes and, drawn nearest first, occlusion-culled
 // against the depth drawn so far, and so is each triangle of a drawn chunk (a hierarchical depth
 // buffer of 8×8-sample tiles answers most tests without reading samples). The depth buffer is per-thread scratch
