@@ -1,5 +1,6 @@
 #include "sim/view_spans.h"
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "sim/scene.h"
@@ -29,29 +30,36 @@ void spans_from_samples(const ViewBuffer& vb, int num_levels, int block_shift, s
   if (num_levels < 1 || num_levels > 64) throw std::invalid_argument("spans: num_levels must be in [1, 64]");
   out.clear();
   const std::uint32_t w = static_cast<std::uint32_t>(vb.width > 0 ? vb.width : 1);
-  std::int64_t bu = 0, bv = 0;  // block of the open span
-  std::uint64_t row_end = 0;    // first pixel of the row after the open span's (spans stay in a row)
-  for (std::size_t i = 0; i < vb.samples.size(); ++i) {
-    const ViewSample& s = vb.samples[i];
+  const ViewSample* const samples = vb.samples.data();
+  const std::size_t n = vb.samples.size();
+  if (n == 0) return;
+  // The open span lives in locals and is appended when the next one starts.
+  ViewSpan b{};
+  std::int64_t bu = 0, bv = 0;  // its block at its level
+  std::uint32_t next = 0;       // the pixel that would continue it
+  std::uint32_t row_end = 0;    // first pixel of the row after its row (spans stay in a row)
+  for (std::size_t i = 0; i < n; ++i) {
+    const ViewSample& s = samples[i];
     const int level = desired_level(s.lod, num_levels);
     const int sh = level + block_shift;
     const std::int64_t su = sh < 63 ? s.u >> sh : 0, sv = sh < 63 ? s.v >> sh : 0;
-    if (!out.empty()) {
-      ViewSpan& b = out.back();
-      if (s.pixel == b.pixel + b.count && s.pixel < row_end && level == b.level && su == bu && sv == bv) {
-        ++b.count;
-        b.u_lo = s.u < b.u_lo ? s.u : b.u_lo;
-        b.u_hi = s.u > b.u_hi ? s.u : b.u_hi;
-        b.v_lo = s.v < b.v_lo ? s.v : b.v_lo;
-        b.v_hi = s.v > b.v_hi ? s.v : b.v_hi;
-        continue;
-      }
+    if (i > 0 && s.pixel == next && s.pixel < row_end && level == b.level && su == bu && sv == bv) {
+      ++b.count;
+      ++next;
+      b.u_lo = s.u < b.u_lo ? s.u : b.u_lo;
+      b.u_hi = s.u > b.u_hi ? s.u : b.u_hi;
+      b.v_lo = s.v < b.v_lo ? s.v : b.v_lo;
+      b.v_hi = s.v > b.v_hi ? s.v : b.v_hi;
+      continue;
     }
-    out.push_back(ViewSpan{s.u, s.u, s.v, s.v, s.pixel, 1, static_cast<std::uint32_t>(i), level});
+    if (i > 0) out.push_back(b);
+    b = ViewSpan{s.u, s.u, s.v, s.v, s.pixel, 1, static_cast<std::uint32_t>(i), level};
     bu = su;
     bv = sv;
-    row_end = (static_cast<std::uint64_t>(s.pixel / w) + 1) * w;
+    next = s.pixel + 1;
+    row_end = static_cast<std::uint32_t>(std::min<std::uint64_t>((static_cast<std::uint64_t>(s.pixel / w) + 1) * w, 0xffffffffu));
   }
+  out.push_back(b);
 }
 
 int finest_level(const SpanBuffer& sb, int num_levels) {
