@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "sim/render_util.h"
+#include "sim/simd.h"
 
 namespace vtsim {
 
@@ -106,6 +107,57 @@ inline Edge make_edge(const PV& p, const PV& q) {
 constexpr int kTileShift = 3;
 constexpr int kTile = 1 << kTileShift;
 
+// One row run of a front face in the resolve: with x the sample's full-resolution column,
+// d·n = dn0 + dnx·x (<0 for a front face), t = −kn/(d·n), gu·d = gu0 + gux·x (likewise v), and the
+// texel derivatives per pixel step along x and y (the ray-differential terms of lod.h).
+struct ShadeRow {
+  double dn0, dnx, dny, gu0, gux, guy, gv0, gvx, gvy, kn, cu, cv, inv_a2;
+};
+constexpr int kShadeBatch = 64;  // samples per batch: arrays stay in L1
+struct ShadeBatch {
+  alignas(32) double dn[kShadeBatch + 4];
+  alignas(32) double tu[kShadeBatch + 4];  // continuous level-0 texel coordinates
+  alignas(32) double tv[kShadeBatch + 4];
+  alignas(32) double q[kShadeBatch + 4];   // squared footprint for the LOD rule, clamped
+};
+
+template <bool kAniso>
+[[gnu::always_inline]] inline void shade_batch_t(const ShadeRow& k, const double* px, int n, ShadeBatch& b) {
+  using simd::v4d;
+  for (int j = 0; j < n; j += 4) {
+    v4d x;
+    simd::load4(px + j, x);
+    const v4d dn = k.dn0 + k.dnx * x;
+    const v4d inv_dn = 1.0 / dn;
+    const v4d tt = -k.kn * inv_dn;
+    const v4d gdu = k.gu0 + k.gux * x, gdv = k.gv0 + k.gvx * x;
+    const v4d ru = gdu * inv_dn, rv = gdv * inv_dn;
+    const v4d ux = tt * (k.gux - k.dnx * ru), vx = tt * (k.gvx - k.dnx * rv);
+    const v4d uy = tt * (k.guy - k.dny * ru), vy = tt * (k.gvy - k.dny * rv);
+    const v4d lx2 = ux * ux + vx * vx, ly2 = uy * uy + vy * vy;
+    v4d q;
+    if constexpr (!kAniso) {  // lod_from_lengths2, lane for lane
+      q = lx2 > ly2 ? lx2 : ly2;
+    } else {
+      const v4d major = lx2 > ly2 ? lx2 : ly2, minor = lx2 > ly2 ? ly2 : lx2, am = major * k.inv_a2;
+      q = minor > am ? minor : am;
+    }
+    const v4d qmin = v4d{} + kMinFootprint2, qmax = v4d{} + kMaxFootprint2;
+    q = q >= qmin ? q : qmin;  // also NaN -> min
+    q = q > qmax ? qmax : q;
+    const v4d tu = k.cu + tt * gdu, tv = k.cv + tt * gdv;
+    simd::store4(b.dn + j, dn);
+    simd::store4(b.tu + j, tu);
+    simd::store4(b.tv + j, tv);
+    simd::store4(b.q + j, q);
+  }
+}
+// Reads px[0 .. ceil(n/4)·4).
+VTSIM_CLONES_AVX2 void shade_batch(const ShadeRow& k, const double* px, int n, bool aniso, ShadeBatch& b) {
+  if (aniso) shade_batch_t<true>(k, px, n, b);
+  else shade_batch_t<false>(k, px, n, b);
+}
+
 // A triangle's resolve coefficients for one frame: functions affine in the full-resolution pixel
 // (px, py) stored as (constant, ∂/∂px, ∂/∂py).
 struct Shade {
@@ -120,6 +172,8 @@ struct Scratch {
   std::vector<std::uint32_t> id;     // triangle index | kBackBit, or kNoTri
   std::vector<std::uint8_t> near_cut;  // covered only by geometry the near plane cut away
   std::vector<double> sx, sy;        // sample positions of buffer columns / rows, full-res pixels
+                                     // (sx padded by 4 for shade_batch's last lanes)
+  ShadeBatch batch;
   std::vector<double> tile_min;      // least invz of the tile's samples, valid unless stale
   std::vector<std::uint8_t> tile_stale;
   int bw = 0, bh = 0, tw = 0;        // buffer size, samples; tiles per row
@@ -364,9 +418,10 @@ void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) 
   const std::size_t ntiles = static_cast<std::size_t>(s.tw) * static_cast<std::size_t>((bh + kTile - 1) >> kTileShift);
   s.tile_min.assign(ntiles, 0.0);
   s.tile_stale.assign(ntiles, 0);
-  s.sx.resize(static_cast<std::size_t>(bw));
+  s.sx.resize(static_cast<std::size_t>(bw) + 4);
   s.sy.resize(static_cast<std::size_t>(bh));
   for (int x = 0; x < bw; ++x) s.sx[static_cast<std::size_t>(x)] = sample_pos(x, div, cam.width);
+  for (int x = bw; x < bw + 4; ++x) s.sx[static_cast<std::size_t>(x)] = s.sx[static_cast<std::size_t>(bw - 1)];
   for (int y = 0; y < bh; ++y) s.sy[static_cast<std::size_t>(y)] = sample_pos(y, div, cam.height);
 
   const glm::dvec3 o = cam.pos_m, F = cam.fwd, R = -cam.left, U = cam.up;
@@ -546,36 +601,48 @@ void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) 
         h.cu = t.tu0 + glm::dot(t.gu, op);
         h.cv = t.tv0 + glm::dot(t.gv, op);
       }
-      // The run of this row's samples the same front face owns: per-row terms once.
-      const double dn_row = h.dn.x + h.dn.z * py, gu_row = h.gdu.x + h.gdu.z * py, gv_row = h.gdv.x + h.gdv.z * py;
-      do {
-        const std::size_t k = row + static_cast<std::size_t>(x);
-        const double px = s.sx[static_cast<std::size_t>(x)];
-        ++x;
-        if (s.invz[k] < far_iz) {
-          ++c.clipped;
-          continue;
+      // The run of this row's samples the same front face owns: its arithmetic in batches of
+      // four lanes (shade_batch), then the classification and the logarithm per sample.
+      int xe = x + 1;
+      while (xe < bw && s.id[row + static_cast<std::size_t>(xe)] == id) ++xe;
+      ShadeRow k;
+      k.dn0 = h.dn.x + h.dn.z * py;
+      k.gu0 = h.gdu.x + h.gdu.z * py;
+      k.gv0 = h.gdv.x + h.gdv.z * py;
+      k.dnx = h.dn.y;
+      k.dny = h.dn.z;
+      k.gux = h.gdu.y;
+      k.guy = h.gdu.z;
+      k.gvx = h.gdv.y;
+      k.gvy = h.gdv.z;
+      k.kn = h.kn;
+      k.cu = h.cu;
+      k.cv = h.cv;
+      k.inv_a2 = rule.inv_aniso2;
+      for (int xb = x; xb < xe; xb += kShadeBatch) {
+        const int n = std::min(kShadeBatch, xe - xb);
+        shade_batch(k, s.sx.data() + xb, n, rule.anisotropic, s.batch);
+        for (int j = 0; j < n; ++j) {
+          const std::size_t pix = row + static_cast<std::size_t>(xb + j);
+          if (s.invz[pix] < far_iz) {
+            ++c.clipped;
+            continue;
+          }
+          if (!(s.batch.dn[j] < 0.0)) {  // edge-on within rounding
+            ++c.backfacing;
+            continue;
+          }
+          std::int64_t u, v;
+          if (!detail::texel_index(s.batch.tu[j], extent_.width, u) ||
+              !detail::texel_index(s.batch.tv[j], extent_.height, v)) {
+            ++c.outside_texture;
+            continue;
+          }
+          const double lod = 0.5 * fast_log2(s.batch.q[j]) + rule.bias;  // lod_from_lengths2's tail
+          out.samples.push_back(ViewSample{u, v, static_cast<float>(lod), static_cast<std::uint32_t>(pix)});
         }
-        const double dn = dn_row + h.dn.y * px;
-        if (!(dn < 0.0)) {  // edge-on within rounding
-          ++c.backfacing;
-          continue;
-        }
-        const double inv_dn = 1.0 / dn;
-        const double tt = -h.kn * inv_dn;
-        const double gdu = gu_row + h.gdu.y * px, gdv = gv_row + h.gdv.y * px;
-        std::int64_t u, v;
-        if (!detail::texel_index(h.cu + tt * gdu, extent_.width, u) ||
-            !detail::texel_index(h.cv + tt * gdv, extent_.height, v)) {
-          ++c.outside_texture;
-          continue;
-        }
-        const double ru = gdu * inv_dn, rv = gdv * inv_dn;
-        const double ux = tt * (h.gdu.y - h.dn.y * ru), vx = tt * (h.gdv.y - h.dn.y * rv);
-        const double uy = tt * (h.gdu.z - h.dn.z * ru), vy = tt * (h.gdv.z - h.dn.z * rv);
-        const double lod = lod_from_lengths2(ux * ux + vx * vx, uy * uy + vy * vy, rule);
-        out.samples.push_back(ViewSample{u, v, static_cast<float>(lod), static_cast<std::uint32_t>(k)});
-      } while (x < bw && s.id[row + static_cast<std::size_t>(x)] == id);
+      }
+      x = xe;
     }
   }
   out.counters = c;

@@ -8,15 +8,7 @@
 #include <vector>
 
 #include "sim/render_util.h"
-
-// An avx2 clone beside the default one, chosen at load by an ifunc resolver. TSan instruments the
-// resolver, which then runs before the TSan runtime is up and crashes the binary at load (GCC 12),
-// so the TSan build (VTSIM_NO_TARGET_CLONES, cmake/sanitizers.cmake) keeps the default code only.
-#if defined(VTSIM_NO_TARGET_CLONES)
-#define VTSIM_CLONES_AVX2
-#else
-#define VTSIM_CLONES_AVX2 __attribute__((target_clones("avx2", "default")))
-#endif
+#include "sim/simd.h"
 
 namespace vtsim {
 
@@ -24,10 +16,9 @@ namespace {
 
 constexpr int kChunk = 64;  // pixels per batch: arrays stay in L1, loops long enough
 
-// Four doubles (GCC vector extension): one AVX register in the avx2 clones below, two SSE2
-// registers otherwise. Every lane does exactly the scalar IEEE operations in the same order, and
-// no clone enables FMA, so the values are the same bits whichever clone runs.
-typedef double v4d __attribute__((vector_size(32)));
+using simd::v4d;
+using simd::load4;
+using simd::store4;
 
 // Per-pixel values of one batch of a row; classification and the logarithm follow in a scalar
 // pass.
@@ -110,10 +101,6 @@ template <bool kAniso, bool kFlat>
   o.q = q;
 }
 
-// By reference: a 32-byte vector passed or returned by value would change the ABI between the
-// clones (-Wpsabi).
-[[gnu::always_inline]] inline void load4(const double* p, v4d& v) { __builtin_memcpy(&v, p, sizeof v); }
-[[gnu::always_inline]] inline void store4(double* p, const v4d& v) { __builtin_memcpy(p, &v, sizeof v); }
 
 // Batch values of n columns (reads ceil(n/4)·4 entries of a: column arrays are padded).
 template <bool kAniso>
