@@ -1,7 +1,5 @@
 #include <doctest/doctest.h>
 
-#include <OpenImageIO/imageio.h>
-
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -9,6 +7,7 @@
 #include <string>
 #include <sys/wait.h>
 
+#include "core/image_io.h"
 #include "view_test_util.h"
 
 namespace {
@@ -34,15 +33,16 @@ TEST_CASE("vtsim view writes the feedback image and prints counters") {
   const std::string out = slurp(log);
   CHECK(out.find("buffer 160x90 (divisor 4)") != std::string::npos);
   CHECK(out.find("touched tiles (128 texels):") != std::string::npos);
-  auto in = OIIO::ImageInput::open(png);
-  REQUIRE(in);
-  CHECK(in->spec().width == 320);
-  CHECK(in->spec().height == 180);
-  std::vector<unsigned char> px(320 * 180 * 3);
-  REQUIRE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, px.data()));
-  CHECK(px[0] + px[1] + px[2] == 0);                           // top-left: sky, black
-  CHECK(px[(179 * 320) * 3] == 230);                           // bottom: level 0, red
-  in->close();
+  {
+    auto in = vtsim::image_io::ImageReader::open_file(png, false);
+    REQUIRE(in.ok());
+    CHECK(in.spec().width == 320);
+    CHECK(in.spec().height == 180);
+    std::vector<unsigned char> px(320 * 180 * 3);
+    REQUIRE(in.read(3, vtsim::image_io::PixelType::u8, px.data()) == vtsim::image_io::ReadStatus::ok);
+    CHECK(px[0] + px[1] + px[2] == 0);                           // top-left: sky, black
+    CHECK(px[(179 * 320) * 3] == 230);                           // bottom: level 0, red
+  }
   std::remove(png.c_str());
   std::remove(log.c_str());
 }

@@ -1,13 +1,12 @@
 #include "sim/scene_heightfield.h"
 
-#include <OpenImageIO/imageio.h>
-
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
 
 #include "core/error.h"
+#include "core/image_io.h"
 #include "core/tile_key.h"
 #include "sim/render_util.h"
 
@@ -38,20 +37,19 @@ Heightfield load_heightfield(const std::string& path, double spacing_m, double h
   check_grid_params(spacing_m, x0_m, y0_m);
   if (!std::isfinite(height_scale_m)) throw InputError("height_scale_m", "must be finite");
   if (!std::isfinite(z0_m)) throw InputError("z0_m", "must be finite");
-  auto in = OIIO::ImageInput::open(path);
-  if (!in) throw InputError(path, "cannot read as an image: " + OIIO::geterror());
-  const OIIO::ImageSpec spec = in->spec();
+  auto in = image_io::ImageReader::open_file(path, /*unassociated_alpha=*/false);
+  if (!in) throw InputError(path, "cannot read as an image: " + in.error());
+  const image_io::ImageSpec spec = in.spec();
   const std::int64_t w = spec.width, h = spec.height;
   if (spec.depth > 1) throw InputError(path, "volume images are not heightmaps");
   if (w < 2 || h < 2) throw InputError(path, "a heightmap needs at least 2×2 pixels");
   if (w * h > max_posts)
     throw InputError(path, std::to_string(w) + "×" + std::to_string(h) + " pixels is more than the " +
                                std::to_string(max_posts) + "-post limit");
-  if (spec.nchannels < 1) throw InputError(path, "image has no channels");
+  if (spec.channels < 1) throw InputError(path, "image has no channels");
   std::vector<float> px(static_cast<std::size_t>(w * h));
-  if (!in->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, px.data()))
-    throw InputError(path, "cannot decode image: " + in->geterror());
-  in->close();
+  if (in.read(1, image_io::PixelType::f32, px.data()) == image_io::ReadStatus::failed)
+    throw InputError(path, "cannot decode image: " + in.error());
   Heightfield hf;
   hf.nx = static_cast<int>(w);
   hf.ny = static_cast<int>(h);

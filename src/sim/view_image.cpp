@@ -1,10 +1,9 @@
 #include "sim/view_image.h"
 
-#include <OpenImageIO/imageio.h>
-
 #include <vector>
 
 #include "core/error.h"
+#include "core/image_io.h"
 
 namespace vtsim {
 
@@ -35,11 +34,10 @@ void write_level_image(const std::string& path, const ViewBuffer& vb, int num_le
         p[2] = col[2];
       }
   }
-  auto out = OIIO::ImageOutput::create(path);
-  if (!out) throw InputError(path, "cannot write an image of this type: " + OIIO::geterror());
-  const OIIO::ImageSpec spec(w, h, 3, OIIO::TypeDesc::UINT8);
-  if (!out->open(path, spec) || !out->write_image(OIIO::TypeDesc::UINT8, img.data()) || !out->close())
-    throw InputError(path, "cannot write: " + out->geterror());
+  const auto r = image_io::write_file(path, w, h, 3, image_io::PixelType::u8, img.data(), /*unassociated_alpha=*/false);
+  if (r.status == image_io::WriteStatus::cannot_create)
+    throw InputError(path, "cannot write an image of this type: " + r.error);
+  if (r.status == image_io::WriteStatus::failed) throw InputError(path, "cannot write: " + r.error);
 }
 
 }  // namespace vtsim

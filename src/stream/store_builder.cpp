@@ -4,8 +4,6 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <OpenImageIO/imageio.h>
-
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
@@ -16,6 +14,7 @@
 #include <thread>
 
 #include "core/error.h"
+#include "core/image_io.h"
 
 namespace vtsim {
 
@@ -355,34 +354,32 @@ class MipWalker {
 }  // namespace
 
 Image8 read_image8(const std::string& path, Transfer transfer) {
-  namespace OIIO = OIIO_NAMESPACE;
-  OIIO::ImageSpec config;
-  config.attribute("oiio:UnassociatedAlpha", 1);  // texels as stored, alpha not multiplied in
-  auto in = OIIO::ImageInput::open(path, &config);
+  using image_io::PixelType;
+  auto in = image_io::ImageReader::open_file(path, /*unassociated_alpha=*/true);  // texels as stored
   if (!in) {
-    const std::string e = OIIO::geterror();
+    const std::string& e = in.error();
     throw InputError(path, "cannot read the image" + (e.empty() ? "" : ": " + e));
   }
-  const OIIO::ImageSpec& s = in->spec();
-  if (s.width < 1 || s.height < 1 || s.depth != 1 || s.nchannels < 1)
+  const image_io::ImageSpec& s = in.spec();
+  if (s.width < 1 || s.height < 1 || s.depth != 1 || s.channels < 1)
     throw InputError(path, "is not a 2D image (" + std::to_string(s.width) + "x" + std::to_string(s.height) + "x" +
-                               std::to_string(s.depth) + ", " + std::to_string(s.nchannels) + " channels)");
+                               std::to_string(s.depth) + ", " + std::to_string(s.channels) + " channels)");
   Image8 img;
   img.width = static_cast<std::uint64_t>(s.width);
   img.height = static_cast<std::uint64_t>(s.height);
-  img.channels = static_cast<std::uint32_t>(std::min(s.nchannels, 4));
+  img.channels = static_cast<std::uint32_t>(std::min(s.channels, 4));
   const int c = static_cast<int>(img.channels);
   const std::size_t n = static_cast<std::size_t>(img.width * img.height * img.channels);
   img.texels.resize(n);
-  if (s.format == OIIO::TypeDesc::UINT8) {
-    if (!in->read_image(0, 0, 0, c, OIIO::TypeDesc::UINT8, img.texels.data()))
-      throw InputError(path, "cannot read the image: " + in->geterror());
+  if (s.is_uint8) {
+    if (in.read(c, PixelType::u8, img.texels.data()) == image_io::ReadStatus::failed)
+      throw InputError(path, "cannot read the image: " + in.error());
     return img;
   }
   std::vector<float> f(n);
-  if (!in->read_image(0, 0, 0, c, OIIO::TypeDesc::FLOAT, f.data()))
-    throw InputError(path, "cannot read the image: " + in->geterror());
-  const bool linear_source = s.format.is_floating_point();
+  if (in.read(c, PixelType::f32, f.data()) == image_io::ReadStatus::failed)
+    throw InputError(path, "cannot read the image: " + in.error());
+  const bool linear_source = s.is_float;
   for (std::size_t i = 0; i < n; ++i) {
     const auto ch = static_cast<std::uint32_t>(i % img.channels);
     float v = std::isfinite(f[i]) ? std::clamp(f[i], 0.0f, 1.0f) : 0.0f;
@@ -393,14 +390,12 @@ Image8 read_image8(const std::string& path, Transfer transfer) {
 }
 
 void write_image8(const std::string& path, const Image8& image) {
-  namespace OIIO = OIIO_NAMESPACE;
-  auto out = OIIO::ImageOutput::create(path);
-  if (!out) throw InputError(path, "cannot write an image of this type: " + OIIO::geterror());
-  OIIO::ImageSpec spec(static_cast<int>(image.width), static_cast<int>(image.height), static_cast<int>(image.channels),
-                       OIIO::TypeDesc::UINT8);
-  spec.attribute("oiio:UnassociatedAlpha", 1);
-  if (!out->open(path, spec) || !out->write_image(OIIO::TypeDesc::UINT8, image.texels.data()) || !out->close())
-    throw InputError(path, "cannot write the image: " + out->geterror());
+  const auto r = image_io::write_file(path, static_cast<int>(image.width), static_cast<int>(image.height),
+                                      static_cast<int>(image.channels), image_io::PixelType::u8, image.texels.data(),
+                                      /*unassociated_alpha=*/true);
+  if (r.status == image_io::WriteStatus::cannot_create)
+    throw InputError(path, "cannot write an image of this type: " + r.error);
+  if (r.status == image_io::WriteStatus::failed) throw InputError(path, "cannot write the image: " + r.error);
 }
 
 std::vector<Image8> build_mip_chain(const Image8& level0, Transfer transfer, std::uint32_t levels) {

@@ -3,7 +3,7 @@
 // read per block and decompressed in real time on multi-core systems").
 #include "core/error.h"
 #include "stream/i_codec.h"
-#include "stream/impl/oiio_memory_image.h"
+#include "stream/impl/memory_image.h"
 
 namespace vtsim {
 namespace {
@@ -18,11 +18,11 @@ class JpegCodec final : public ICodec {
   std::vector<std::uint8_t> encode(const std::uint8_t* pixels, int w, int h, int c) const override {
     if (!supports_channels(c)) throw CodecError("jpeg stores 1 or 3 channels, not " + std::to_string(c));
     // An int attribute, not "Compression" = "jpeg:Q": OIIO interns string values globally.
-    return oiio_mem::encode("jpg", pixels, w, h, c, {}, {{"CompressionQuality", quality_}});
+    return memory_image::encode("jpg", pixels, w, h, c, {{"CompressionQuality", quality_}});
   }
   void decode(const std::uint8_t* bytes, std::size_t size, int w, int h, int c,
               std::uint8_t* out) const override {
-    oiio_mem::decode("jpg", bytes, size, w, h, c, out);
+    memory_image::decode("jpg", bytes, size, w, h, c, out);
   }
 
  private:

@@ -3,7 +3,7 @@
 // engines and artists already use it, and as a real-work decode for the decode pool.
 #include "core/error.h"
 #include "stream/i_codec.h"
-#include "stream/impl/oiio_memory_image.h"
+#include "stream/impl/memory_image.h"
 
 namespace vtsim {
 namespace {
@@ -16,11 +16,11 @@ class PngCodec final : public ICodec {
   bool lossless() const override { return true; }
   bool supports_channels(int c) const override { return c >= 1 && c <= 4; }
   std::vector<std::uint8_t> encode(const std::uint8_t* pixels, int w, int h, int c) const override {
-    return oiio_mem::encode("png", pixels, w, h, c, {}, {{"png:compressionLevel", level_}});
+    return memory_image::encode("png", pixels, w, h, c, {{"png:compressionLevel", level_}});
   }
   void decode(const std::uint8_t* bytes, std::size_t size, int w, int h, int c,
               std::uint8_t* out) const override {
-    oiio_mem::decode("png", bytes, size, w, h, c, out);
+    memory_image::decode("png", bytes, size, w, h, c, out);
   }
 
  private:

@@ -1,0 +1,230 @@
+#include "core/image_io.h"
+
+#include <dlfcn.h>
+#include <sys/auxv.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdlib>
+#include <filesystem>
+#include <memory>
+#include <system_error>
+
+#include "core/error.h"
+
+// The module's path in the build tree (CMakeLists.txt sets it on this file only).
+#ifndef VTSIM_IMAGE_MODULE_BUILD_PATH
+#define VTSIM_IMAGE_MODULE_BUILD_PATH ""
+#endif
+
+namespace vtsim::image_io {
+
+namespace {
+
+namespace abi = image_abi;
+namespace fs = std::filesystem;
+
+constexpr const char* kEnvOverride = "VTSIM_IMAGE_MODULE";
+
+struct Module {
+  const abi::Api* api = nullptr;
+  std::string path;   // the module loaded, or the one that failed to load
+  std::string error;  // why it did not load (empty when api is set)
+};
+
+std::string dl_error() {
+  const char* e = dlerror();
+  return e != nullptr ? e : "unknown dynamic loader error";
+}
+
+// Directory of the executable, and of the shared object containing this code if that is another
+// one (an engine embedding vtsim_lib in a plugin). For the executable itself dladdr reports argv[0],
+// which may be relative to some directory; /proc/self/exe is used for it instead.
+std::vector<fs::path> binary_dirs() {
+  std::vector<fs::path> dirs;
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec && exe.is_absolute()) dirs.push_back(exe.parent_path());
+  static const int anchor = 0;
+  Dl_info self{}, main_program{};
+  const auto* phdr = reinterpret_cast<const void*>(getauxval(AT_PHDR));  // in the executable's image
+  if (dladdr(&anchor, &self) != 0 && self.dli_fname != nullptr && self.dli_fname[0] == '/' &&
+      !(phdr != nullptr && dladdr(phdr, &main_program) != 0 && main_program.dli_fbase == self.dli_fbase)) {
+    const fs::path dir = fs::path(self.dli_fname).parent_path();
+    if (dirs.empty() || dir != dirs.front()) dirs.push_back(dir);
+  }
+  return dirs;
+}
+
+constexpr const char* kWhy = " (it reads and writes images and PNG/JPEG tiles)";
+
+// `how`: how the path was chosen, for the message ("" or " named by VTSIM_IMAGE_MODULE").
+Module open_module(const std::string& path, const std::string& how) {
+  const std::string what = "the image module" + how + kWhy;
+  Module m;
+  m.path = path;
+  // RTLD_LOCAL: OpenImageIO's dependencies stay out of the global symbol namespace. Never closed.
+  void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+  if (handle == nullptr) {
+    m.error = "cannot load " + what + ": " + dl_error();
+    return m;
+  }
+  dlerror();
+  void* sym = dlsym(handle, abi::kEntrySymbol);
+  if (sym == nullptr) {
+    m.error = "is not " + what + ": " + dl_error();
+    return m;
+  }
+  const abi::Api* api = reinterpret_cast<abi::EntryFn>(sym)();
+  if (api == nullptr || api->abi_version != abi::kAbiVersion || api->struct_size < sizeof(abi::Api)) {
+    m.error = "is " + what + " with interface version " +
+              (api ? std::to_string(api->abi_version) : std::string("?")) + "; this program needs version " +
+              std::to_string(abi::kAbiVersion) + " (a module from another build?)";
+    return m;
+  }
+  m.api = api;
+  return m;
+}
+
+Module load_module() {
+  if (const char* env = std::getenv(kEnvOverride); env != nullptr && env[0] != '\0')
+    return open_module(env, std::string(" named by ") + kEnvOverride);
+  std::vector<std::string> candidates;
+  for (const fs::path& dir : binary_dirs()) candidates.push_back((dir / abi::kModuleFileName).string());
+  if (VTSIM_IMAGE_MODULE_BUILD_PATH[0] != '\0' &&
+      std::find(candidates.begin(), candidates.end(), VTSIM_IMAGE_MODULE_BUILD_PATH) == candidates.end())
+    candidates.emplace_back(VTSIM_IMAGE_MODULE_BUILD_PATH);
+  for (const std::string& c : candidates)
+    if (::access(c.c_str(), F_OK) == 0) return open_module(c, "");
+  Module m;
+  m.path = abi::kModuleFileName;
+  m.error = std::string("cannot find the image module") + kWhy + "; looked for";
+  for (std::size_t i = 0; i < candidates.size(); ++i) m.error += (i ? ", " : " ") + candidates[i];
+  m.error += std::string(". Put it next to the executable or set ") + kEnvOverride + " to its path";
+  return m;
+}
+
+const Module& module() {
+  static const Module m = load_module();  // thread-safe, once per process
+  return m;
+}
+
+const abi::Api& api() {
+  const Module& m = module();
+  if (!m.api) throw InputError(m.path, m.error);
+  return *m.api;
+}
+
+abi::PixelType to_abi(PixelType t) {
+  switch (t) {
+    case PixelType::u8: return abi::kU8;
+    case PixelType::u16: return abi::kU16;
+    case PixelType::f32: return abi::kF32;
+  }
+  return abi::kU8;
+}
+
+// Error text from the module: at most this long (OpenImageIO's messages are a line or two).
+using ErrorBuf = std::array<char, 4096>;
+
+ImageSpec to_spec(const abi::Spec& s) {
+  ImageSpec r;
+  r.width = s.width;
+  r.height = s.height;
+  r.depth = s.depth;
+  r.channels = s.nchannels;
+  r.is_uint8 = s.is_uint8 != 0;
+  r.is_float = s.is_float != 0;
+  return r;
+}
+
+}  // namespace
+
+const std::string& require_module() {
+  api();
+  return module().path;
+}
+
+ImageReader ImageReader::open_file(const std::string& path, bool unassociated_alpha) {
+  ImageReader r;
+  r.api_ = &api();
+  ErrorBuf err{};
+  abi::Spec spec{};
+  if (r.api_->open_file(path.c_str(), unassociated_alpha ? 1 : 0, &r.reader_, &spec, err.data(), err.size()) != abi::kOk) {
+    r.reader_ = nullptr;
+    r.error_ = err.data();
+    return r;
+  }
+  r.spec_ = to_spec(spec);
+  return r;
+}
+
+ImageReader ImageReader::open_memory(const char* ext, const std::uint8_t* bytes, std::size_t size) {
+  ImageReader r;
+  r.api_ = &api();
+  ErrorBuf err{};
+  abi::Spec spec{};
+  if (r.api_->open_memory(ext, bytes, size, &r.reader_, &spec, err.data(), err.size()) != abi::kOk) {
+    r.reader_ = nullptr;
+    r.error_ = err.data();
+    return r;
+  }
+  r.spec_ = to_spec(spec);
+  return r;
+}
+
+ImageReader::ImageReader(ImageReader&& other) noexcept
+    : api_(other.api_), reader_(other.reader_), spec_(other.spec_), error_(std::move(other.error_)) {
+  other.reader_ = nullptr;
+}
+
+ImageReader::~ImageReader() {
+  if (reader_ != nullptr) api_->close(reader_);
+}
+
+ReadStatus ImageReader::read(int channels, PixelType type, void* out, int threads) {
+  if (reader_ == nullptr) {
+    error_ = "image is not open";
+    return ReadStatus::failed;
+  }
+  ErrorBuf err{};
+  const abi::Status s = api_->read(reader_, channels, to_abi(type), out, threads, err.data(), err.size());
+  error_ = err.data();
+  if (s == abi::kOk) return ReadStatus::ok;
+  return s == abi::kOkWithError ? ReadStatus::ok_with_error : ReadStatus::failed;
+}
+
+WriteResult write_file(const std::string& path, int width, int height, int channels, PixelType type,
+                       const void* pixels, bool unassociated_alpha) {
+  const abi::Api& a = api();
+  ErrorBuf err{};
+  const abi::Status s = a.write_file(path.c_str(), width, height, channels, to_abi(type), pixels,
+                                     unassociated_alpha ? 1 : 0, err.data(), err.size());
+  WriteResult r;
+  r.status = s == abi::kOk ? WriteStatus::ok : s == abi::kCannotCreate ? WriteStatus::cannot_create : WriteStatus::failed;
+  r.error = err.data();
+  return r;
+}
+
+bool encode_memory(const char* ext, const std::uint8_t* pixels, int width, int height, int channels,
+                   const std::vector<std::pair<std::string, int>>& int_attrs, std::vector<std::uint8_t>& out,
+                   std::string& error) {
+  const abi::Api& a = api();
+  std::vector<abi::IntAttribute> attrs;
+  attrs.reserve(int_attrs.size());
+  for (const auto& [name, value] : int_attrs) attrs.push_back({name.c_str(), value});
+  ErrorBuf err{};
+  std::uint8_t* bytes = nullptr;
+  std::size_t size = 0;
+  if (a.encode_memory(ext, pixels, width, height, channels, attrs.data(), attrs.size(), &bytes, &size, err.data(),
+                      err.size()) != abi::kOk) {
+    error = err.data();
+    return false;
+  }
+  const std::unique_ptr<std::uint8_t, void (*)(std::uint8_t*)> owned(bytes, a.free_bytes);
+  out.assign(bytes, bytes + size);
+  return true;
+}
+
+}  // namespace vtsim::image_io

@@ -1,0 +1,98 @@
+#pragma once
+// Image files and in-memory PNG / JPEG, through the image module (libvtsim_image.so, OpenImageIO),
+// which is loaded with dlopen on first use: a process that reads and writes no image never loads
+// OpenImageIO and its ~250 shared libraries (~0.5 s of CPU at start-up).
+//
+// Where the module is looked up, first hit wins:
+//   1. $VTSIM_IMAGE_MODULE, if set and non-empty (only there);
+//   2. next to the executable (/proc/self/exe), then next to the shared object that contains
+//      vtsim_lib if that is not the executable (dladdr): install the module beside the binary;
+//   3. the path it was built at (the build tree), compiled in.
+// If it cannot be loaded, every call below throws InputError naming the module path and the
+// loader's reason (dlerror); the first attempt's outcome is kept for the life of the process.
+//
+// Thread-safety: the module is loaded once (thread-safe); the functions may be called from many
+// threads at once, each on its own ImageReader.
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/image_module_abi.h"
+
+namespace vtsim::image_io {
+
+enum class PixelType { u8, u16, f32 };
+
+struct ImageSpec {
+  int width = 0, height = 0, depth = 0, channels = 0;
+  bool is_uint8 = false;  // the file stores 8-bit unsigned pixels
+  bool is_float = false;  // ... floating-point pixels (half, float, double)
+};
+
+enum class ReadStatus {
+  ok,
+  failed,         // error() says why (may be empty)
+  ok_with_error,  // pixels read, but the reader reports an error (damaged data); error() has it
+};
+
+// An image open for reading: a file, or a PNG / JPEG held in memory.
+class ImageReader {
+ public:
+  // Opens `path` (first subimage); unassociated_alpha keeps alpha as stored. A file that does not
+  // open gives !ok() and error() (OpenImageIO's message, possibly empty).
+  static ImageReader open_file(const std::string& path, bool unassociated_alpha);
+  // Opens bytes[0, size) as a file of format `ext` ("png", "jpg"), alpha unassociated. The bytes
+  // must outlive the reader.
+  static ImageReader open_memory(const char* ext, const std::uint8_t* bytes, std::size_t size);
+
+  ImageReader(ImageReader&& other) noexcept;
+  ImageReader& operator=(ImageReader&&) = delete;
+  ImageReader(const ImageReader&) = delete;
+  ImageReader& operator=(const ImageReader&) = delete;
+  ~ImageReader();
+
+  bool ok() const { return reader_ != nullptr; }
+  explicit operator bool() const { return ok(); }
+  const ImageSpec& spec() const { return spec_; }
+  const std::string& error() const { return error_; }
+  // Reads channels [0, channels) of the whole image as `type` into out (width*height*channels
+  // values). threads: the reader's own worker threads (0: OpenImageIO's default; the decode pool
+  // passes 1). Requires ok().
+  ReadStatus read(int channels, PixelType type, void* out, int threads = 0);
+
+ private:
+  ImageReader() = default;
+  const image_abi::Api* api_ = nullptr;
+  image_abi::Reader* reader_ = nullptr;
+  ImageSpec spec_;
+  std::string error_;
+};
+
+enum class WriteStatus {
+  ok,
+  cannot_create,  // no writer for this file type (error: why)
+  failed,         // opening, writing or closing failed (error: why)
+};
+struct WriteResult {
+  WriteStatus status = WriteStatus::ok;
+  std::string error;
+};
+
+// Writes a width x height x channels image of `type` (row-major, interleaved) to `path`; the format
+// comes from the extension. unassociated_alpha: the alpha channel is not premultiplied in.
+WriteResult write_file(const std::string& path, int width, int height, int channels, PixelType type,
+                       const void* pixels, bool unassociated_alpha);
+
+// Encodes an 8-bit image as a file of format `ext` ("png", "jpg") in memory, with integer attributes
+// on the output spec ("png:compressionLevel", "CompressionQuality"). Returns false and sets error
+// when the writer fails.
+bool encode_memory(const char* ext, const std::uint8_t* pixels, int width, int height, int channels,
+                   const std::vector<std::pair<std::string, int>>& int_attrs, std::vector<std::uint8_t>& out,
+                   std::string& error);
+
+// Loads the module now if it is not loaded yet; throws InputError if it cannot be. Returns its path.
+const std::string& require_module();
+
+}  // namespace vtsim::image_io

@@ -1,0 +1,145 @@
+// The image module boundary (core/image_io.h): files and in-memory images round-trip through the
+// dlopen'ed module, and a module that cannot be loaded is a clear error, not a crash, and costs
+// nothing to commands that touch no image.
+#include <doctest/doctest.h>
+
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <sys/wait.h>
+#include <vector>
+
+#include "core/error.h"
+#include "core/image_io.h"
+#include "view_test_util.h"
+
+using namespace vtsim;
+using image_io::PixelType;
+using image_io::ReadStatus;
+using image_io::WriteStatus;
+
+namespace {
+
+int run(const std::string& cmdline, const std::string& log) {
+  const std::string cmd = cmdline + " >" + log + " 2>&1";
+  const int rc = std::system(cmd.c_str());
+  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
+template <class T>
+std::vector<T> round_trip(const std::string& path, int w, int h, int c, PixelType type, const std::vector<T>& px,
+                          bool unassociated_alpha, image_io::ImageSpec& spec) {
+  const auto wr = image_io::write_file(path, w, h, c, type, px.data(), unassociated_alpha);
+  REQUIRE_MESSAGE(wr.status == WriteStatus::ok, wr.error);
+  auto in = image_io::ImageReader::open_file(path, unassociated_alpha);
+  REQUIRE_MESSAGE(in.ok(), in.error());
+  spec = in.spec();
+  std::vector<T> back(px.size());
+  REQUIRE(in.read(c, type, back.data()) == ReadStatus::ok);
+  std::remove(path.c_str());
+  return back;
+}
+
+}  // namespace
+
+TEST_CASE("image module: 8-bit, 16-bit and float images round-trip through files") {
+  CHECK(contains(image_io::require_module(), "libvtsim_image.so"));
+  image_io::ImageSpec spec;
+
+  // RGBA with transparent texels that keep their colour: alpha stays unassociated.
+  std::vector<std::uint8_t> rgba(5 * 3 * 4);
+  for (std::size_t i = 0; i < rgba.size(); ++i) rgba[i] = static_cast<std::uint8_t>(i * 37 % 251);
+  for (std::size_t p = 0; p < 15; p += 4) rgba[p * 4 + 3] = 0;
+  CHECK(round_trip(test::temp_path("rgba.png"), 5, 3, 4, PixelType::u8, rgba, true, spec) == rgba);
+  CHECK(spec.width == 5);
+  CHECK(spec.height == 3);
+  CHECK(spec.depth == 1);
+  CHECK(spec.channels == 4);
+  CHECK(spec.is_uint8);
+  CHECK_FALSE(spec.is_float);
+
+  std::vector<std::uint16_t> gray16(4 * 4);
+  for (std::size_t i = 0; i < gray16.size(); ++i) gray16[i] = static_cast<std::uint16_t>(i * 4099);
+  CHECK(round_trip(test::temp_path("gray16.png"), 4, 4, 1, PixelType::u16, gray16, false, spec) == gray16);
+  CHECK_FALSE(spec.is_uint8);
+  CHECK_FALSE(spec.is_float);
+
+  const std::vector<float> rgbf = {0.0f, 0.25f, 1.5f, -2.0f, 1e-3f, 3.0f};
+  CHECK(round_trip(test::temp_path("rgb.tif"), 2, 1, 3, PixelType::f32, rgbf, false, spec) == rgbf);
+  CHECK(spec.channels == 3);
+  CHECK(spec.is_float);
+}
+
+TEST_CASE("image module: in-memory PNG round-trips; failures come back as messages") {
+  std::vector<std::uint8_t> px(6 * 2 * 3);
+  for (std::size_t i = 0; i < px.size(); ++i) px[i] = static_cast<std::uint8_t>(i * 11);
+  std::vector<std::uint8_t> bytes;
+  std::string error;
+  REQUIRE(image_io::encode_memory("png", px.data(), 6, 2, 3, {{"png:compressionLevel", 9}}, bytes, error));
+  CHECK(error.empty());
+  {
+    auto in = image_io::ImageReader::open_memory("png", bytes.data(), bytes.size());
+    REQUIRE(in.ok());
+    CHECK(in.spec().width == 6);
+    CHECK(in.spec().channels == 3);
+    std::vector<std::uint8_t> back(px.size());
+    CHECK(in.read(3, PixelType::u8, back.data(), 1) == ReadStatus::ok);
+    CHECK(back == px);
+  }
+  const std::vector<std::uint8_t> junk = {1, 2, 3, 4, 5};
+  CHECK_FALSE(image_io::ImageReader::open_memory("png", junk.data(), junk.size()).ok());
+  CHECK_FALSE(image_io::encode_memory("nosuchformat", px.data(), 6, 2, 3, {}, bytes, error));
+  CHECK_FALSE(error.empty());
+
+  const auto missing = image_io::ImageReader::open_file("/nonexistent/dir/x.png", false);
+  CHECK_FALSE(missing.ok());
+  CHECK_FALSE(missing.error().empty());
+  const auto wr = image_io::write_file(test::temp_path("x.nosuchformat"), 6, 2, 3, PixelType::u8, px.data(), false);
+  CHECK(wr.status == WriteStatus::cannot_create);
+  CHECK_FALSE(wr.error.empty());
+  const auto wr2 = image_io::write_file("/nonexistent/dir/x.png", 6, 2, 3, PixelType::u8, px.data(), false);
+  CHECK(wr2.status == WriteStatus::failed);
+}
+
+TEST_CASE("image module: a module that cannot be loaded is a clear error, and only where images are used") {
+  const std::string log = test::temp_path("log.txt"), png = test::temp_path("x.png");
+  const std::string cli = VTSIM_CLI;
+  const std::string bad = "/nonexistent/dir/libvtsim_image.so";
+  const std::string env = "VTSIM_IMAGE_MODULE=" + bad + " ";
+
+  // Commands that read or write no image do not load the module.
+  CHECK(run(env + cli + " --version", log) == 0);
+  CHECK(run(env + cli + " capacity --size 32768 --clipsize 1024 --layers albedo:rgba8", log) == 0);
+
+  // Writing an image needs it: exit 2 with the module path and the loader's reason.
+  CHECK(run(env + cli + " view --scene plane --pos 4096,4096,1.7 --size 64x36 -o " + png, log) == 2);
+  const std::string out = slurp(log);
+  CAPTURE(out);
+  CHECK(contains(out, "vtsim: error: " + bad));
+  CHECK(contains(out, "cannot load the image module"));
+  CHECK(contains(out, "No such file or directory"));
+  CHECK(contains(out, "VTSIM_IMAGE_MODULE"));
+
+  // A file that is not a shared object.
+  const std::string junk = test::temp_path("libjunk.so");
+  std::ofstream(junk) << "not a shared object\n";
+  CHECK(run("VTSIM_IMAGE_MODULE=" + junk + " " + cli + " view --scene plane --pos 4096,4096,1.7 --size 64x36 -o " + png,
+            log) == 2);
+  CHECK(contains(slurp(log), "vtsim: error: " + junk + ": cannot load the image module"));
+
+  std::remove(junk.c_str());
+  std::remove(png.c_str());
+  std::remove(log.c_str());
+}
