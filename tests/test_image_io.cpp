@@ -82,7 +82,7 @@ TEST_CASE("image module: 8-bit, 16-bit and float images round-trip through files
   CHECK(spec.is_float);
 }
 
-TEST_CASE("image module: in-memory PNG round-trips; failures come back as messages") {
+TEST_CASE("image module: in-memory PNG round-trips, and failures come back as messages") {
   std::vector<std::uint8_t> px(6 * 2 * 3);
   for (std::size_t i = 0; i < px.size(); ++i) px[i] = static_cast<std::uint8_t>(i * 11);
   std::vector<std::uint8_t> bytes;
