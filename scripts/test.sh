@@ -19,7 +19,7 @@ for v in $variants; do
   case $v in
     release) dir=build;      args=() ;;
     asan)    dir=build-asan; args=(-DVTSIM_SANITIZE=address "${san[@]}") ;;
-    tsan)    dir=build-tsan; args=(-DVTSIM_SANITIZE=thread  "${san[@]}") ;;
+    tsan)    dir=build-tsan; args=(-DVTSIM_SANITIZE=thread  "${san[@]}" -DVTSIM_TESTS_THREADS_ONLY=ON) ;;
     *) echo "test.sh: unknown variant '$v' (release|asan|tsan)" >&2; exit 2 ;;
   esac
   echo "== $v: build ($dir) at $(date -u +%T), ${SECONDS}s into the run, $(cpu)s CPU"
