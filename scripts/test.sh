@@ -8,6 +8,10 @@ here=$(cd "$(dirname "$0")/.." && pwd)
 cd "$here"
 variants=${VTSIM_TEST_VARIANTS:-"release asan tsan"}
 jobs=$(nproc)
+# CPU seconds (user+sys) of this script's finished children so far, for the phase lines: on a shared
+# machine CPU time is the steadier figure (wall time depends on what else runs).
+tck=$(getconf CLK_TCK)
+cpu() { local s; read -ra s < /proc/$$/stat; echo $(( (s[15] + s[16]) / tck )); }
 # Sanitizer builds at -O1 with line tables only (-g1): ASan+UBSan at -O2 -g compiled 2x slower
 # (37.6 s vs 18.7 s for src/sim/compare.cpp) for stack traces that -g1 already gives file:line.
 san=(-DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" -DVTSIM_BUILD_BENCH=OFF)
@@ -15,12 +19,12 @@ for v in $variants; do
   case $v in
     release) dir=build;      args=() ;;
     asan)    dir=build-asan; args=(-DVTSIM_SANITIZE=address "${san[@]}") ;;
-    tsan)    dir=build-tsan; args=(-DVTSIM_SANITIZE=thread  "${san[@]}") ;;
+    tsan)    dir=build-tsan; args=(-DVTSIM_SANITIZE=thread  "${san[@]}" -DVTSIM_TESTS_THREADS_ONLY=ON) ;;
     *) echo "test.sh: unknown variant '$v' (release|asan|tsan)" >&2; exit 2 ;;
   esac
-  echo "== $v: build ($dir) at $(date -u +%T), ${SECONDS}s into the run"
+  echo "== $v: build ($dir) at $(date -u +%T), ${SECONDS}s into the run, $(cpu)s CPU"
   bash scripts/setup.sh "$dir" "${args[@]}"
-  echo "== $v: ctest at $(date -u +%T), ${SECONDS}s into the run"
+  echo "== $v: ctest at $(date -u +%T), ${SECONDS}s into the run, $(cpu)s CPU"
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
   export TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1
   if [ "$v" = tsan ]; then
@@ -31,4 +35,4 @@ for v in $variants; do
     ctest --test-dir "$dir" --output-on-failure -j"$jobs" --timeout 600
   fi
 done
-echo "== all test variants passed: $variants (${SECONDS}s)"
+echo "== all test variants passed: $variants (${SECONDS}s, $(cpu)s CPU)"

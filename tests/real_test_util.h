@@ -14,6 +14,7 @@
 #include <thread>
 #include <vector>
 
+#include "stream/i_executor.h"
 #include "stream/tile_store.h"
 
 namespace vtsim::test {
@@ -77,6 +78,12 @@ bool eventually(Pred pred, double seconds = 10.0) {
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
   return pred();
+}
+
+// The executor job that reads and decodes tile k of store s.
+inline TileJob tile_job(const TileStore& s, RequestId id, TileKey k, std::uint64_t prio = 0) {
+  const TileLocation loc = s.locate(k);
+  return TileJob{id, k, loc.read_bytes, loc.decoded_bytes, prio};
 }
 
 struct CliRun {

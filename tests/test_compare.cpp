@@ -37,7 +37,7 @@ json summary() {
   })");
 }
 
-json bench(double median, double ratio) {
+json bench_doc(double median, double ratio) {
   json r1 = {{"name", "get"},  {"side", "lru_cache"}, {"unit", "ns/op"}, {"better", "lower"}, {"median", median},
              {"min", 1.0},     {"max", 9.0},          {"p10", 2.0},      {"p90", 8.0},        {"mad", 0.1},
              {"samples", {median, median}},           {"reps", 2},       {"ratio", ratio},    {"meets_target", ratio >= 3},
@@ -231,7 +231,7 @@ TEST_CASE("compare: bad input names the file and the key") {
   e = input_error([&] { cmp(b, n); });
   CHECK(contains(e, "'latency_ms' is an array, but an object"));
 
-  e = input_error([&] { cmp(b, bench(1.0, 3.0)); });
+  e = input_error([&] { cmp(b, bench_doc(1.0, 3.0)); });
   CHECK(contains(e, "new.json: is a benchmark JSON, but the base base.json is a summary JSON"));
 
   e = input_error([&] { cmp(json::array(), b); });
@@ -241,24 +241,24 @@ TEST_CASE("compare: bad input names the file and the key") {
   e = input_error([&] { cmp(b, json{{"vtsim_version", "1"}, {"run", json::object()}}); });
   CHECK(contains(e, "new.json: key 'trace' is missing"));
 
-  json nb = bench(1.0, 3.0);
+  json nb = bench_doc(1.0, 3.0);
   nb["schema"] = "vtsim-bench/2";
-  e = input_error([&] { cmp(bench(1.0, 3.0), nb); });
+  e = input_error([&] { cmp(bench_doc(1.0, 3.0), nb); });
   CHECK(contains(e, "new.json: key 'schema'"));
-  nb = bench(1.0, 3.0);
+  nb = bench_doc(1.0, 3.0);
   nb["benchmark"] = "io";
-  e = input_error([&] { cmp(bench(1.0, 3.0), nb); });
+  e = input_error([&] { cmp(bench_doc(1.0, 3.0), nb); });
   CHECK(contains(e, "key 'benchmark'"));
-  nb = bench(1.0, 3.0);
+  nb = bench_doc(1.0, 3.0);
   nb["results"][0].erase("name");
-  e = input_error([&] { cmp(bench(1.0, 3.0), nb); });
+  e = input_error([&] { cmp(bench_doc(1.0, 3.0), nb); });
   CHECK(contains(e, "new.json: key 'results[0].name'"));
 }
 
 TEST_CASE("compare: benchmark JSONs by case name, direction from the unit") {
-  const json b = bench(10.0, 3.0);
+  const json b = bench_doc(10.0, 3.0);
   SUBCASE("slower median and lower ratio are worse") {
-    const auto r = cmp(b, bench(12.0, 2.5));
+    const auto r = cmp(b, bench_doc(12.0, 2.5));
     CHECK(row(r, "results.get.median").verdict == Verdict::worse);  // ns/op: lower is better
     CHECK(row(r, "results.get.median").tol.better == Better::lower);
     CHECK(row(r, "results.get.ratio").verdict == Verdict::worse);
@@ -271,23 +271,23 @@ TEST_CASE("compare: benchmark JSONs by case name, direction from the unit") {
     CHECK(r.failed(false));
   }
   SUBCASE("within 15% passes; faster is better") {
-    auto r = cmp(b, bench(11.0, 2.8));
+    auto r = cmp(b, bench_doc(11.0, 2.8));
     CHECK(row(r, "results.get.median").verdict == Verdict::within);
     CHECK_FALSE(r.failed(false));
-    r = cmp(b, bench(5.0, 6.0));
+    r = cmp(b, bench_doc(5.0, 6.0));
     CHECK(row(r, "results.get.median").verdict == Verdict::better);
     CHECK(row(r, "results.get.ratio").verdict == Verdict::better);
     CHECK_FALSE(r.failed(false));
   }
   SUBCASE("MB/s: higher is better") {
-    json n = bench(10.0, 3.0);
+    json n = bench_doc(10.0, 3.0);
     n["results"][1]["median"] = 800.0;
     const auto r = cmp(b, n);
     CHECK(row(r, "results.scan.median").verdict == Verdict::worse);
     CHECK(row(r, "results.scan.ratio").verdict == Verdict::same);  // null and null
   }
   SUBCASE("reordered cases still pair by name") {
-    json n = bench(10.0, 3.0);
+    json n = bench_doc(10.0, 3.0);
     std::swap(n["results"][0], n["results"][1]);
     CHECK(cmp(b, n).count(Verdict::same) == cmp(b, b).count(Verdict::same));
     CHECK_FALSE(cmp(b, n).failed(true));

@@ -19,11 +19,6 @@ using vtsim::test::eventually;
 
 namespace {
 
-TileJob job(const TileStore& s, RequestId id, TileKey k) {
-  const TileLocation loc = s.locate(k);
-  return TileJob{id, k, loc.read_bytes, loc.decoded_bytes, 0};
-}
-
 std::vector<JobResult> run_jobs(const TileStore& store, const FaultConfig& f, const std::vector<TileKey>& keys) {
   ThreadedExecutorConfig c;
   c.io_threads = 2;
@@ -31,7 +26,7 @@ std::vector<JobResult> run_jobs(const TileStore& store, const FaultConfig& f, co
   c.capacity = 4096;
   c.faults = f;
   ThreadedExecutor ex(store, c);
-  for (std::size_t i = 0; i < keys.size(); ++i) ex.submit(job(store, i + 1, keys[i]));
+  for (std::size_t i = 0; i < keys.size(); ++i) ex.submit(test::tile_job(store, i + 1, keys[i]));
   std::vector<JobResult> out;
   REQUIRE(eventually([&] {
     ex.collect(ex.now(), out);
@@ -203,7 +198,7 @@ TEST_CASE("a store truncated under a running executor: the lost records fail as 
   const std::uint64_t cut = store.header().data_offset + (store.header().file_bytes - store.header().data_offset) / 2;
   std::filesystem::resize_file(p, cut);
   const auto keys = test::all_keys(store);
-  for (std::size_t i = 0; i < keys.size(); ++i) ex.submit(job(store, i + 1, keys[i]));
+  for (std::size_t i = 0; i < keys.size(); ++i) ex.submit(test::tile_job(store, i + 1, keys[i]));
   std::vector<JobResult> out;
   REQUIRE(eventually([&] {
     ex.collect(ex.now(), out);

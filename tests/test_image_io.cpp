@@ -14,29 +14,17 @@
 
 #include "core/error.h"
 #include "core/image_io.h"
+#include "test_util.h"
 #include "view_test_util.h"
 
 using namespace vtsim;
 using image_io::PixelType;
+using test::contains;
+using test::slurp;
 using image_io::ReadStatus;
 using image_io::WriteStatus;
 
 namespace {
-
-int run(const std::string& cmdline, const std::string& log) {
-  const std::string cmd = cmdline + " >" + log + " 2>&1";
-  const int rc = std::system(cmd.c_str());
-  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
-}
-
-std::string slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
 
 template <class T>
 std::vector<T> round_trip(const std::string& path, int w, int h, int c, PixelType type, const std::vector<T>& px,
@@ -120,11 +108,11 @@ TEST_CASE("image module: a module that cannot be loaded is a clear error, and on
   const std::string env = "VTSIM_IMAGE_MODULE=" + bad + " ";
 
   // Commands that read or write no image do not load the module.
-  CHECK(run(env + cli + " --version", log) == 0);
-  CHECK(run(env + cli + " capacity --size 32768 --clipsize 1024 --layers albedo:rgba8", log) == 0);
+  CHECK(test::run_shell(env + cli + " --version", log) == 0);
+  CHECK(test::run_shell(env + cli + " capacity --size 32768 --clipsize 1024 --layers albedo:rgba8", log) == 0);
 
   // Writing an image needs it: exit 2 with the module path and the loader's reason.
-  CHECK(run(env + cli + " view --scene plane --pos 4096,4096,1.7 --size 64x36 -o " + png, log) == 2);
+  CHECK(test::run_shell(env + cli + " view --scene plane --pos 4096,4096,1.7 --size 64x36 -o " + png, log) == 2);
   const std::string out = slurp(log);
   CAPTURE(out);
   CHECK(contains(out, "vtsim: error: " + bad));
@@ -135,7 +123,7 @@ TEST_CASE("image module: a module that cannot be loaded is a clear error, and on
   // A file that is not a shared object.
   const std::string junk = test::temp_path("libjunk.so");
   std::ofstream(junk) << "not a shared object\n";
-  CHECK(run("VTSIM_IMAGE_MODULE=" + junk + " " + cli + " view --scene plane --pos 4096,4096,1.7 --size 64x36 -o " + png,
+  CHECK(test::run_shell("VTSIM_IMAGE_MODULE=" + junk + " " + cli + " view --scene plane --pos 4096,4096,1.7 --size 64x36 -o " + png,
             log) == 2);
   CHECK(contains(slurp(log), "vtsim: error: " + junk + ": cannot load the image module"));
 

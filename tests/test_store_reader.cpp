@@ -8,11 +8,13 @@
 
 #include "core/error.h"
 #include "store_test_util.h"
+#include "test_util.h"
 #include "stream/store_builder.h"
 #include "stream/tile_store.h"
 
 using namespace vtsim;
 using namespace vtsim::store;
+using vtsim::test::contains;
 
 namespace {
 
@@ -51,8 +53,6 @@ std::string open_error(const std::string& path) {
   return "";
 }
 
-bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
-
 // Rewrites the header checksum after a deliberate edit, so the check under test is reached.
 void fix_header_checksum(std::vector<std::uint8_t>& b) {
   const std::uint32_t n = load_u32(&b[hdr::header_bytes]);
@@ -63,11 +63,6 @@ void fix_index_checksum(std::vector<std::uint8_t>& b) {
   const std::uint64_t off = load_u64(&b[hdr::index_offset]), n = load_u64(&b[hdr::index_bytes]);
   store_u64(&b[hdr::index_checksum], checksum64(b.data() + off, n));
   fix_header_checksum(b);
-}
-
-int run_cli(const std::string& args) {
-  const int r = std::system((std::string(VTSIM_CLI) + " " + args + " >/dev/null 2>&1").c_str());
-  return WIFEXITED(r) ? WEXITSTATUS(r) : -1;
 }
 
 }  // namespace
@@ -125,7 +120,7 @@ TEST_CASE("a flipped byte in a record is a checksum error naming the tile, verif
   {
     const TileStore s = TileStore::open(path);
     offset = s.locate(k).offset;
-    CHECK(run_cli("store verify " + path) == 0);
+    CHECK(test::run_vtsim("store verify " + path, "/dev/null") == 0);
   }
   auto b = test::read_bytes(path);
   b[offset + 17] ^= 0x40;
@@ -142,7 +137,7 @@ TEST_CASE("a flipped byte in a record is a checksum error naming the tile, verif
     CHECK(contains(e.what(), path));
   }
   s.read_tile(TileKey(0, 1, 1, 1), scratch, out.data(), out.size());  // neighbours still read
-  CHECK(run_cli("store verify " + path) == 1);
+  CHECK(test::run_vtsim("store verify " + path, "/dev/null") == 1);
   std::string listing;
   {
     FILE* p = ::popen((std::string(VTSIM_CLI) + " store verify " + path + " 2>/dev/null").c_str(), "r");
@@ -167,7 +162,7 @@ TEST_CASE("corrupt stores are rejected at open with the field named") {
     CAPTURE(msg);
     CHECK(contains(msg, bad));
     CHECK(contains(msg, part));
-    if (cli_checks-- > 0) CHECK(run_cli("store info " + bad) == 2);
+    if (cli_checks-- > 0) CHECK(test::run_vtsim("store info " + bad, "/dev/null") == 2);
   };
   CHECK(open_error(good).empty());
 

@@ -20,11 +20,6 @@ using vtsim::test::eventually;
 
 namespace {
 
-TileJob job(const TileStore& s, RequestId id, TileKey k, std::uint64_t prio = 0) {
-  const TileLocation loc = s.locate(k);
-  return TileJob{id, k, loc.read_bytes, loc.decoded_bytes, prio};
-}
-
 // Collects until `n` results arrived (with a deadline); fails the test otherwise.
 std::vector<JobResult> collect_all(ThreadedExecutor& ex, std::size_t n) {
   std::vector<JobResult> out;
@@ -35,7 +30,7 @@ std::vector<JobResult> collect_all(ThreadedExecutor& ex, std::size_t n) {
   return out;
 }
 
-ThreadedExecutorConfig cfg(int io, int dec, std::size_t cap, FaultConfig f = {}) {
+ThreadedExecutorConfig exec_cfg(int io, int dec, std::size_t cap, FaultConfig f = {}) {
   ThreadedExecutorConfig c;
   c.io_threads = io;
   c.decode_workers = dec;
@@ -48,9 +43,9 @@ ThreadedExecutorConfig cfg(int io, int dec, std::size_t cap, FaultConfig f = {})
 
 TEST_CASE("threaded executor: every tile read and decoded equals the store's, stamps ordered, completion order") {
   const TileStore store = TileStore::open(test::small_store());
-  ThreadedExecutor ex(store, cfg(3, 2, 1024));
+  ThreadedExecutor ex(store, exec_cfg(3, 2, 1024));
   const auto keys = test::all_keys(store);
-  for (std::size_t i = 0; i < keys.size(); ++i) ex.submit(job(store, i + 1, keys[i], i % 5));
+  for (std::size_t i = 0; i < keys.size(); ++i) ex.submit(test::tile_job(store, i + 1, keys[i], i % 5));
   CHECK(ex.in_flight() <= keys.size());
   const auto out = collect_all(ex, keys.size());
   REQUIRE(out.size() == keys.size());
@@ -79,10 +74,10 @@ TEST_CASE("threaded executor: every tile read and decoded equals the store's, st
 
 TEST_CASE("threaded executor: collect(until) never hands out a result completed after `until`") {
   const TileStore store = TileStore::open(test::small_store());
-  ThreadedExecutor ex(store, cfg(2, 1, 64));
+  ThreadedExecutor ex(store, exec_cfg(2, 1, 64));
   ex.restart_clock();
   const Ticks before = ex.now();
-  for (RequestId id = 1; id <= 8; ++id) ex.submit(job(store, id, TileKey(0, 0, static_cast<std::int64_t>(id), 0)));
+  for (RequestId id = 1; id <= 8; ++id) ex.submit(test::tile_job(store, id, TileKey(0, 0, static_cast<std::int64_t>(id), 0)));
   REQUIRE(ex.wait_for_results(8, std::chrono::seconds(10)));
   std::vector<JobResult> out;
   ex.collect(before, out);  // everything completed after `before`
@@ -98,13 +93,13 @@ TEST_CASE("threaded executor: the bound on jobs in flight and duplicate ids are 
   FaultConfig slow;
   slow.slow_rate = 1.0;
   slow.slow_ms = 200;
-  ThreadedExecutor ex(store, cfg(1, 1, 3, slow));
-  ex.submit(job(store, 1, TileKey(0, 0, 0, 0)));
-  CHECK_THROWS_AS(ex.submit(job(store, 1, TileKey(0, 0, 1, 0))), std::logic_error);
-  ex.submit(job(store, 2, TileKey(0, 0, 1, 0)));
-  ex.submit(job(store, 3, TileKey(0, 0, 2, 0)));
+  ThreadedExecutor ex(store, exec_cfg(1, 1, 3, slow));
+  ex.submit(test::tile_job(store, 1, TileKey(0, 0, 0, 0)));
+  CHECK_THROWS_AS(ex.submit(test::tile_job(store, 1, TileKey(0, 0, 1, 0))), std::logic_error);
+  ex.submit(test::tile_job(store, 2, TileKey(0, 0, 1, 0)));
+  ex.submit(test::tile_job(store, 3, TileKey(0, 0, 2, 0)));
   CHECK(ex.in_flight() == 3);
-  CHECK_THROWS_AS(ex.submit(job(store, 4, TileKey(0, 0, 3, 0))), std::logic_error);
+  CHECK_THROWS_AS(ex.submit(test::tile_job(store, 4, TileKey(0, 0, 3, 0))), std::logic_error);
   CHECK_THROWS_AS(ex.restart_clock(), std::logic_error);  // jobs in flight
 }
 
@@ -113,12 +108,12 @@ TEST_CASE("threaded executor: cancel — queued: dropped for free, and being rea
   FaultConfig slow;
   slow.slow_rate = 1.0;
   slow.slow_ms = 60;
-  ThreadedExecutor ex(store, cfg(1, 1, 16, slow));
+  ThreadedExecutor ex(store, exec_cfg(1, 1, 16, slow));
   const TileKey a(0, 1, 0, 0), b(0, 1, 1, 0), c(0, 1, 2, 0);
-  ex.submit(job(store, 1, a));
+  ex.submit(test::tile_job(store, 1, a));
   REQUIRE(eventually([&] { return ex.reads_under_way() == 1; }));
-  ex.submit(job(store, 2, b));
-  ex.submit(job(store, 3, c));
+  ex.submit(test::tile_job(store, 2, b));
+  ex.submit(test::tile_job(store, 3, c));
   CHECK_FALSE(ex.cancel(1));  // under way: its result still comes, as cancelled
   CHECK(ex.cancel(2));        // queued: gone, no result
   CHECK_FALSE(ex.cancel(2));
@@ -142,9 +137,9 @@ TEST_CASE("threaded executor: cancelling everything at random moments keeps the 
   const TileStore store = TileStore::open(test::small_store());
   const auto keys = test::all_keys(store);
   for (int round = 0; round < 5; ++round) {
-    ThreadedExecutor ex(store, cfg(2, 1, 1024));
+    ThreadedExecutor ex(store, exec_cfg(2, 1, 1024));
     const std::size_t n = 200;
-    for (std::size_t i = 0; i < n; ++i) ex.submit(job(store, i + 1, keys[(i * 7 + static_cast<std::size_t>(round)) % keys.size()]));
+    for (std::size_t i = 0; i < n; ++i) ex.submit(test::tile_job(store, i + 1, keys[(i * 7 + static_cast<std::size_t>(round)) % keys.size()]));
     std::this_thread::sleep_for(std::chrono::microseconds(300 * round));
     std::set<RequestId> dropped;
     for (RequestId id = 1; id <= n; ++id)
@@ -174,9 +169,9 @@ TEST_CASE("threaded executor: shutdown with work in flight is prompt and leaves 
   FaultConfig slow;
   slow.slow_rate = 1.0;
   slow.slow_ms = 3000;  // reads "take" 3 s each: shutdown must not wait for them
-  ThreadedExecutor ex(store, cfg(2, 1, 64, slow));
+  ThreadedExecutor ex(store, exec_cfg(2, 1, 64, slow));
   const auto keys = test::all_keys(store);
-  for (std::size_t i = 0; i < 40; ++i) ex.submit(job(store, i + 1, keys[i]));
+  for (std::size_t i = 0; i < 40; ++i) ex.submit(test::tile_job(store, i + 1, keys[i]));
   REQUIRE(eventually([&] { return ex.reads_under_way() == 2; }));
   const auto t0 = std::chrono::steady_clock::now();
   ex.shutdown();
@@ -194,7 +189,7 @@ TEST_CASE("threaded executor: shutdown with work in flight is prompt and leaves 
   }
   CHECK(ids.size() == 40);
   CHECK(read == 2);  // only the two under way touched the disk
-  CHECK_THROWS_AS(ex.submit(job(store, 99, keys[0])), std::logic_error);
+  CHECK_THROWS_AS(ex.submit(test::tile_job(store, 99, keys[0])), std::logic_error);
   ex.shutdown();  // idempotent
 }
 
@@ -206,9 +201,9 @@ TEST_CASE("threaded executor: destroyed with reads and decodes under way, no thr
   };
   const auto threads0 = count("/proc/self/task"), fds0 = count("/proc/self/fd");
   for (int i = 0; i < 3; ++i) {
-    ThreadedExecutor ex(store, cfg(4, 2, 1024));
+    ThreadedExecutor ex(store, exec_cfg(4, 2, 1024));
     CHECK(count("/proc/self/task") == threads0 + 6);
-    for (std::size_t k = 0; k < keys.size(); ++k) ex.submit(job(store, k + 1, keys[k]));
+    for (std::size_t k = 0; k < keys.size(); ++k) ex.submit(test::tile_job(store, k + 1, keys[k]));
     std::this_thread::sleep_for(std::chrono::milliseconds(i));
   }  // the destructor shuts down with work in flight
   CHECK(count("/proc/self/task") == threads0);

@@ -43,8 +43,8 @@ Run vtsim_run(const ScratchDir& dir, const std::string& args) {
   return r;
 }
 
-const std::string kData = VTSIM_TEST_DATA;
-const std::string kHead =
+using vtsim::test::kData;
+const std::string kOneRowTrace =
     "# vtsim-trace v1 image_width=1920 image_height=1080\nt_s,x_m,y_m,z_m,qw,qx,qy,qz,vfov_deg\n"
     "0,1,2,3,1,0,0,0,60\n";
 
@@ -133,18 +133,18 @@ TEST_CASE("cli: bad input gives exit code 2 and names the file and line") {
   };
   const std::string tum_ok = "1.0 0 0 0 0 0 0 1\n";
   const Case cases[] = {
-      {"NaN", "info", kHead + "0.5,nan,2,3,1,0,0,0,60\n", 4},
-      {"inf", "info", kHead + "0.5,1,-inf,3,1,0,0,0,60\n", 4},
-      {"time backwards", "info", kHead + "-0.5,1,2,3,1,0,0,0,60\n", 4},
-      {"duplicate time (strict)", "info --strict", kHead + "0,1,2,3,1,0,0,0,60\n", 4},
-      {"quaternion far from unit", "info", kHead + "0.5,1,2,3,0.5,0,0,0,60\n", 4},
-      {"zero quaternion", "info", kHead + "0.5,1,2,3,0,0,0,0,60\n", 4},
-      {"missing column", "info", kHead + "0.5,1,2,3,1,0,0,0\n", 4},
-      {"extra column", "info", kHead + "0.5,1,2,3,1,0,0,0,60,1\n", 4},
+      {"NaN", "info", kOneRowTrace + "0.5,nan,2,3,1,0,0,0,60\n", 4},
+      {"inf", "info", kOneRowTrace + "0.5,1,-inf,3,1,0,0,0,60\n", 4},
+      {"time backwards", "info", kOneRowTrace + "-0.5,1,2,3,1,0,0,0,60\n", 4},
+      {"duplicate time (strict)", "info --strict", kOneRowTrace + "0,1,2,3,1,0,0,0,60\n", 4},
+      {"quaternion far from unit", "info", kOneRowTrace + "0.5,1,2,3,0.5,0,0,0,60\n", 4},
+      {"zero quaternion", "info", kOneRowTrace + "0.5,1,2,3,0,0,0,0,60\n", 4},
+      {"missing column", "info", kOneRowTrace + "0.5,1,2,3,1,0,0,0\n", 4},
+      {"extra column", "info", kOneRowTrace + "0.5,1,2,3,1,0,0,0,60,1\n", 4},
       {"empty file", "info --format native", "", 1},
       {"binary garbage", "info --format native", std::string("\x1f\x8b\x08\x00\x00\x00", 6), 1},
-      {"non-UTF-8", "info", kHead + "# \xff\n", 4},
-      {"huge line", "info", kHead + std::string(100000, '7') + "\n", 4},
+      {"non-UTF-8", "info", kOneRowTrace + "# \xff\n", 4},
+      {"huge line", "info", kOneRowTrace + std::string(100000, '7') + "\n", 4},
       {"tum NaN", "import --format tum", tum_ok + "1.1 0 nan 0 0 0 0 1\n", 2},
       {"tum backwards", "import --format tum", tum_ok + "0.9 0 0 0 0 0 0 1\n", 2},
       {"tum missing column", "import --format tum", tum_ok + "1.1 0 0 0 0 0 1\n", 2},

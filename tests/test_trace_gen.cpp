@@ -15,7 +15,8 @@ using vtsim::test::same_bits;
 
 namespace {
 
-const glm::dvec3 kForward(1, 0, 0), kUp(0, 0, 1);
+using vtsim::test::kForward;
+using vtsim::test::kUp;
 constexpr double kPi = std::numbers::pi;
 
 Trace gen(TraceKind k) { return generate_trace(default_gen_params(k)); }

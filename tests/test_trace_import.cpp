@@ -17,7 +17,7 @@ using vtsim::test::write_file;
 
 namespace {
 
-const std::string kData = VTSIM_TEST_DATA;
+using vtsim::test::kData;
 const std::string kTumFr1 = kData + "/tum_fr1_xyz_excerpt.txt";
 const std::string kTumFr2 = kData + "/tum_fr2_desk_excerpt.txt";
 const std::string kEuroc = kData + "/euroc_V1_02_excerpt.csv";
@@ -33,7 +33,9 @@ void check_vec(const glm::dvec3& a, const glm::dvec3& b, double tol) {
   CHECK(std::abs(a.z - b.z) <= tol);
 }
 
-const glm::dvec3 kForward(1, 0, 0), kLeft(0, 1, 0), kUp(0, 0, 1);
+using vtsim::test::kForward;
+using vtsim::test::kLeft;
+using vtsim::test::kUp;
 
 }  // namespace
 

@@ -14,7 +14,9 @@ using vtsim::test::input_error;
 
 namespace {
 
-const glm::dvec3 kForward(1, 0, 0), kLeft(0, 1, 0), kUp(0, 0, 1);
+using vtsim::test::kForward;
+using vtsim::test::kLeft;
+using vtsim::test::kUp;
 
 Trace one_pose(const glm::dvec3& p, const glm::dquat& q = glm::dquat(1, 0, 0, 0)) {
   Trace t;

@@ -8,28 +8,14 @@
 #include <sys/wait.h>
 
 #include "core/image_io.h"
+#include "test_util.h"
 #include "view_test_util.h"
 
-namespace {
-
-int run(const std::string& args, const std::string& log) {
-  const std::string cmd = std::string(VTSIM_CLI) + " " + args + " >" + log + " 2>&1";
-  const int rc = std::system(cmd.c_str());
-  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
-}
-
-std::string slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-}  // namespace
+using vtsim::test::slurp;
 
 TEST_CASE("vtsim view writes the feedback image and prints counters") {
   const std::string png = vtsim::test::temp_path("view.png"), log = vtsim::test::temp_path("log.txt");
-  REQUIRE(run("view --scene plane --pos 4096,4096,1.7 --pitch -10 --size 640x360 --divisor 4 --zoom 2 -o " + png, log) == 0);
+  REQUIRE(vtsim::test::run_vtsim("view --scene plane --pos 4096,4096,1.7 --pitch -10 --size 640x360 --divisor 4 --zoom 2 -o " + png, log) == 0);
   const std::string out = slurp(log);
   CHECK(out.find("buffer 160x90 (divisor 4)") != std::string::npos);
   CHECK(out.find("touched tiles (128 texels):") != std::string::npos);
@@ -49,18 +35,18 @@ TEST_CASE("vtsim view writes the feedback image and prints counters") {
 
 TEST_CASE("vtsim view: bad input exits 2 with the field or file named") {
   const std::string log = vtsim::test::temp_path("log.txt"), png = vtsim::test::temp_path("x.png");
-  CHECK(run("view --pos 1,2 -o " + png, log) == 2);
+  CHECK(vtsim::test::run_vtsim("view --pos 1,2 -o " + png, log) == 2);
   CHECK(slurp(log).find("--pos") != std::string::npos);
-  CHECK(run("view --scene cube -o " + png, log) == 2);
-  CHECK(run("view --divisor 0 -o " + png, log) == 2);
+  CHECK(vtsim::test::run_vtsim("view --scene cube -o " + png, log) == 2);
+  CHECK(vtsim::test::run_vtsim("view --divisor 0 -o " + png, log) == 2);
   CHECK(slurp(log).find("divisor") != std::string::npos);
-  CHECK(run("view --size 10x0 -o " + png, log) == 2);
+  CHECK(vtsim::test::run_vtsim("view --size 10x0 -o " + png, log) == 2);
   const std::string obj = vtsim::test::temp_path("bad.obj");
   std::ofstream(obj) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n";
-  CHECK(run("view --scene mesh --obj " + obj + " -o " + png, log) == 2);
+  CHECK(vtsim::test::run_vtsim("view --scene mesh --obj " + obj + " -o " + png, log) == 2);
   CHECK(slurp(log).find(obj + ":4: vertex index 7 is out of range") != std::string::npos);
-  CHECK(run("view --scene heightfield --agl --pos -5000,0,2 -o " + png, log) == 2);
-  CHECK(run("view -o /nonexistent/dir/x.png", log) == 2);
+  CHECK(vtsim::test::run_vtsim("view --scene heightfield --agl --pos -5000,0,2 -o " + png, log) == 2);
+  CHECK(vtsim::test::run_vtsim("view -o /nonexistent/dir/x.png", log) == 2);
   std::remove(obj.c_str());
   std::remove(log.c_str());
 }

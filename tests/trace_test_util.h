@@ -12,8 +12,12 @@
 
 #include "core/error.h"
 #include "sim/trace.h"
+#include "test_util.h"
 
 namespace vtsim::test {
+
+// The camera body frame FLU (docs/trace.md): +x forward, +y left, +z up.
+inline const glm::dvec3 kForward(1, 0, 0), kLeft(0, 1, 0), kUp(0, 0, 1);
 
 // A fresh directory under the system temp dir, removed with everything in it at scope exit.
 class ScratchDir {
@@ -58,10 +62,6 @@ inline std::string input_error(const std::function<void()>& fn) {
   }
   FAIL("expected InputError, nothing was thrown");
   return {};
-}
-
-inline bool contains(const std::string& haystack, const std::string& needle) {
-  return haystack.find(needle) != std::string::npos;
 }
 
 inline bool same_bits(double a, double b) {

@@ -30,7 +30,7 @@ std::vector<std::string> split_commas(const std::string& s) {
 }
 
 // "WxH" -> width, height. Throws InputError naming the option.
-void parse_size(const std::string& s, std::uint64_t& w, std::uint64_t& h) {
+void parse_store_size(const std::string& s, std::uint64_t& w, std::uint64_t& h) {
   const std::size_t x = s.find_first_of("xX");
   try {
     std::size_t a = 0, b = 0;
@@ -98,7 +98,7 @@ void run_interruptible(const std::string& out, F&& f) {
   }
 }
 
-std::string human_bytes(std::uint64_t b) {
+std::string human_size(std::uint64_t b) {
   if (b >= (std::uint64_t{1} << 30)) return fmt::format("{:.2f} GiB", static_cast<double>(b) / (1 << 30));
   if (b >= (std::uint64_t{1} << 20)) return fmt::format("{:.2f} MiB", static_cast<double>(b) / (1 << 20));
   if (b >= 1024) return fmt::format("{:.1f} KiB", static_cast<double>(b) / 1024);
@@ -106,8 +106,8 @@ std::string human_bytes(std::uint64_t b) {
 }
 
 void print_result(const std::string& out, const BuildResult& r) {
-  fmt::print("wrote {}: {} tiles, {} ({} payload for {} decoded, ratio {:.2f})\n", out, r.tiles, human_bytes(r.file_bytes),
-             human_bytes(r.stored_bytes), human_bytes(r.decoded_bytes),
+  fmt::print("wrote {}: {} tiles, {} ({} payload for {} decoded, ratio {:.2f})\n", out, r.tiles, human_size(r.file_bytes),
+             human_size(r.stored_bytes), human_size(r.decoded_bytes),
              r.stored_bytes ? static_cast<double>(r.decoded_bytes) / static_cast<double>(r.stored_bytes) : 0.0);
 }
 
@@ -166,8 +166,8 @@ void print_info(const TileStore& s) {
   fmt::print("  texture  {} x {} texels, {} levels, tile {} + border {} (stored {} x {})\n", j["width"].get<std::uint64_t>(),
              j["height"].get<std::uint64_t>(), j["levels"].size(), j["tile"].get<std::uint32_t>(), j["border"].get<std::uint32_t>(),
              j["stored_side"].get<std::uint32_t>(), j["stored_side"].get<std::uint32_t>());
-  fmt::print("  file     {} ({} bytes), {} tiles, index {}\n", human_bytes(j["file_bytes"]), j["file_bytes"].get<std::uint64_t>(),
-             j["tiles"].get<std::uint64_t>(), human_bytes(j["index_bytes"]));
+  fmt::print("  file     {} ({} bytes), {} tiles, index {}\n", human_size(j["file_bytes"]), j["file_bytes"].get<std::uint64_t>(),
+             j["tiles"].get<std::uint64_t>(), human_size(j["index_bytes"]));
   fmt::print("  levels  ");
   for (const auto& l : j["levels"])
     fmt::print(" {}:{}x{}", l["level"].get<int>(), l["width"].get<std::uint64_t>(), l["height"].get<std::uint64_t>());
@@ -175,10 +175,10 @@ void print_info(const TileStore& s) {
   for (const auto& L : j["layers"])
     fmt::print("  layer {:<10} {}ch {} {}:{:<3} stored {:>10} for {:>10} decoded, ratio {:6.2f}, {:.0f} B/tile\n",
                L["name"].get<std::string>(), L["channels"].get<int>(), L["transfer"].get<std::string>(), L["codec"].get<std::string>(),
-               L["codec_param"].get<int>(), human_bytes(L["stored_bytes"]), human_bytes(L["decoded_bytes"]),
+               L["codec_param"].get<int>(), human_size(L["stored_bytes"]), human_size(L["decoded_bytes"]),
                L["compression_ratio"].get<double>(), L["mean_stored_bytes_per_tile"].get<double>());
-  fmt::print("  total    stored {} for {} decoded, ratio {:.2f}; 4 KiB-aligned reads {} (x{:.3f})\n", human_bytes(j["stored_bytes"]),
-             human_bytes(j["decoded_bytes"]), j["compression_ratio"].get<double>(), human_bytes(j["read_bytes"]),
+  fmt::print("  total    stored {} for {} decoded, ratio {:.2f}; 4 KiB-aligned reads {} (x{:.3f})\n", human_size(j["stored_bytes"]),
+             human_size(j["decoded_bytes"]), j["compression_ratio"].get<double>(), human_size(j["read_bytes"]),
              j["alignment_overhead"].get<double>());
 }
 
@@ -313,7 +313,7 @@ void register_store_commands(CLI::App& app) {
     c->add_flag("--progress", o->progress, "Show progress even when stderr is not a terminal");
     c->callback([o] {
       GenOptions g;
-      parse_size(o->size, g.width, g.height);
+      parse_store_size(o->size, g.width, g.height);
       g.tile = o->tile;
       g.border = o->border;
       g.levels = o->levels;

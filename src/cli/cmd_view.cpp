@@ -61,7 +61,7 @@ glm::dvec3 parse_pos(const std::string& s) {
   return p;
 }
 
-void parse_size(const std::string& s, int& w, int& h) {
+void parse_view_size(const std::string& s, int& w, int& h) {
   char x = 0;
   char* end = nullptr;
   const long a = std::strtol(s.c_str(), &end, 10);
@@ -90,7 +90,7 @@ void run_view(const ViewOptions& o) {
   if (o.zoom < 1 || o.zoom > 64) throw InputError("--zoom", "must be in [1, 64]");
 
   int width = 0, height = 0;
-  parse_size(o.size, width, height);
+  parse_view_size(o.size, width, height);
   glm::dvec3 pos = parse_pos(o.pos);
 
   const auto t_build = std::chrono::steady_clock::now();

@@ -17,7 +17,7 @@ namespace vtsim::cli {
 
 namespace {
 
-struct CompareArgs {
+struct VtCompareArgs {
   std::vector<std::string> traces{"traces"};
   std::string policies = "none,deadline,vt_clamp,unreal_bias,rage_watermarks";
   std::string config;
@@ -58,7 +58,7 @@ std::vector<std::string> trace_files(const std::vector<std::string>& args) {
 
 double num(const nlohmann::json& j) { return j.is_number() ? j.get<double>() : 0.0; }
 
-void run_compare(const CompareArgs& a) {
+void run_compare(const VtCompareArgs& a) {
   const auto policies = split(a.policies);
   if (policies.empty()) throw InputError("--policies", "no policy named");
   for (const auto& p : policies)
@@ -162,7 +162,7 @@ void run_compare(const CompareArgs& a) {
 void register_vt_commands(CLI::App& app) {
   auto* vt = app.add_subcommand("vt", "Virtual texturing tools (docs/vt.md)");
   vt->require_subcommand(1);
-  auto a = std::make_shared<CompareArgs>();
+  auto a = std::make_shared<VtCompareArgs>();
   auto* c = vt->add_subcommand("compare", "Replay traces under each residency policy at equal budgets; print a Markdown table");
   c->add_option("--traces", a->traces, "trace files or directories of *.csv (default: traces)")->capture_default_str();
   c->add_option("--policies", a->policies, "comma-separated throttle policies")->capture_default_str();

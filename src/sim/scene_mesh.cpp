@@ -220,18 +220,23 @@ struct Scratch {
 };
 
 // Buffer columns whose sample position may lie in [lo, hi] (a superset; the edge test decides).
-inline void sample_range(double lo, double hi, int div, int n, int& b0, int& b1) {
+// Called per rasterised row, so inlined, with 1/div hoisted by the caller's loop and floor/ceil
+// by conversion (the x86-64 baseline has no roundsd: std::floor is a libm call). The reciprocal's
+// rounding moves a quotient by an ulp, far inside the one-column margin on each side.
+[[gnu::always_inline]] inline void sample_range(double lo, double hi, int div, int n, int& b0, int& b1) {
   if (!std::isfinite(lo) || !std::isfinite(hi)) {
     b0 = 0;
     b1 = -1;
     return;
   }
-  const double off = static_cast<double>(div / 2) + 0.5;
-  double a = std::floor((lo - off) / div) - 1.0, b = std::ceil((hi - off) / div) + 1.0;
-  a = std::clamp(a, 0.0, static_cast<double>(n - 1));
-  b = std::clamp(b, -1.0, static_cast<double>(n - 1));
-  b0 = static_cast<int>(a);
-  b1 = static_cast<int>(b);
+  const double off = static_cast<double>(div / 2) + 0.5, inv = 1.0 / static_cast<double>(div);
+  const double lim = static_cast<double>(n) + 4.0;  // clamped first: the conversions stay exact
+  const double ta = std::clamp((lo - off) * inv, -4.0, lim), tb = std::clamp((hi - off) * inv, -4.0, lim);
+  int a = static_cast<int>(ta), b = static_cast<int>(tb);  // toward zero, then to floor / ceil
+  a -= static_cast<double>(a) > ta;
+  b += static_cast<double>(b) < tb;
+  b0 = std::clamp(a - 1, 0, n - 1);
+  b1 = std::clamp(b + 1, -1, n - 1);
 }
 
 // Rasterises a convex polygon (fan) at the buffer's samples. Depth mode: nearest 1/z wins and
