@@ -16,6 +16,7 @@
 
 #include "stream/i_executor.h"
 #include "stream/tile_store.h"
+#include "test_util.h"
 
 namespace vtsim::test {
 
@@ -86,29 +87,9 @@ inline TileJob tile_job(const TileStore& s, RequestId id, TileKey k, std::uint64
   return TileJob{id, k, loc.read_bytes, loc.decoded_bytes, prio};
 }
 
-struct CliRun {
-  int code = -1;
-  std::string out, err;
-};
-
-// Runs `vtsim ARGS` through the shell (test-controlled arguments without spaces).
+// Runs `vtsim ARGS` with stderr through a file in `dir` (run_vtsim_capture).
 inline CliRun run_cli(const RealScratch& dir, const std::string& args) {
-  const std::string err_path = dir.file("stderr.txt");
-  std::filesystem::remove(err_path);
-  const std::string cmd = std::string(VTSIM_CLI) + " " + args + " 2>" + err_path;
-  CliRun r;
-  FILE* p = popen(cmd.c_str(), "r");
-  REQUIRE(p != nullptr);
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream e(err_path);
-  std::stringstream ss;
-  ss << e.rdbuf();
-  r.err = ss.str();
-  return r;
+  return run_vtsim_capture(args, dir.file("stderr.txt"));
 }
 
 }  // namespace vtsim::test

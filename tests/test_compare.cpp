@@ -375,33 +375,6 @@ TEST_CASE("compare: report text and JSON") {
   CHECK(contains(format_report(cmp(summary(), summary()), false, false), "no differences"));
 }
 
-namespace {
-
-struct Run {
-  int code = -1;
-  std::string out, err;
-};
-
-Run vtsim_cli(const ScratchDir& dir, const std::string& args) {
-  const std::string err_path = dir.file("stderr.txt");
-  std::filesystem::remove(err_path);
-  const std::string cmd = std::string(VTSIM_CLI) + " " + args + " 2>" + err_path;
-  Run r;
-  FILE* p = popen(cmd.c_str(), "r");
-  REQUIRE(p != nullptr);
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream e(err_path);
-  std::stringstream ss;
-  ss << e.rdbuf();
-  r.err = ss.str();
-  return r;
-}
-
-}  // namespace
 
 TEST_CASE("compare: CLI exit codes 0 same, 1 regression, 2 bad input") {
   ScratchDir dir;
@@ -417,35 +390,35 @@ TEST_CASE("compare: CLI exit codes 0 same, 1 regression, 2 bad input") {
   s["trace"] = json::object();
   write_file(bad, s.dump());
 
-  Run r = vtsim_cli(dir, "compare " + base + " " + base);
+  test::CliRun r = test::vtsim_run(dir, "compare " + base + " " + base);
   CHECK(r.code == 0);
   CHECK(contains(r.out, "OK: 0 worse"));
-  r = vtsim_cli(dir, "compare " + base + " " + same);
+  r = test::vtsim_run(dir, "compare " + base + " " + same);
   CHECK(r.code == 1);
   CHECK(contains(r.out, "run.wall_s"));
-  r = vtsim_cli(dir, "compare --ignore 'run.*' " + base + " " + same);
+  r = test::vtsim_run(dir, "compare --ignore 'run.*' " + base + " " + same);
   CHECK(r.code == 0);
-  r = vtsim_cli(dir, "compare --ignore 'run.*' " + base + " " + worse);
+  r = test::vtsim_run(dir, "compare --ignore 'run.*' " + base + " " + worse);
   CHECK(r.code == 1);
   CHECK(contains(r.out, "latency_ms.p95"));
   write_file(tol, "[\"run.*\"]\nignore = true\n[latency_ms.p95]\nrel = 0.25\n");
-  r = vtsim_cli(dir, "compare -q --tolerances " + tol + " " + base + " " + worse);
+  r = test::vtsim_run(dir, "compare -q --tolerances " + tol + " " + base + " " + worse);
   CHECK(r.code == 0);
   CHECK(r.out.empty());
-  r = vtsim_cli(dir, "compare --json " + base + " " + worse);
+  r = test::vtsim_run(dir, "compare --json " + base + " " + worse);
   CHECK(r.code == 1);
   CHECK(json::parse(r.out)["result"] == "regression");
 
-  r = vtsim_cli(dir, "compare " + base + " " + bad);
+  r = test::vtsim_run(dir, "compare " + base + " " + bad);
   CHECK(r.code == 2);
   CHECK(contains(r.err, bad + ": key 'trace.duration_s' is missing (the base " + base + " has it)"));
-  r = vtsim_cli(dir, "compare " + base + " " + dir.file("absent.json"));
+  r = test::vtsim_run(dir, "compare " + base + " " + dir.file("absent.json"));
   CHECK(r.code == 2);
   CHECK(contains(r.err, "absent.json: cannot open"));
   write_file(tol, "[x]\nbetter = 1\n");
-  r = vtsim_cli(dir, "compare -t " + tol + " " + base + " " + base);
+  r = test::vtsim_run(dir, "compare -t " + tol + " " + base + " " + base);
   CHECK(r.code == 2);
   CHECK(contains(r.err, tol + ":2"));
-  r = vtsim_cli(dir, "compare " + base);
+  r = test::vtsim_run(dir, "compare " + base);
   CHECK(r.code == 2);
 }

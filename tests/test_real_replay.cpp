@@ -252,12 +252,7 @@ TEST_CASE("vtsim replay --clock real and vtsim calibrate: end to end, and the pr
 
   r = test::run_cli(dir, "calibrate --quick --seconds 0.05 -q --store " + test::small_store() + " -o " + dir.file("p.toml"));
   REQUIRE(r.code == 0);
-  const std::string prof = [&] {
-    std::ifstream f(dir.file("p.toml"));
-    std::stringstream ss;
-    ss << f.rdbuf();
-    return ss.str();
-  }();
+  const std::string prof = test::slurp(dir.file("p.toml"));
   CHECK(prof.find("[disk]") != std::string::npos);
   CHECK(prof.find("latency_us") != std::string::npos);
   r = test::run_cli(dir, "replay --clock sim --config " + dir.file("p.toml") + common + " --json");

@@ -12,36 +12,13 @@
 
 #include "trace_test_util.h"
 
+using vtsim::test::CliRun;
 using vtsim::test::contains;
 using vtsim::test::ScratchDir;
+using vtsim::test::vtsim_run;
 using vtsim::test::write_file;
 
 namespace {
-
-struct Run {
-  int code = -1;
-  std::string out, err;
-};
-
-// Runs `vtsim ARGS` through the shell (arguments are test-controlled paths without spaces).
-Run vtsim_run(const ScratchDir& dir, const std::string& args) {
-  const std::string err_path = dir.file("stderr.txt");
-  std::filesystem::remove(err_path);  // a fresh file, not a truncated one (see write_file)
-  const std::string cmd = std::string(VTSIM_CLI) + " " + args + " 2>" + err_path;
-  Run r;
-  FILE* p = popen(cmd.c_str(), "r");
-  REQUIRE(p != nullptr);
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream e(err_path);
-  std::stringstream ss;
-  ss << e.rdbuf();
-  r.err = ss.str();
-  return r;
-}
 
 using vtsim::test::kData;
 const std::string kOneRowTrace =
@@ -52,7 +29,7 @@ const std::string kOneRowTrace =
 
 TEST_CASE("cli: help and usage errors") {
   ScratchDir dir;
-  Run r = vtsim_run(dir, "trace --help");
+  CliRun r = vtsim_run(dir, "trace --help");
   CHECK(r.code == 0);
   CHECK(contains(r.out, "import"));
   r = vtsim_run(dir, "trace gen --help");
@@ -68,7 +45,7 @@ TEST_CASE("cli: help and usage errors") {
 TEST_CASE("cli: gen, info --json, resample") {
   ScratchDir dir;
   const std::string walk = dir.file("walk.csv");
-  Run r = vtsim_run(dir, "trace gen walk --pitch -10 --duration 5 --fps 30 -o " + walk);
+  CliRun r = vtsim_run(dir, "trace gen walk --pitch -10 --duration 5 --fps 30 -o " + walk);
   REQUIRE(r.code == 0);
   r = vtsim_run(dir, "trace info --json " + walk);
   REQUIRE(r.code == 0);
@@ -91,7 +68,7 @@ TEST_CASE("cli: gen, info --json, resample") {
 TEST_CASE("cli: import with transform and resample - KITTI with a rate - y-down spelled -y-up") {
   ScratchDir dir;
   const std::string out = dir.file("fr1.csv");
-  Run r = vtsim_run(dir, "trace import --format tum --scale 100 --recenter --offset 4096,4096,300 --resample 60 " +
+  CliRun r = vtsim_run(dir, "trace import --format tum --scale 100 --recenter --offset 4096,4096,300 --resample 60 " +
                              kData + "/tum_fr1_xyz_excerpt.txt -o " + out);
   REQUIRE(r.code == 0);
   CHECK(contains(r.err, "read 200 poses (tum, 203 lines)"));
@@ -160,12 +137,12 @@ TEST_CASE("cli: bad input gives exit code 2 and names the file and line") {
     write_file(path, c.text);
     std::string args = std::string("trace ") + c.command + " " + path;
     if (contains(c.command, "import")) args += " -o " + dir.file("out.csv");
-    const Run r = vtsim_run(dir, args);
+    const CliRun r = vtsim_run(dir, args);
     CAPTURE(r.err);
     CHECK(r.code == 2);
     CHECK(contains(r.err, path + ":" + std::to_string(c.line) + ":"));
   }
-  const Run r = vtsim_run(dir, "trace info " + dir.file("does_not_exist.csv"));
+  const CliRun r = vtsim_run(dir, "trace info " + dir.file("does_not_exist.csv"));
   CHECK(r.code == 2);
   CHECK(contains(r.err, "does_not_exist.csv: cannot open"));
 }

@@ -20,13 +20,6 @@ using vtsim::test::write_file;
 
 namespace {
 
-std::string read_all(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-
 // The whole lines within the first n bytes.
 std::string head(const std::string& s, std::size_t n) { return s.substr(0, s.rfind('\n', n) + 1); }
 
@@ -97,15 +90,15 @@ TEST_CASE("mutated native, TUM, EuRoC and KITTI files load validly or raise Inpu
   fuzz(native, dir.file("n.csv"), 600, 1, [](const std::string& f) { return load_trace(f); });
   fuzz(native, dir.file("a.csv"), 300, 2, [](const std::string& f) { return load_any_trace(f); });
   const std::string data = VTSIM_TEST_DATA;
-  const std::string tum = head(read_all(data + "/tum_fr2_desk_excerpt.txt"), 3000);
+  const std::string tum = head(vtsim::test::slurp(data + "/tum_fr2_desk_excerpt.txt"), 3000);
   ImportOptions tum_o;
   tum_o.format = TraceFormat::tum;
   fuzz(tum, dir.file("t.txt"), 600, 3, [&](const std::string& f) { return import_trace(f, tum_o); });
-  const std::string euroc = head(read_all(data + "/euroc_V1_02_excerpt.csv"), 4000);
+  const std::string euroc = head(vtsim::test::slurp(data + "/euroc_V1_02_excerpt.csv"), 4000);
   ImportOptions euroc_o;
   euroc_o.format = TraceFormat::euroc;
   fuzz(euroc, dir.file("e.csv"), 600, 4, [&](const std::string& f) { return import_trace(f, euroc_o); });
-  const std::string kitti = read_all(data + "/kitti_synthetic_poses.txt");
+  const std::string kitti = vtsim::test::slurp(data + "/kitti_synthetic_poses.txt");
   ImportOptions kitti_o;
   kitti_o.format = TraceFormat::kitti;
   kitti_o.kitti_rate_hz = 10.0;
@@ -116,6 +109,6 @@ TEST_CASE("the standard traces in traces/ are what scripts/gen_traces.sh generat
   for (TraceKind k : all_trace_kinds()) {
     const std::string path = std::string(VTSIM_SOURCE_DIR) + "/traces/" + std::string(kind_name(k)) + ".csv";
     CAPTURE(path);
-    CHECK(read_all(path) == format_trace(generate_trace(default_gen_params(k))));
+    CHECK(vtsim::test::slurp(path) == format_trace(generate_trace(default_gen_params(k))));
   }
 }

@@ -64,6 +64,11 @@ inline std::string input_error(const std::function<void()>& fn) {
   return {};
 }
 
+// Runs `vtsim ARGS` with stderr through a file in `dir` (run_vtsim_capture).
+inline CliRun vtsim_run(const ScratchDir& dir, const std::string& args) {
+  return run_vtsim_capture(args, dir.file("stderr.txt"));
+}
+
 inline bool same_bits(double a, double b) {
   return std::bit_cast<std::uint64_t>(a) == std::bit_cast<std::uint64_t>(b);
 }
