@@ -13,6 +13,7 @@
 #include "core/error.h"
 #include "sim/camera.h"
 #include "sim/popin.h"
+#include "sim/render_ahead.h"
 #include "sim/scene.h"
 #include "sim/trace_resample.h"
 #include "stream/clipmap_system.h"
@@ -171,12 +172,36 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
   auto last_progress = wall0;
   m.set_system_columns(system->frame_counter_names());
 
-  bool rendered = false;
-  Pose last_rendered;
-  const auto same_view = [](const Pose& a, const Pose& b) {
-    return a.pos_m == b.pos_m && a.q.w == b.q.w && a.q.x == b.q.x && a.q.y == b.q.y && a.q.z == b.q.z &&
-           a.vfov_deg == b.vfov_deg;
+  // The frames that render feedback: every feedback_every-th, unless its pose equals the last
+  // rendered one (position, orientation, field of view), whose buffers it then reuses.
+  std::vector<int> render_frames;
+  std::vector<std::uint8_t> renders_view(static_cast<std::size_t>(frames), 0);
+  {
+    const Pose* last = nullptr;
+    for (int f = 0; f < frames; f += cfg.feedback_every) {
+      const Pose& p = trace.poses[static_cast<std::size_t>(f)];
+      if (last && p.pos_m == last->pos_m && p.q.w == last->q.w && p.q.x == last->q.x && p.q.y == last->q.y &&
+          p.q.z == last->q.z && p.vfov_deg == last->vfov_deg)
+        continue;
+      renders_view[static_cast<std::size_t>(f)] = 1;
+      render_frames.push_back(f);
+      last = &p;
+    }
+  }
+  // Render-ahead (render_ahead.h): the same buffers, rendered by workers; the real clock's cores
+  // belong to its IO and decode threads unless the config asks.
+  const int render_threads =
+      cfg.render_threads >= 0 ? cfg.render_threads : (env.executor ? 0 : RenderAhead::resolve_threads(-1));
+  const auto camera_of = [&](std::size_t j) {
+    return make_camera(trace.poses[static_cast<std::size_t>(render_frames[j])], trace.image_width, trace.image_height);
   };
+  std::unique_ptr<RenderAhead> ahead;
+  if (render_threads > 0 && !render_frames.empty())
+    ahead = std::make_unique<RenderAhead>(scene, render_frames.size(), camera_of, vp, separate_popin ? &pp : nullptr,
+                                          fb.block_shift, fb.keep_samples, render_threads);
+  const SpanBuffer* fbp = &fb;  // this frame's feedback and pop-in buffers
+  const SpanBuffer* pbp = &pb;
+  std::size_t next_cam = 0;
   for (int f = 0; f < frames; ++f) {
     const Pose& pose = trace.poses[static_cast<std::size_t>(f)];
     const Ticks target = seconds_to_ticks(pose.t_s - t0);
@@ -187,13 +212,18 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
     // The view: feedback every k frames (the last one stands in between). A pose equal to the
     // last rendered one (position, orientation, field of view) renders the same buffers: reused.
     const bool render = f % cfg.feedback_every == 0;
-    if (render && !(rendered && same_view(pose, last_rendered))) {
-      const Camera cam = make_camera(pose, trace.image_width, trace.image_height);
-      scene.render_spans(cam, vp, fb);
-      if (separate_popin) scene.render_spans(cam, pp, pb);
-      finest_needed = finest_level(fb, num_levels);
-      rendered = true;
-      last_rendered = pose;
+    if (renders_view[static_cast<std::size_t>(f)]) {
+      if (ahead) {
+        const RenderAhead::Buffers& b = ahead->next();
+        fbp = &b.feedback;
+        pbp = &b.popin;
+      } else {
+        const Camera cam = camera_of(next_cam);
+        scene.render_spans(cam, vp, fb);
+        if (separate_popin) scene.render_spans(cam, pp, pb);
+      }
+      ++next_cam;
+      finest_needed = finest_level(*fbp, num_levels);
     }
     // Motion: cuts, fast turns, velocity (for look-ahead).
     FrameRow row;
@@ -212,7 +242,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
       if (!cut && dt > 0) vel = d / dt;
     }
 
-    SystemFrame sf{f, now, &pose, vel, fb.has_samples ? &fb.view : nullptr, finest_needed, &fb};
+    SystemFrame sf{f, now, &pose, vel, fbp->has_samples ? &fbp->view : nullptr, finest_needed, fbp};
     system->begin_frame(sf);
     system->missing_bytes_by_level(missing);
     ThrottleInput ti;
@@ -242,7 +272,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
 
     uploads.clear();
     pipe.take_uploads(budget, uploads);
-    const SpanBuffer& mb = separate_popin ? pb : fb;
+    const SpanBuffer& mb = separate_popin ? *pbp : *fbp;
     if (render && !uploads.empty()) {
       system->set_mark_sampled(false);
       resident_levels(mb, *system, lv_before);
@@ -354,6 +384,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
                  {"bad_record", c.fault_by_kind[static_cast<int>(Fault::bad_record)]}};
   s[cfg.system] = system->stats_json();
   s["run"] = {{"wall_s", wall_s},
+              {"render_threads", render_threads},
               {"frames_per_s", wall_s > 0 ? frames / wall_s : 0.0},
               {"x_realtime", wall_s > 0 ? duration_s / wall_s : 0.0},
               {"peak_rss_MB", peak_rss_MB()}};
