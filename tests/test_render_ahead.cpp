@@ -104,12 +104,7 @@ TEST_CASE("render-ahead: a replay's summary and per-frame CSV do not depend on t
   g.duration_s = 3.0;
   g.start_m = {30.0, 8.0};
   Trace t = generate_trace(g);
-  const Pose last = t.poses.back();
-  for (int f = 1; f <= 60; ++f) {
-    Pose p = last;
-    p.t_s = last.t_s + f / 60.0;
-    t.poses.push_back(p);
-  }
+  test::hold_last_pose(t, 60);
   const test::ScratchDir dir;
   const std::vector<std::string> sets = {"view.feedback_every=2", "view.popin_divisor=4", "vt.pool_pages=200"};
   std::string csv0;

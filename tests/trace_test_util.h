@@ -76,4 +76,14 @@ inline bool same_bits(double a, double b) {
 // Rotates v by the unit quaternion q.
 inline glm::dvec3 rotate(const glm::dquat& q, const glm::dvec3& v) { return q * v; }
 
+// Appends `frames` poses equal to the last one at 60 Hz: the camera stops.
+inline void hold_last_pose(Trace& t, int frames) {
+  const Pose last = t.poses.back();
+  for (int f = 1; f <= frames; ++f) {
+    Pose p = last;
+    p.t_s = last.t_s + f / 60.0;
+    t.poses.push_back(p);
+  }
+}
+
 }  // namespace vtsim::test

@@ -7,6 +7,7 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <glm/geometric.hpp>
 #include <glm/gtc/quaternion.hpp>
 
@@ -77,6 +78,14 @@ double peak_rss_MB() {
   return static_cast<double>(ru.ru_maxrss) / 1024.0;  // Linux reports KiB
 }
 
+// CPU time of the calling thread, seconds: the frame loop's own work, without the feedback that
+// render-ahead workers render.
+double thread_cpu_s() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
 // Angle between two orientations, radians (shortest arc).
 double rotation_angle(const glm::dquat& a, const glm::dquat& b) {
   const double d = std::min(1.0, std::fabs(glm::dot(a, b)));
@@ -87,6 +96,7 @@ double rotation_angle(const glm::dquat& a, const glm::dquat& b) {
 
 ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IScene& scene, const ReplayEnv& env) {
   const auto wall0 = std::chrono::steady_clock::now();
+  const double cpu0 = thread_cpu_s();
   if (trace_in.poses.empty()) throw InputError(trace_in.name, "the trace has no poses");
   const Trace trace = cfg.fps > 0 ? resample(trace_in, cfg.fps) : trace_in;
   const int frames = static_cast<int>(trace.poses.size());
@@ -209,8 +219,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
     const PipelineCounters c0 = pipe.counters();
     pipe.begin_frame(f, now);
 
-    // The view: feedback every k frames (the last one stands in between). A pose equal to the
-    // last rendered one (position, orientation, field of view) renders the same buffers: reused.
+    // The view: this frame's feedback (rendered here or ahead), else the last rendered one stands in.
     const bool render = f % cfg.feedback_every == 0;
     if (renders_view[static_cast<std::size_t>(f)]) {
       if (ahead) {
@@ -328,6 +337,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
     }
   }
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  const double loop_cpu_s = thread_cpu_s() - cpu0;
 
   const PipelineCounters& c = pipe.counters();
   for (int l = 0; l < num_levels; ++l) m.add_level_bytes(l, c.disk_bytes_by_level[l], level_upload[l]);
@@ -385,6 +395,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
   s[cfg.system] = system->stats_json();
   s["run"] = {{"wall_s", wall_s},
               {"render_threads", render_threads},
+              {"loop_cpu_s", loop_cpu_s},
               {"frames_per_s", wall_s > 0 ? frames / wall_s : 0.0},
               {"x_realtime", wall_s > 0 ? duration_s / wall_s : 0.0},
               {"peak_rss_MB", peak_rss_MB()}};
@@ -441,8 +452,12 @@ std::string format_summary(const nlohmann::json& s) {
                        static_cast<double>(rc["vram_arena"]["bytes"].get<std::uint64_t>()) / 1e6,
                        rc["vram_arena"]["copy_ms"].get<double>());
   }
-  out += fmt::format("  run         {:.2f} s wall, {:.0f} frames/s, {:.0f}x real time, peak {:.0f} MB\n", r["wall_s"].get<double>(),
+  out += fmt::format("  run         {:.2f} s wall, {:.0f} frames/s, {:.0f}x real time, peak {:.0f} MB", r["wall_s"].get<double>(),
                      r["frames_per_s"].get<double>(), r["x_realtime"].get<double>(), r["peak_rss_MB"].get<double>());
+  if (r.contains("render_threads") && r["render_threads"].get<int>() > 0)
+    out += fmt::format("; feedback on {} render threads, the loop's own CPU {:.2f} s", r["render_threads"].get<int>(),
+                       r["loop_cpu_s"].get<double>());
+  out += "\n";
   return out;
 }
 
