@@ -16,7 +16,7 @@
 
 namespace vtsim::test {
 
-// The camera body frame FLU (docs/trace.md): +x forward, +y left, +z up.
+// The camera body frame FLU (docs/traces.md): +x forward, +y left, +z up.
 inline const glm::dvec3 kForward(1, 0, 0), kLeft(0, 1, 0), kUp(0, 0, 1);
 
 // A fresh directory under the system temp dir, removed with everything in it at scope exit.
