@@ -147,6 +147,17 @@ TEST_CASE("render-ahead: a render error reaches the consumer at its job, and shu
   CHECK(RenderAhead::resolve_threads(5) == 5);
   const int autos = RenderAhead::resolve_threads(-1);
   CHECK((autos == 0 || (autos >= 2 && autos <= 8)));
+  // The ring's memory: 1920×1080 at divisor 8 is 32,400 pixels (2.3 MB a slot at most); at
+  // divisor 1 ~150 MB, so 512 MiB holds 3 slots: 1 thread.
+  ViewParams d8, d1;
+  d1.divisor = 1;
+  const std::uint64_t b8 = RenderAhead::slot_bytes(1920, 1080, d8, nullptr), b1 = RenderAhead::slot_bytes(1920, 1080, d1, nullptr);
+  CHECK(b8 == 32400 * (sizeof(ViewSample) + sizeof(ViewSpan)));
+  CHECK(RenderAhead::slot_bytes(1920, 1080, d8, &d1) == b8 + b1);
+  CHECK(RenderAhead::cap_threads(8, b8) == 8);
+  CHECK(RenderAhead::cap_threads(8, b1) == 1);
+  CHECK(RenderAhead::cap_threads(0, b1) == 0);
+  CHECK(RenderAhead::cap_threads(64, RenderAhead::kRingBytes / 10) == 8);
 }
 
 TEST_SUITE_END();

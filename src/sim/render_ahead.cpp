@@ -95,4 +95,20 @@ int RenderAhead::resolve_threads(int setting) {
   return hw >= 2 ? static_cast<int>(std::min(hw, 8u)) : 0;
 }
 
+int RenderAhead::cap_threads(int threads, std::uint64_t bytes_per_slot) {
+  if (threads < 1) return threads;
+  const std::uint64_t slots = kRingBytes / std::max<std::uint64_t>(bytes_per_slot, 1);
+  const std::uint64_t fit = slots > 3 ? slots - 2 : 1;
+  return static_cast<int>(std::min<std::uint64_t>(static_cast<std::uint64_t>(threads), fit));
+}
+
+std::uint64_t RenderAhead::slot_bytes(int width, int height, const ViewParams& feedback, const ViewParams* popin) {
+  const auto one = [&](const ViewParams& p) {
+    const auto px = static_cast<std::uint64_t>(buffer_extent(width, p.divisor)) *
+                    static_cast<std::uint64_t>(buffer_extent(height, p.divisor));
+    return px * (sizeof(ViewSample) + sizeof(ViewSpan));
+  };
+  return one(feedback) + (popin ? one(*popin) : 0);
+}
+
 }  // namespace vtsim

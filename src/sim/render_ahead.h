@@ -14,6 +14,7 @@
 // current render and joins them.
 #include <condition_variable>
 #include <cstddef>
+#include <cstdint>
 #include <exception>
 #include <functional>
 #include <mutex>
@@ -53,6 +54,13 @@ class RenderAhead {
   // The thread count `view.render_threads` resolves to: `setting` itself when >= 0, else (auto)
   // one worker per hardware thread up to 8, none on a single core.
   static int resolve_threads(int setting);
+  // `threads` capped so that the ring's threads + 2 slots of `bytes_per_slot` (a frame's buffers
+  // at their largest) stay within kRingBytes, but at least 1 when threads >= 1: at divisor 1 a
+  // 1920×1080 frame can hold ~150 MB of samples and spans.
+  static int cap_threads(int threads, std::uint64_t bytes_per_slot);
+  static constexpr std::uint64_t kRingBytes = std::uint64_t{512} << 20;
+  // A frame's buffers at their largest: every pixel a sample and a span, in each rendered buffer.
+  static std::uint64_t slot_bytes(int width, int height, const ViewParams& feedback, const ViewParams* popin);
 
  private:
   enum class SlotState { free, rendering, ready, held };
