@@ -24,7 +24,8 @@ int main(int argc, char** argv) {
     TraceGenParams g = default_gen_params(TraceKind::walk);
     g.duration_s = minutes * 60.0;
     const Trace walk = generate_trace(g);
-    const ReplayConfig cfg = load_replay_config("", {});
+    // One core (feedback rendered in the loop): the figure docs/clipmap.md tracks.
+    const ReplayConfig cfg = load_replay_config("", {"view.render_threads=0"});
     auto scene = make_scene_from_config(cfg);
     nlohmann::json summary;
     bench::Case c{"walk_divisor8", bench::Metric::kMsPerRep, 1, {{"divisor", cfg.divisor}, {"frames", walk.poses.size()}}, 300.0};

@@ -11,6 +11,7 @@
 #include "sim/scene.h"
 #include "sim/trace_gen.h"
 #include "stream/i_system.h"
+#include "trace_test_util.h"
 
 using namespace vtsim;
 
@@ -155,12 +156,7 @@ TEST_CASE("the throttle engages when the camera outruns the disk and relaxes whe
   TraceGenParams g = default_gen_params(TraceKind::drive);
   g.duration_s = 8.0;
   Trace t = generate_trace(g);
-  const Pose last = t.poses.back();
-  for (int f = 1; f <= 480; ++f) {
-    Pose p = last;
-    p.t_s = last.t_s + f / 60.0;
-    t.poses.push_back(p);
-  }
+  test::hold_last_pose(t, 480);
   const ReplayResult r = replay(t, {"disk.preset=hdd"});
   const auto& changes = r.metrics.throttle_changes();
   REQUIRE(changes.size() >= 2);

@@ -16,7 +16,7 @@
 
 namespace vtsim::test {
 
-// The camera body frame FLU (docs/trace.md): +x forward, +y left, +z up.
+// The camera body frame FLU (docs/traces.md): +x forward, +y left, +z up.
 inline const glm::dvec3 kForward(1, 0, 0), kLeft(0, 1, 0), kUp(0, 0, 1);
 
 // A fresh directory under the system temp dir, removed with everything in it at scope exit.
@@ -75,5 +75,15 @@ inline bool same_bits(double a, double b) {
 
 // Rotates v by the unit quaternion q.
 inline glm::dvec3 rotate(const glm::dquat& q, const glm::dvec3& v) { return q * v; }
+
+// Appends `frames` poses equal to the last one at 60 Hz: the camera stops.
+inline void hold_last_pose(Trace& t, int frames) {
+  const Pose last = t.poses.back();
+  for (int f = 1; f <= frames; ++f) {
+    Pose p = last;
+    p.t_s = last.t_s + f / 60.0;
+    t.poses.push_back(p);
+  }
+}
 
 }  // namespace vtsim::test

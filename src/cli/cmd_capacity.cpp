@@ -11,19 +11,13 @@
 #include "cache/clipmap.h"
 #include "cache/page_table.h"
 #include "cli/commands.h"
+#include "cli/format.h"
 #include "core/error.h"
 #include "sim/replay_config.h"
 
 namespace vtsim::cli {
 
 namespace {
-
-std::string human_bytes(double b) {
-  const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB", "PiB"};
-  int u = 0;
-  while (b >= 1024.0 && u < 5) b /= 1024.0, ++u;
-  return fmt::format("{:.{}f} {}", b, u == 0 ? 0 : 2, units[u]);
-}
 
 struct CapacityArgs {
   std::int64_t width = 1 << 20, height = 0;

@@ -1,5 +1,5 @@
 // vtsim replay: run a camera trace through a streaming system and report latency, pop-in and
-// bandwidth (docs/replay.md); vtsim config: print every config key with its default and why.
+// bandwidth (docs/architecture.md, docs/metrics.md); vtsim config: print every config key with its default and why.
 #include <fmt/format.h>
 #include <unistd.h>
 

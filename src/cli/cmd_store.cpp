@@ -10,6 +10,7 @@
 #include <system_error>
 
 #include "cli/commands.h"
+#include "cli/format.h"
 #include "core/error.h"
 #include "stream/store_builder.h"
 #include "stream/store_generator.h"
@@ -98,16 +99,10 @@ void run_interruptible(const std::string& out, F&& f) {
   }
 }
 
-std::string human_size(std::uint64_t b) {
-  if (b >= (std::uint64_t{1} << 30)) return fmt::format("{:.2f} GiB", static_cast<double>(b) / (1 << 30));
-  if (b >= (std::uint64_t{1} << 20)) return fmt::format("{:.2f} MiB", static_cast<double>(b) / (1 << 20));
-  if (b >= 1024) return fmt::format("{:.1f} KiB", static_cast<double>(b) / 1024);
-  return fmt::format("{} B", b);
-}
-
 void print_result(const std::string& out, const BuildResult& r) {
-  fmt::print("wrote {}: {} tiles, {} ({} payload for {} decoded, ratio {:.2f})\n", out, r.tiles, human_size(r.file_bytes),
-             human_size(r.stored_bytes), human_size(r.decoded_bytes),
+  fmt::print("wrote {}: {} tiles, {} ({} payload for {} decoded, ratio {:.2f})\n", out, r.tiles,
+             human_bytes(static_cast<double>(r.file_bytes)), human_bytes(static_cast<double>(r.stored_bytes)),
+             human_bytes(static_cast<double>(r.decoded_bytes)),
              r.stored_bytes ? static_cast<double>(r.decoded_bytes) / static_cast<double>(r.stored_bytes) : 0.0);
 }
 
@@ -166,8 +161,9 @@ void print_info(const TileStore& s) {
   fmt::print("  texture  {} x {} texels, {} levels, tile {} + border {} (stored {} x {})\n", j["width"].get<std::uint64_t>(),
              j["height"].get<std::uint64_t>(), j["levels"].size(), j["tile"].get<std::uint32_t>(), j["border"].get<std::uint32_t>(),
              j["stored_side"].get<std::uint32_t>(), j["stored_side"].get<std::uint32_t>());
-  fmt::print("  file     {} ({} bytes), {} tiles, index {}\n", human_size(j["file_bytes"]), j["file_bytes"].get<std::uint64_t>(),
-             j["tiles"].get<std::uint64_t>(), human_size(j["index_bytes"]));
+  fmt::print("  file     {} ({} bytes), {} tiles, index {}\n", human_bytes(j["file_bytes"].get<double>()),
+             j["file_bytes"].get<std::uint64_t>(), j["tiles"].get<std::uint64_t>(),
+             human_bytes(j["index_bytes"].get<double>()));
   fmt::print("  levels  ");
   for (const auto& l : j["levels"])
     fmt::print(" {}:{}x{}", l["level"].get<int>(), l["width"].get<std::uint64_t>(), l["height"].get<std::uint64_t>());
@@ -175,10 +171,12 @@ void print_info(const TileStore& s) {
   for (const auto& L : j["layers"])
     fmt::print("  layer {:<10} {}ch {} {}:{:<3} stored {:>10} for {:>10} decoded, ratio {:6.2f}, {:.0f} B/tile\n",
                L["name"].get<std::string>(), L["channels"].get<int>(), L["transfer"].get<std::string>(), L["codec"].get<std::string>(),
-               L["codec_param"].get<int>(), human_size(L["stored_bytes"]), human_size(L["decoded_bytes"]),
-               L["compression_ratio"].get<double>(), L["mean_stored_bytes_per_tile"].get<double>());
-  fmt::print("  total    stored {} for {} decoded, ratio {:.2f}; 4 KiB-aligned reads {} (x{:.3f})\n", human_size(j["stored_bytes"]),
-             human_size(j["decoded_bytes"]), j["compression_ratio"].get<double>(), human_size(j["read_bytes"]),
+               L["codec_param"].get<int>(), human_bytes(L["stored_bytes"].get<double>()),
+               human_bytes(L["decoded_bytes"].get<double>()), L["compression_ratio"].get<double>(),
+               L["mean_stored_bytes_per_tile"].get<double>());
+  fmt::print("  total    stored {} for {} decoded, ratio {:.2f}; 4 KiB-aligned reads {} (x{:.3f})\n",
+             human_bytes(j["stored_bytes"].get<double>()), human_bytes(j["decoded_bytes"].get<double>()),
+             j["compression_ratio"].get<double>(), human_bytes(j["read_bytes"].get<double>()),
              j["alignment_overhead"].get<double>());
 }
 

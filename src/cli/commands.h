@@ -1,8 +1,9 @@
 #pragma once
 // Each command family lives in its own cmd_*.cpp and registers its subcommands here.
-// Exit codes (docs/cli.md): 0 success; 1 the command ran and found a failure (a regression in
-// `vtsim compare`, tiles that failed in a replay with --fail-on-error); 2 bad input or usage
-// (the message names the file, line or field); 3 internal error (a bug: please report it).
+// Exit codes (README.md, "What else it does"): 0 success; 1 the command ran and found a failure
+// (a regression in `vtsim compare`, tiles that failed in a replay with --fail-on-error); 2 bad
+// input or usage (the message names the file, line or field); 3 internal error (a bug: please
+// report it).
 #include <CLI/CLI.hpp>
 
 namespace vtsim::cli {

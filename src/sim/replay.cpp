@@ -7,12 +7,14 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <glm/geometric.hpp>
 #include <glm/gtc/quaternion.hpp>
 
 #include "core/error.h"
 #include "sim/camera.h"
 #include "sim/popin.h"
+#include "sim/render_ahead.h"
 #include "sim/scene.h"
 #include "sim/trace_resample.h"
 #include "stream/clipmap_system.h"
@@ -76,6 +78,14 @@ double peak_rss_MB() {
   return static_cast<double>(ru.ru_maxrss) / 1024.0;  // Linux reports KiB
 }
 
+// CPU time of the calling thread, seconds: the frame loop's own work, without the feedback that
+// render-ahead workers render.
+double thread_cpu_s() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
 // Angle between two orientations, radians (shortest arc).
 double rotation_angle(const glm::dquat& a, const glm::dquat& b) {
   const double d = std::min(1.0, std::fabs(glm::dot(a, b)));
@@ -86,6 +96,7 @@ double rotation_angle(const glm::dquat& a, const glm::dquat& b) {
 
 ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IScene& scene, const ReplayEnv& env) {
   const auto wall0 = std::chrono::steady_clock::now();
+  const double cpu0 = thread_cpu_s();
   if (trace_in.poses.empty()) throw InputError(trace_in.name, "the trace has no poses");
   const Trace trace = cfg.fps > 0 ? resample(trace_in, cfg.fps) : trace_in;
   const int frames = static_cast<int>(trace.poses.size());
@@ -171,12 +182,37 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
   auto last_progress = wall0;
   m.set_system_columns(system->frame_counter_names());
 
-  bool rendered = false;
-  Pose last_rendered;
-  const auto same_view = [](const Pose& a, const Pose& b) {
-    return a.pos_m == b.pos_m && a.q.w == b.q.w && a.q.x == b.q.x && a.q.y == b.q.y && a.q.z == b.q.z &&
-           a.vfov_deg == b.vfov_deg;
+  // The frames that render feedback: every feedback_every-th, unless its pose equals the last
+  // rendered one (position, orientation, field of view), whose buffers it then reuses.
+  std::vector<int> render_frames;
+  std::vector<std::uint8_t> renders_view(static_cast<std::size_t>(frames), 0);
+  {
+    const Pose* last = nullptr;
+    for (int f = 0; f < frames; f += cfg.feedback_every) {
+      const Pose& p = trace.poses[static_cast<std::size_t>(f)];
+      if (last && p.pos_m == last->pos_m && p.q.w == last->q.w && p.q.x == last->q.x && p.q.y == last->q.y &&
+          p.q.z == last->q.z && p.vfov_deg == last->vfov_deg)
+        continue;
+      renders_view[static_cast<std::size_t>(f)] = 1;
+      render_frames.push_back(f);
+      last = &p;
+    }
+  }
+  // Render-ahead (render_ahead.h): the same buffers, rendered by workers; the real clock's cores
+  // belong to its IO and decode threads unless the config asks.
+  const int render_threads = RenderAhead::cap_threads(
+      cfg.render_threads >= 0 ? cfg.render_threads : (env.executor ? 0 : RenderAhead::resolve_threads(-1)),
+      RenderAhead::slot_bytes(trace.image_width, trace.image_height, vp, separate_popin ? &pp : nullptr));
+  const auto camera_of = [&](std::size_t j) {
+    return make_camera(trace.poses[static_cast<std::size_t>(render_frames[j])], trace.image_width, trace.image_height);
   };
+  std::unique_ptr<RenderAhead> ahead;
+  if (render_threads > 0 && !render_frames.empty())
+    ahead = std::make_unique<RenderAhead>(scene, render_frames.size(), camera_of, vp, separate_popin ? &pp : nullptr,
+                                          fb.block_shift, fb.keep_samples, render_threads);
+  const SpanBuffer* fbp = &fb;  // this frame's feedback and pop-in buffers
+  const SpanBuffer* pbp = &pb;
+  std::size_t next_cam = 0;
   for (int f = 0; f < frames; ++f) {
     const Pose& pose = trace.poses[static_cast<std::size_t>(f)];
     const Ticks target = seconds_to_ticks(pose.t_s - t0);
@@ -184,16 +220,20 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
     const PipelineCounters c0 = pipe.counters();
     pipe.begin_frame(f, now);
 
-    // The view: feedback every k frames (the last one stands in between). A pose equal to the
-    // last rendered one (position, orientation, field of view) renders the same buffers: reused.
+    // The view: this frame's feedback (rendered here or ahead), else the last rendered one stands in.
     const bool render = f % cfg.feedback_every == 0;
-    if (render && !(rendered && same_view(pose, last_rendered))) {
-      const Camera cam = make_camera(pose, trace.image_width, trace.image_height);
-      scene.render_spans(cam, vp, fb);
-      if (separate_popin) scene.render_spans(cam, pp, pb);
-      finest_needed = finest_level(fb, num_levels);
-      rendered = true;
-      last_rendered = pose;
+    if (renders_view[static_cast<std::size_t>(f)]) {
+      if (ahead) {
+        const RenderAhead::Buffers& b = ahead->next();
+        fbp = &b.feedback;
+        pbp = &b.popin;
+      } else {
+        const Camera cam = camera_of(next_cam);
+        scene.render_spans(cam, vp, fb);
+        if (separate_popin) scene.render_spans(cam, pp, pb);
+      }
+      ++next_cam;
+      finest_needed = finest_level(*fbp, num_levels);
     }
     // Motion: cuts, fast turns, velocity (for look-ahead).
     FrameRow row;
@@ -212,7 +252,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
       if (!cut && dt > 0) vel = d / dt;
     }
 
-    SystemFrame sf{f, now, &pose, vel, fb.has_samples ? &fb.view : nullptr, finest_needed, &fb};
+    SystemFrame sf{f, now, &pose, vel, fbp->has_samples ? &fbp->view : nullptr, finest_needed, fbp};
     system->begin_frame(sf);
     system->missing_bytes_by_level(missing);
     ThrottleInput ti;
@@ -242,7 +282,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
 
     uploads.clear();
     pipe.take_uploads(budget, uploads);
-    const SpanBuffer& mb = separate_popin ? pb : fb;
+    const SpanBuffer& mb = separate_popin ? *pbp : *fbp;
     if (render && !uploads.empty()) {
       system->set_mark_sampled(false);
       resident_levels(mb, *system, lv_before);
@@ -298,6 +338,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
     }
   }
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  const double loop_cpu_s = thread_cpu_s() - cpu0;
 
   const PipelineCounters& c = pipe.counters();
   for (int l = 0; l < num_levels; ++l) m.add_level_bytes(l, c.disk_bytes_by_level[l], level_upload[l]);
@@ -354,6 +395,8 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
                  {"bad_record", c.fault_by_kind[static_cast<int>(Fault::bad_record)]}};
   s[cfg.system] = system->stats_json();
   s["run"] = {{"wall_s", wall_s},
+              {"render_threads", render_threads},
+              {"loop_cpu_s", loop_cpu_s},
               {"frames_per_s", wall_s > 0 ? frames / wall_s : 0.0},
               {"x_realtime", wall_s > 0 ? duration_s / wall_s : 0.0},
               {"peak_rss_MB", peak_rss_MB()}};
@@ -410,8 +453,12 @@ std::string format_summary(const nlohmann::json& s) {
                        static_cast<double>(rc["vram_arena"]["bytes"].get<std::uint64_t>()) / 1e6,
                        rc["vram_arena"]["copy_ms"].get<double>());
   }
-  out += fmt::format("  run         {:.2f} s wall, {:.0f} frames/s, {:.0f}x real time, peak {:.0f} MB\n", r["wall_s"].get<double>(),
+  out += fmt::format("  run         {:.2f} s wall, {:.0f} frames/s, {:.0f}x real time, peak {:.0f} MB", r["wall_s"].get<double>(),
                      r["frames_per_s"].get<double>(), r["x_realtime"].get<double>(), r["peak_rss_MB"].get<double>());
+  if (r.contains("render_threads") && r["render_threads"].get<int>() > 0)
+    out += fmt::format("; feedback on {} render threads, the loop's own CPU {:.2f} s", r["render_threads"].get<int>(),
+                       r["loop_cpu_s"].get<double>());
+  out += "\n";
   return out;
 }
 

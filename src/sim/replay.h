@@ -1,7 +1,7 @@
 #pragma once
 // The frame loop: a trace drives a streaming system (clipmap or virtual texture) through the
 // request pipeline in the simulated clock (device models) or the real clock (real files and
-// threads), and measures latency, pop-in and bandwidth (docs/replay.md, docs/metrics.md).
+// threads), and measures latency, pop-in and bandwidth (docs/architecture.md, docs/metrics.md).
 //
 // One frame, in order: collect completions up to the frame's time; render the feedback; the
 // system places its windows / reads the feedback; the throttling policy sets MaxTextureLOD;

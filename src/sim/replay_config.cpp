@@ -111,6 +111,9 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
         .add(cfg::real<C>("view.max_aniso", &C::max_aniso, 1.0, 64.0, "anisotropy clamp of the anisotropic rule"))
         .add(cfg::integer<C>("view.popin_divisor", &C::popin_divisor, 0, 256, "pop-in buffer divisor; 0 = the feedback buffer"))
         .add(cfg::integer<C>("view.feedback_every", &C::feedback_every, 1, 1000, "render feedback every k frames"))
+        .add(cfg::integer<C>("view.render_threads", &C::render_threads, -1, 64,
+                             "threads rendering feedback ahead of the frame loop, same results; 0 = the loop renders "
+                             "(one core); -1 = auto (one per core up to 8; sim clock only)"))
         .add(cfg::real<C>("view.near_m", &C::near_m, 1e-6, 1e6, "near clip, m"))
         .add(cfg::real<C>("view.far_m", &C::far_m, 1e-3, 1e12, "far clip, m"))
         .add(cfg::integer<C>("clipmap.clipsize", &C::clipsize, 1, 1 << 20, "N: clip stack window side, texels (multiple of the tile)"))

@@ -112,21 +112,38 @@ constexpr int kTile = 1 << kTileShift;
 // texel derivatives per pixel step along x and y (the ray-differential terms of lod.h).
 struct ShadeRow {
   double dn0, dnx, dny, gu0, gux, guy, gv0, gvx, gvy, kn, cu, cv, inv_a2;
+  double far_iz, W, H, bias;  // 1/far; the texture extent, texels (<= kMaxVectorExtent); LOD bias
 };
 constexpr int kShadeBatch = 64;  // samples per batch: arrays stay in L1
+// What a resolved sample is (ViewCounters' reasons, checked in the order of the scalar resolve).
+constexpr std::int64_t kSample = 0, kClipped = 1, kBackfacing = 2, kOutside = 3;
 struct ShadeBatch {
-  alignas(32) double dn[kShadeBatch + 4];
-  alignas(32) double tu[kShadeBatch + 4];  // continuous level-0 texel coordinates
-  alignas(32) double tv[kShadeBatch + 4];
-  alignas(32) double q[kShadeBatch + 4];   // squared footprint for the LOD rule, clamped
+  alignas(32) std::int64_t cls[kShadeBatch + 4];  // kSample ... kOutside
+  alignas(32) std::int64_t u[kShadeBatch + 4];    // texel_index of the texel coordinates (kSample)
+  alignas(32) std::int64_t v[kShadeBatch + 4];
+  alignas(32) float lod[kShadeBatch + 4];
 };
+// The batch's texel index needs floor(t) exact as t + 2^52 − 2^52, so t < 2^52: the constructor
+// rejects wider textures (configs stop at 2^34, TileKey's range).
+constexpr double kMaxVectorExtent = 0x1p52;
 
+// Every lane computes exactly the scalar resolve's IEEE operations (texel_index, fast_log2,
+// lod_from_lengths2), so the samples are bit-identical to the per-sample code.
 template <bool kAniso>
-[[gnu::always_inline]] inline void shade_batch_t(const ShadeRow& k, const double* px, int n, ShadeBatch& b) {
+[[gnu::always_inline]] inline void shade_batch_t(const ShadeRow& k, const double* px, const double* iz, int n,
+                                                  ShadeBatch& b) {
   using simd::v4d;
+  typedef std::int64_t v4i __attribute__((vector_size(32)));
+  typedef float v4f __attribute__((vector_size(16)));
+  constexpr double two52 = 0x1p52;
+  constexpr std::int64_t two52_bits = 0x4330000000000000;
+  constexpr double c1 = 1.4426950408889634, c2 = -0.7213475204444817, c3 = 0.48089834696298783,
+                   c4 = -0.36067376022224085;  // fast_log2's
+  const auto& tab = detail::kLog2Table;
   for (int j = 0; j < n; j += 4) {
-    v4d x;
+    v4d x, izv;
     simd::load4(px + j, x);
+    simd::load4(iz + j, izv);
     const v4d dn = k.dn0 + k.dnx * x;
     const v4d inv_dn = 1.0 / dn;
     const v4d tt = -k.kn * inv_dn;
@@ -146,16 +163,48 @@ template <bool kAniso>
     q = q >= qmin ? q : qmin;  // also NaN -> min
     q = q > qmax ? qmax : q;
     const v4d tu = k.cu + tt * gdu, tv = k.cv + tt * gdv;
-    simd::store4(b.dn + j, dn);
-    simd::store4(b.tu + j, tu);
-    simd::store4(b.tv + j, tv);
-    simd::store4(b.q + j, q);
+    // Classification, in the scalar order: clipped, then edge-on, then outside the texture.
+    const v4i in_u = (tu >= 0.0) & (tu < k.W), in_v = (tv >= 0.0) & (tv < k.H);
+    v4i cls = (in_u & in_v) ? v4i{} + kSample : v4i{} + kOutside;
+    cls = dn < 0.0 ? cls : v4i{} + kBackfacing;
+    cls = izv < k.far_iz ? v4i{} + kClipped : cls;
+    // texel_index: floor(t) for 0 <= t < 2^52 — t + 2^52 rounds to the nearest integer (ulp 1
+    // there), one less where that rounded up; the integer is then the low bits of y + 2^52.
+    const auto floor_index = [&](const v4d& t, v4i& out) [[gnu::always_inline]] {
+      v4d y = (t + two52) - two52;
+      y = y > t ? y - 1.0 : y;
+      out = __builtin_bit_cast(v4i, y + two52) - two52_bits;
+    };
+    // fast_log2(q), lane for lane (q is normal and positive after the clamp).
+    const v4i bits = __builtin_bit_cast(v4i, q);
+    const v4i ebits = ((bits >> 52) & 0x7ff) | two52_bits;
+    const v4d e = __builtin_bit_cast(v4d, ebits) - (two52 + 1023.0);  // exponent − 1023, exact
+    const v4i frac = bits & 0x000fffffffffffff;
+    const v4i i = frac >> (52 - detail::kLog2TableBits);
+    const v4i mbits = frac | 0x3ff0000000000000, ibits = i | two52_bits;
+    const v4d m = __builtin_bit_cast(v4d, mbits);
+    const v4d mi = 1.0 + (__builtin_bit_cast(v4d, ibits) - two52) * (1.0 / (1 << detail::kLog2TableBits));
+    const v4d inv_mi = {tab.inv_mi[i[0]], tab.inv_mi[i[1]], tab.inv_mi[i[2]], tab.inv_mi[i[3]]};
+    const v4d log2_mi = {tab.log2_mi[i[0]], tab.log2_mi[i[1]], tab.log2_mi[i[2]], tab.log2_mi[i[3]]};
+    const v4d r = (m - mi) * inv_mi;
+    const v4d r2 = r * r;
+    const v4d lg = e + log2_mi + (r * (c1 + r * c2) + r2 * r * (c3 + r * c4));
+    const v4d lod = 0.5 * lg + k.bias;
+    const v4f lodf = __builtin_convertvector(lod, v4f);
+    v4i u, v;
+    floor_index(tu, u);
+    floor_index(tv, v);
+    __builtin_memcpy(b.cls + j, &cls, sizeof cls);
+    __builtin_memcpy(b.u + j, &u, sizeof u);
+    __builtin_memcpy(b.v + j, &v, sizeof v);
+    __builtin_memcpy(b.lod + j, &lodf, sizeof lodf);
   }
 }
-// Reads px[0 .. ceil(n/4)·4).
-VTSIM_CLONES_AVX2 void shade_batch(const ShadeRow& k, const double* px, int n, bool aniso, ShadeBatch& b) {
-  if (aniso) shade_batch_t<true>(k, px, n, b);
-  else shade_batch_t<false>(k, px, n, b);
+// Reads px[0 .. ceil(n/4)·4) and iz[0 .. ceil(n/4)·4).
+VTSIM_CLONES_AVX2 void shade_batch(const ShadeRow& k, const double* px, const double* iz, int n, bool aniso,
+                                   ShadeBatch& b) {
+  if (aniso) shade_batch_t<true>(k, px, iz, n, b);
+  else shade_batch_t<false>(k, px, iz, n, b);
 }
 
 // A triangle's resolve coefficients for one frame: functions affine in the full-resolution pixel
@@ -308,6 +357,35 @@ void raster_poly(const PV* v, int n, std::uint32_t tag, bool depth, int div, int
         }
         continue;
       }
+      if (std::isfinite(r0) && std::isfinite(r1) && std::isfinite(r2)) {
+        // The covered columns of the row are one interval, found from its two ends: along the
+        // row each edge's computed E = fl(fl(A·sx) + r) is monotone in sx (rounding is monotone,
+        // sample positions increase, r is finite so no inf − inf), so each edge's "inside" test
+        // holds on a prefix or a suffix of the columns and all three on an interval. Between its
+        // ends no sample needs an edge test — the same samples as testing each one.
+        const auto in = [&](int x) {
+          const double sx = sxp[x];
+          return inside(e0.A * sx + r0, e1.A * sx + r1, e2.A * sx + r2);
+        };
+        while (xa <= xb && !in(xa)) ++xa;
+        while (xb > xa && !in(xb)) --xb;
+        bool wrote = false;
+        const std::uint32_t tid = tag & ~kBackBit;
+        for (int x = xa; x <= xb; ++x) {
+          const std::size_t idx = rowi + static_cast<std::size_t>(x);
+          const double iz = P * sxp[x] + rz;
+          if (iz > invz[idx] || (iz == invz[idx] && tid < (ids[idx] & ~kBackBit))) {
+            invz[idx] = iz;
+            ids[idx] = tag;
+            wrote = true;
+          }
+        }
+        if (wrote) {  // tiles of the interval become stale (a superset of those written: only lazier)
+          std::uint8_t* stale = s.tile_stale.data() + static_cast<std::size_t>(y >> kTileShift) * static_cast<std::size_t>(s.tw);
+          for (int t = xa >> kTileShift; t <= xb >> kTileShift; ++t) stale[t] = 1;
+        }
+        continue;
+      }
       int wx0 = bw, wx1 = -1;  // columns written in this row: their tiles become stale
       for (int x = xa; x <= xb; ++x) {
         const double sx = sxp[x];
@@ -336,6 +414,8 @@ void raster_poly(const PV* v, int n, std::uint32_t tag, bool depth, int div, int
 
 MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
   if (extent.width < 1 || extent.height < 1) throw InputError("texture", "extent must be at least 1×1");
+  if (static_cast<double>(extent.width) > kMaxVectorExtent || static_cast<double>(extent.height) > kMaxVectorExtent)
+    throw InputError("texture", "extent must be at most 2^52 texels a side");
   if (mesh.tris.empty()) throw InputError("mesh", "no triangles");
   if (mesh.tris.size() >= kBackBit) throw InputError("mesh", "more than 2^31 − 1 triangles");
   const double W = static_cast<double>(extent.width), H = static_cast<double>(extent.height);
@@ -414,7 +494,7 @@ void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) 
   const int div = p.divisor, bw = out.width, bh = out.height;
   const std::size_t npix = static_cast<std::size_t>(bw) * static_cast<std::size_t>(bh);
   thread_local Scratch s;
-  s.invz.assign(npix, 0.0);
+  s.invz.assign(npix + 4, 0.0);  // + 4: shade_batch reads whole lanes
   s.id.assign(npix, kNoTri);
   s.near_cut.assign(npix, 0);
   s.bw = bw;
@@ -624,27 +704,25 @@ void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) 
       k.cu = h.cu;
       k.cv = h.cv;
       k.inv_a2 = rule.inv_aniso2;
+      k.far_iz = far_iz;
+      k.W = static_cast<double>(extent_.width);
+      k.H = static_cast<double>(extent_.height);
+      k.bias = rule.bias;
       for (int xb = x; xb < xe; xb += kShadeBatch) {
         const int n = std::min(kShadeBatch, xe - xb);
-        shade_batch(k, s.sx.data() + xb, n, rule.anisotropic, s.batch);
+        const std::size_t pix0 = row + static_cast<std::size_t>(xb);
+        shade_batch(k, s.sx.data() + xb, s.invz.data() + pix0, n, rule.anisotropic, s.batch);
         for (int j = 0; j < n; ++j) {
-          const std::size_t pix = row + static_cast<std::size_t>(xb + j);
-          if (s.invz[pix] < far_iz) {
-            ++c.clipped;
-            continue;
+          switch (s.batch.cls[j]) {
+            case kSample: {
+              const auto pix = static_cast<std::uint32_t>(pix0 + static_cast<std::size_t>(j));
+              out.samples.push_back(ViewSample{s.batch.u[j], s.batch.v[j], s.batch.lod[j], pix});
+              break;
+            }
+            case kClipped: ++c.clipped; break;
+            case kBackfacing: ++c.backfacing; break;
+            default: ++c.outside_texture; break;
           }
-          if (!(s.batch.dn[j] < 0.0)) {  // edge-on within rounding
-            ++c.backfacing;
-            continue;
-          }
-          std::int64_t u, v;
-          if (!detail::texel_index(s.batch.tu[j], extent_.width, u) ||
-              !detail::texel_index(s.batch.tv[j], extent_.height, v)) {
-            ++c.outside_texture;
-            continue;
-          }
-          const double lod = 0.5 * fast_log2(s.batch.q[j]) + rule.bias;  // lod_from_lengths2's tail
-          out.samples.push_back(ViewSample{u, v, static_cast<float>(lod), static_cast<std::uint32_t>(pix)});
         }
       }
       x = xe;

@@ -24,7 +24,8 @@ namespace vtsim {
 class MeshScene final : public IScene {
  public:
   // texel = floor(uv · (W, H)) for the texture extent; throws InputError("mesh", ...) for an empty
-  // mesh, indices out of range, non-finite data or more than 2^31 − 1 triangles.
+  // mesh, indices out of range, non-finite data or more than 2^31 − 1 triangles, and
+  // InputError("texture", ...) for an extent below 1 or above 2^52 texels a side.
   MeshScene(const Mesh& mesh, TextureExtent extent);
   TextureExtent texture() const override { return extent_; }
   void render(const Camera& cam, const ViewParams& params, ViewBuffer& out) const override;

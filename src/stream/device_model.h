@@ -1,7 +1,8 @@
 #pragma once
-// Device models for the simulated clock (docs/devices.md): a disk, a decode stage and an upload
-// link. Each is a few numbers with presets; the simulated executor turns them into completion
-// times on the event queue. A calibrated profile (`vtsim calibrate`) fills the same structs.
+// Device models for the simulated clock (docs/pipeline.md, "The simulated clock"): a disk, a
+// decode stage and an upload link. Each is a few numbers with presets; the simulated executor
+// turns them into completion times on the event queue. A calibrated profile (`vtsim calibrate`)
+// fills the same structs.
 #include <cstdint>
 #include <string>
 #include <vector>

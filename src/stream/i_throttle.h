@@ -2,7 +2,7 @@
 // Throttling / residency policies: given the backlog and what the device can serve, decide the
 // MaxTextureLOD clamp (the finest level requested and sampled; seed 000 §4-4) and, for virtual
 // textures, a feedback LOD bias. One policy per file in stream/impl/, registered in one table
-// (stream/throttle_registry.cpp). docs/throttle.md.
+// (stream/throttle_registry.cpp). docs/pipeline.md, "MaxTextureLOD throttling".
 #include <cstdint>
 #include <memory>
 #include <string>
