@@ -74,7 +74,9 @@ int main(int argc, char** argv) {
   };
   const bench::Result* full = replay_case("replay_town_walk", walk, cfg);
   nlohmann::json full_summary = last;
-  ReplayConfig every4 = load_replay_config("", {"scene.kind=town", "view.divisor=8", "view.render_threads=0", "view.feedback_every=4"}, "vt");
+  std::vector<std::string> every4_sets = sets;
+  every4_sets.push_back("view.feedback_every=4");
+  const ReplayConfig every4 = load_replay_config("", every4_sets, "vt");
   const bench::Result* e4 = replay_case("replay_town_walk_every4", walk, every4);
   ViewParams vp;
   vp.divisor = cfg.divisor;

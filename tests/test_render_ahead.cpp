@@ -151,7 +151,8 @@ TEST_CASE("render-ahead: a render error reaches the consumer at its job, and shu
   // divisor 1 ~150 MB, so 512 MiB holds 3 slots: 1 thread.
   ViewParams d8, d1;
   d1.divisor = 1;
-  const std::uint64_t b8 = RenderAhead::slot_bytes(1920, 1080, d8, nullptr), b1 = RenderAhead::slot_bytes(1920, 1080, d1, nullptr);
+  const std::uint64_t b8 = RenderAhead::slot_bytes(1920, 1080, d8, nullptr);
+  const std::uint64_t b1 = RenderAhead::slot_bytes(1920, 1080, d1, nullptr);
   CHECK(b8 == 32400 * (sizeof(ViewSample) + sizeof(ViewSpan)));
   CHECK(RenderAhead::slot_bytes(1920, 1080, d8, &d1) == b8 + b1);
   CHECK(RenderAhead::cap_threads(8, b8) == 8);

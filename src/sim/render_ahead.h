@@ -1,10 +1,10 @@
 #pragma once
-// Feedback rendering ahead of the frame loop (docs/architecture.md, "Render-ahead"). A frame's feedback
-// is a function of the scene, the camera and the view parameters only — not of what is streamed —
-// so worker threads can render the frames the loop will need while the loop runs the streaming
-// system on earlier ones. The loop takes the buffers in frame order, and they are bit for bit what
-// it would have rendered itself (IScene::render_spans is thread-safe and deterministic): simulated
-// metrics do not depend on the thread count.
+// Feedback rendering ahead of the frame loop (docs/architecture.md, "Render-ahead"). A frame's
+// feedback is a function of the scene, the camera and the view parameters only — not of what is
+// streamed — so worker threads can render the frames the loop will need while the loop runs the
+// streaming system on earlier ones. The loop takes the buffers in frame order, and they are bit
+// for bit what it would have rendered itself (IScene::render_spans is thread-safe and
+// deterministic): simulated metrics do not depend on the thread count.
 //
 // Contract: one consumer thread calls next(); the workers render into a ring of threads + 2
 // slots. Slot states (guarded by one mutex): free → rendering → ready → held (the consumer's

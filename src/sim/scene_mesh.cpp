@@ -249,6 +249,12 @@ struct Scratch {
     return tile_min[t];
   }
 
+  // Columns [x0, x1] of row y were written: their tiles' least 1/z is recomputed when next asked.
+  void mark_stale(int y, int x0, int x1) {
+    std::uint8_t* row = tile_stale.data() + static_cast<std::size_t>(y >> kTileShift) * static_cast<std::size_t>(tw);
+    for (int t = x0 >> kTileShift; t <= x1 >> kTileShift; ++t) row[t] = 1;
+  }
+
   // True when every sample in columns [x0, x1] × rows [y0, y1] holds a surface with 1/z > bound
   // (also when the range is empty): tiles first, the samples of a tile only where its least 1/z
   // does not decide.
@@ -328,6 +334,15 @@ void raster_poly(const PV* v, int n, std::uint32_t tag, bool depth, int div, int
     double* const invz = s.invz.data();
     std::uint32_t* const ids = s.id.data();
     std::uint8_t* const near_cut = s.near_cut.data();
+    const std::uint32_t tid = tag & ~kBackBit;
+    // Nearest wins; an exact tie goes to the smaller triangle index, which is what drawing in
+    // index order gave, so the chunks may be drawn in any order (nearest first, below).
+    const auto depth_write = [&](std::size_t idx, double iz) {
+      if (!(iz > invz[idx] || (iz == invz[idx] && tid < (ids[idx] & ~kBackBit)))) return false;
+      invz[idx] = iz;
+      ids[idx] = tag;
+      return true;
+    };
     for (int y = y0; y <= y1; ++y) {
       const double sy = s.sy[static_cast<std::size_t>(y)];
       const double r0 = e0.B * sy + e0.C, r1 = e1.B * sy + e1.C, r2 = e2.B * sy + e2.C, rz = Q * sy + R;
@@ -370,42 +385,20 @@ void raster_poly(const PV* v, int n, std::uint32_t tag, bool depth, int div, int
         while (xa <= xb && !in(xa)) ++xa;
         while (xb > xa && !in(xb)) --xb;
         bool wrote = false;
-        const std::uint32_t tid = tag & ~kBackBit;
-        for (int x = xa; x <= xb; ++x) {
-          const std::size_t idx = rowi + static_cast<std::size_t>(x);
-          const double iz = P * sxp[x] + rz;
-          if (iz > invz[idx] || (iz == invz[idx] && tid < (ids[idx] & ~kBackBit))) {
-            invz[idx] = iz;
-            ids[idx] = tag;
-            wrote = true;
-          }
-        }
-        if (wrote) {  // tiles of the interval become stale (a superset of those written: only lazier)
-          std::uint8_t* stale = s.tile_stale.data() + static_cast<std::size_t>(y >> kTileShift) * static_cast<std::size_t>(s.tw);
-          for (int t = xa >> kTileShift; t <= xb >> kTileShift; ++t) stale[t] = 1;
-        }
+        for (int x = xa; x <= xb; ++x) wrote |= depth_write(rowi + static_cast<std::size_t>(x), P * sxp[x] + rz);
+        if (wrote) s.mark_stale(y, xa, xb);  // a superset of the tiles written: only lazier
         continue;
       }
-      int wx0 = bw, wx1 = -1;  // columns written in this row: their tiles become stale
+      int wx0 = bw, wx1 = -1;  // columns written in this row
       for (int x = xa; x <= xb; ++x) {
         const double sx = sxp[x];
-        const double f0 = e0.A * sx + r0, f1 = e1.A * sx + r1, f2 = e2.A * sx + r2;
-        if (!inside(f0, f1, f2)) continue;
-        const std::size_t idx = rowi + static_cast<std::size_t>(x);
-        const double iz = P * sx + rz;
-        // Nearest wins; an exact tie goes to the smaller triangle index, which is what drawing in
-        // index order gave, so the chunks may be drawn in any order (nearest first, below).
-        if (iz > invz[idx] || (iz == invz[idx] && (tag & ~kBackBit) < (ids[idx] & ~kBackBit))) {
-          invz[idx] = iz;
-          ids[idx] = tag;
+        if (!inside(e0.A * sx + r0, e1.A * sx + r1, e2.A * sx + r2)) continue;
+        if (depth_write(rowi + static_cast<std::size_t>(x), P * sx + rz)) {
           wx0 = std::min(wx0, x);
           wx1 = std::max(wx1, x);
         }
       }
-      if (wx1 >= 0) {
-        std::uint8_t* stale = s.tile_stale.data() + static_cast<std::size_t>(y >> kTileShift) * static_cast<std::size_t>(s.tw);
-        for (int t = wx0 >> kTileShift; t <= wx1 >> kTileShift; ++t) stale[t] = 1;
-      }
+      if (wx1 >= 0) s.mark_stale(y, wx0, wx1);
     }
   }
 }
