@@ -86,40 +86,24 @@ void finish(const trace_text::LineReader& in, SourceTrace& s) {
                      in.line_no() == 0 ? "empty file (no poses)" : "no poses in the file");
 }
 
-// TUM RGB-D: "timestamp tx ty tz qx qy qz qw", seconds and metres, '#' comments.
-SourceTrace parse_tum(const std::string& path, const TraceReadOptions& ro) {
-  static constexpr std::string_view kLayout = "timestamp tx ty tz qx qy qz qw";
-  static constexpr std::string_view kNames[] = {"timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"};
-  trace_text::LineReader in(path, ro.limits);
-  SourceTrace s;
-  s.trace.poses.reserve(in.expected_lines(64));  // TUM lines are ~65 bytes, EuRoC ~170
-  TimedSink sink(s, ro.strict);
-  std::vector<std::string_view> f;
-  std::string_view line;
-  while (in.next(line)) {
-    if (trace_text::is_blank(line) || trace_text::is_comment(line)) continue;
-    const std::string where = in.where();
-    trace_text::split_ws(line, f);
-    if (f.size() != 8) wrong_field_count(where, 8, f.size(), kLayout);
-    const std::int64_t t = trace_text::parse_time_ns(f[0], 9, where, kNames[0]);
-    double v[8];
-    for (int i = 1; i < 8; ++i) v[i] = trace_text::parse_double(f[static_cast<std::size_t>(i)], where, kNames[i]);
-    const glm::dvec3 p(v[1], v[2], v[3]);
-    check_position(p, where);
-    glm::dquat q(v[7], v[4], v[5], v[6]);
-    double tol = 0.0;
-    for (int i = 4; i < 8; ++i) tol += std::abs(v[i]) * trace_text::half_ulp_of_text(f[static_cast<std::size_t>(i)]);
-    trace_text::check_quat(q, where, ro.strict, s.repairs, tol);
-    sink.add(t, p, q, where, in.line_no());
-  }
-  finish(in, s);
-  return s;
-}
+// The two timestamped text formats: a time, a position and a quaternion on each line.
+struct TimedFormat {
+  std::string_view layout;       // for the field-count error
+  std::string_view names[8];     // per field, for parse errors
+  bool csv = false;              // comma-separated (EuRoC) or whitespace-separated (TUM)
+  bool extra_columns = false;    // more than 8 fields allowed (ignored)
+  int time_unit_pow10 = 0;       // the time unit is 10^k ns (9: seconds, 0: nanoseconds)
+  bool w_first = false;          // quaternion w x y z (EuRoC) or x y z w (TUM)
+};
 
+// TUM RGB-D: "timestamp tx ty tz qx qy qz qw", seconds and metres, '#' comments.
+constexpr TimedFormat kTum{"timestamp tx ty tz qx qy qz qw", {"timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"},
+                           false, false, 9, false};
 // EuRoC MAV ground truth: "timestamp[ns], p x y z [m], q w x y z, ..." extra columns ignored.
-SourceTrace parse_euroc(const std::string& path, const TraceReadOptions& ro) {
-  static constexpr std::string_view kLayout = "timestamp_ns, px, py, pz, qw, qx, qy, qz, ...";
-  static constexpr std::string_view kNames[] = {"timestamp_ns", "px", "py", "pz", "qw", "qx", "qy", "qz"};
+constexpr TimedFormat kEuroc{"timestamp_ns, px, py, pz, qw, qx, qy, qz, ...",
+                             {"timestamp_ns", "px", "py", "pz", "qw", "qx", "qy", "qz"}, true, true, 0, true};
+
+SourceTrace parse_timed(const std::string& path, const TraceReadOptions& ro, const TimedFormat& form) {
   trace_text::LineReader in(path, ro.limits);
   SourceTrace s;
   s.trace.poses.reserve(in.expected_lines(64));  // TUM lines are ~65 bytes, EuRoC ~170
@@ -129,14 +113,16 @@ SourceTrace parse_euroc(const std::string& path, const TraceReadOptions& ro) {
   while (in.next(line)) {
     if (trace_text::is_blank(line) || trace_text::is_comment(line)) continue;
     const std::string where = in.where();
-    trace_text::split_csv(line, f);
-    if (f.size() < 8) wrong_field_count(where, 8, f.size(), kLayout, true);
-    const std::int64_t t = trace_text::parse_time_ns(f[0], 0, where, kNames[0]);
+    if (form.csv) trace_text::split_csv(line, f);
+    else trace_text::split_ws(line, f);
+    if (form.extra_columns ? f.size() < 8 : f.size() != 8)
+      wrong_field_count(where, 8, f.size(), form.layout, form.extra_columns);
+    const std::int64_t t = trace_text::parse_time_ns(f[0], form.time_unit_pow10, where, form.names[0]);
     double v[8];
-    for (int i = 1; i < 8; ++i) v[i] = trace_text::parse_double(f[static_cast<std::size_t>(i)], where, kNames[i]);
+    for (int i = 1; i < 8; ++i) v[i] = trace_text::parse_double(f[static_cast<std::size_t>(i)], where, form.names[i]);
     const glm::dvec3 p(v[1], v[2], v[3]);
     check_position(p, where);
-    glm::dquat q(v[4], v[5], v[6], v[7]);
+    glm::dquat q = form.w_first ? glm::dquat(v[4], v[5], v[6], v[7]) : glm::dquat(v[7], v[4], v[5], v[6]);
     double tol = 0.0;
     for (int i = 4; i < 8; ++i) tol += std::abs(v[i]) * trace_text::half_ulp_of_text(f[static_cast<std::size_t>(i)]);
     trace_text::check_quat(q, where, ro.strict, s.repairs, tol);
@@ -318,8 +304,8 @@ Trace import_trace(const std::string& path, const ImportOptions& options, TraceL
       s.repairs = r.repairs;
       break;
     }
-    case TraceFormat::tum: s = parse_tum(path, options.read); break;
-    case TraceFormat::euroc: s = parse_euroc(path, options.read); break;
+    case TraceFormat::tum: s = parse_timed(path, options.read, kTum); break;
+    case TraceFormat::euroc: s = parse_timed(path, options.read, kEuroc); break;
     case TraceFormat::kitti: s = parse_kitti(path, options); break;
   }
   if (format != TraceFormat::native) s.trace.name = trace_text::sanitize_line(fmt::format("{} {}", format_name(format), path));
