@@ -1,5 +1,7 @@
 #include "sim/render_ahead.h"
 
+#include <sched.h>
+
 #include <algorithm>
 #include <stdexcept>
 
@@ -91,7 +93,11 @@ const RenderAhead::Buffers& RenderAhead::next() {
 
 int RenderAhead::resolve_threads(int setting) {
   if (setting >= 0) return setting;
-  const unsigned hw = std::thread::hardware_concurrency();
+  // The CPUs this process may run on (taskset, cpusets), not all the machine has.
+  unsigned hw = std::thread::hardware_concurrency();
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof set, &set) == 0 && CPU_COUNT(&set) > 0) hw = static_cast<unsigned>(CPU_COUNT(&set));
   return hw >= 2 ? static_cast<int>(std::min(hw, 8u)) : 0;
 }
 

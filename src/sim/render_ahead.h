@@ -52,7 +52,7 @@ class RenderAhead {
   const Buffers& next();
 
   // The thread count `view.render_threads` resolves to: `setting` itself when >= 0, else (auto)
-  // one worker per hardware thread up to 8, none on a single core.
+  // one worker per CPU the process may use (its affinity mask) up to 8, none on a single one.
   static int resolve_threads(int setting);
   // `threads` capped so that the ring's threads + 2 slots of `bytes_per_slot` (a frame's buffers
   // at their largest) stay within kRingBytes, but at least 1 when threads >= 1: at divisor 1 a
