@@ -185,7 +185,6 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
   // The frames that render feedback: every feedback_every-th, unless its pose equals the last
   // rendered one (position, orientation, field of view), whose buffers it then reuses.
   std::vector<int> render_frames;
-  std::vector<std::uint8_t> renders_view(static_cast<std::size_t>(frames), 0);
   {
     const Pose* last = nullptr;
     for (int f = 0; f < frames; f += cfg.feedback_every) {
@@ -193,7 +192,6 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
       if (last && p.pos_m == last->pos_m && p.q.w == last->q.w && p.q.x == last->q.x && p.q.y == last->q.y &&
           p.q.z == last->q.z && p.vfov_deg == last->vfov_deg)
         continue;
-      renders_view[static_cast<std::size_t>(f)] = 1;
       render_frames.push_back(f);
       last = &p;
     }
@@ -222,7 +220,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
 
     // The view: this frame's feedback (rendered here or ahead), else the last rendered one stands in.
     const bool render = f % cfg.feedback_every == 0;
-    if (renders_view[static_cast<std::size_t>(f)]) {
+    if (next_cam < render_frames.size() && render_frames[next_cam] == f) {
       if (ahead) {
         const RenderAhead::Buffers& b = ahead->next();
         fbp = &b.feedback;
