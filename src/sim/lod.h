@@ -40,6 +40,10 @@ constexpr Log2Table make_log2_table() {
   return t;
 }
 inline constexpr Log2Table kLog2Table = make_log2_table();
+// fast_log2's polynomial: 1/ln 2 times the coefficients of log(1 + r) to r⁴ (the SIMD resolve in
+// scene_mesh.cpp evaluates the same one).
+inline constexpr double kLog2C1 = 1.4426950408889634, kLog2C2 = -0.7213475204444817,
+                        kLog2C3 = 0.48089834696298783, kLog2C4 = -0.36067376022224085;
 
 }  // namespace detail
 
@@ -57,8 +61,7 @@ inline double fast_log2(double x) {
   const double mi = 1.0 + static_cast<double>(i) * (1.0 / (1 << detail::kLog2TableBits));
   const double r = (m - mi) * detail::kLog2Table.inv_mi[i];  // m − mi is exact (same binade)
   // log2(1 + r) = (r − r²/2 + r³/3 − r⁴/4) / ln 2, evaluated as r·(c1 + r·c2) + r³·(c3 + r·c4).
-  constexpr double c1 = 1.4426950408889634, c2 = -0.7213475204444817, c3 = 0.48089834696298783,
-                   c4 = -0.36067376022224085;
+  constexpr double c1 = detail::kLog2C1, c2 = detail::kLog2C2, c3 = detail::kLog2C3, c4 = detail::kLog2C4;
   const double r2 = r * r;
   return static_cast<double>(e) + detail::kLog2Table.log2_mi[i] + (r * (c1 + r * c2) + r2 * r * (c3 + r * c4));
 }

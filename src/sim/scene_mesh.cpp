@@ -137,8 +137,7 @@ template <bool kAniso>
   typedef float v4f __attribute__((vector_size(16)));
   constexpr double two52 = 0x1p52;
   constexpr std::int64_t two52_bits = 0x4330000000000000;
-  constexpr double c1 = 1.4426950408889634, c2 = -0.7213475204444817, c3 = 0.48089834696298783,
-                   c4 = -0.36067376022224085;  // fast_log2's
+  constexpr double c1 = detail::kLog2C1, c2 = detail::kLog2C2, c3 = detail::kLog2C3, c4 = detail::kLog2C4;
   const auto& tab = detail::kLog2Table;
   for (int j = 0; j < n; j += 4) {
     v4d x, izv;
