@@ -199,7 +199,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
   // Render-ahead (render_ahead.h): the same buffers, rendered by workers; the real clock's cores
   // belong to its IO and decode threads unless the config asks.
   const int render_threads = RenderAhead::cap_threads(
-      cfg.render_threads >= 0 ? cfg.render_threads : (env.executor ? 0 : RenderAhead::resolve_threads(-1)),
+      env.executor && cfg.render_threads < 0 ? 0 : RenderAhead::resolve_threads(cfg.render_threads),
       RenderAhead::slot_bytes(trace.image_width, trace.image_height, vp, separate_popin ? &pp : nullptr));
   const auto camera_of = [&](std::size_t j) {
     return make_camera(trace.poses[static_cast<std::size_t>(render_frames[j])], trace.image_width, trace.image_height);
