@@ -11,8 +11,8 @@
 // Usage: bench_feedback [--scenes plane,heightfield,town] [--frames N] [common harness flags:
 // --quick --reps N --json FILE --filter S ...]. The harness lines: render ms per frame at each
 // divisor against divisor 1 on the same frames (ratio = speed-up); the full report is the JSON's
-// params.report. Then the fast paths at divisor 8 against their references (plane spans, town
-// occlusion culling); --fast-paths-only runs only those.
+// params.report. Then the fast paths at divisor 8 against their references (span renderers, and
+// the town's occlusion culling); --fast-paths-only runs only those.
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
@@ -203,10 +203,10 @@ Options parse(int argc, char** argv) {
 }
 
 // The fast paths at divisor 8 against their straightforward references, side by side on the
-// same frames (medians of thread CPU time per frame, one core): the plane's span renderer plus
-// span aggregation against render() plus per-sample aggregation (the replay's view work), and
-// the town with occlusion culling against drawing every chunk in the frustum in index order.
-// Both pairs give identical results (tests/test_view_spans.cpp, tests/test_view_town.cpp).
+// same frames (medians of thread CPU time per frame, one core): the scene's span renderer plus
+// span aggregation (the replay's view work) against render() plus per-sample aggregation — for
+// the town, render() drawing every chunk in the frustum in index order (no occlusion culling).
+// Both sides give identical results (tests/test_view_spans.cpp, tests/test_view_town.cpp).
 void fast_paths(const Options& opt, nlohmann::json& report) {
   fmt::print("\nfast paths at divisor 8 (median ms per frame; reference side by side)\n");
   for (const std::string& name : {std::string("plane"), std::string("town")}) {
@@ -235,14 +235,12 @@ void fast_paths(const Options& opt, nlohmann::json& report) {
           for (int side = 0; side < 2; ++side) {  // alternate, so drifts in machine load hit both
             const bool fast = (rep + side) % 2 == 0;
             const double t0 = thread_cpu_ms();
-            if (cfg.kind == SceneKind::plane && fast) {
+            if (fast) {
               scene->render_spans(cam, vp, sb);
               aggregate_feedback(sb, kTileSize, levels, tiles);
-            } else if (cfg.kind == SceneKind::plane) {
-              scene->render(cam, vp, vb);
-              aggregate_feedback(vb, kTileSize, levels, tiles);
             } else {
-              (fast ? *scene : *ref_scene).render(cam, vp, vb);
+              ref_scene->render(cam, vp, vb);
+              aggregate_feedback(vb, kTileSize, levels, tiles);
             }
             (fast ? fast_ms : ref_ms).push_back(thread_cpu_ms() - t0);
           }

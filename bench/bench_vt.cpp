@@ -4,7 +4,8 @@
 // Cases:
 //  - replay_town_walk        the whole frame loop: feedback render, VT system, pipeline, pop-in;
 //  - replay_town_walk_every4 the same with view.feedback_every = 4 (a fidelity knob);
-//  - render_only             the same 36,000 feedback renders alone: the floor the renderer sets;
+//  - render_only             the same 36,000 feedback renders alone, as the replay renders them
+//                            (spans, no per-sample buffer): the floor the renderer sets;
 //  - replay_town_static      a static camera for the same time (no requests after warm-up);
 //  - replay_town_walk_render_ahead  the first with view.render_threads = -1 (auto: feedback
 //                            rendered ahead on one worker per core, same results), the wall-clock
@@ -15,6 +16,7 @@
 // Usage: build/bench/bench_vt [--quick] [--reps N] [--json FILE]
 #include <fmt/format.h>
 
+#include <bit>
 #include <cstring>
 #include <string>
 #include <thread>
@@ -80,15 +82,16 @@ int main(int argc, char** argv) {
   const bench::Result* e4 = replay_case("replay_town_walk_every4", walk, every4);
   ViewParams vp;
   vp.divisor = cfg.divisor;
-  ViewBuffer vb;
+  SpanBuffer sb;
+  sb.block_shift = std::bit_width(static_cast<unsigned>(cfg.tile_size)) - 1;  // as the replay
   std::size_t samples = 0;
   const bench::Result* render = h.run(
       {.name = "render_only", .metric = bench::Metric::kOpsPerS, .work = frames, .params = {{"unit", "frames/s"}}},
       {"render", {}, [&] {
          samples = 0;
          for (const Pose& p : walk.poses) {
-           scene->render(make_camera(p, walk.image_width, walk.image_height), vp, vb);
-           samples += vb.samples.size();
+           scene->render_spans(make_camera(p, walk.image_width, walk.image_height), vp, sb);
+           samples += sb.samples;
          }
          bench::do_not_optimize(samples);
        }});

@@ -97,6 +97,33 @@ TEST_CASE("render-ahead: every job's buffers equal the scene's own render, in or
   }
 }
 
+TEST_CASE("render-ahead: keep_samples switched while jobs run — the buffers equal the scene's render either way") {
+  SceneConfig sc;
+  sc.kind = SceneKind::town;
+  const auto scene = make_scene(sc);
+  const ViewParams vp;
+  SpanBuffer ref;
+  ref.block_shift = 7;
+  constexpr std::size_t kJobs = 30;
+  RenderAhead ahead(*scene, kJobs, town_camera, vp, nullptr, 7, false, 2);
+  std::size_t with = 0, without = 0;
+  for (std::size_t j = 0; j < kJobs; ++j) {
+    CAPTURE(j);
+    ahead.set_keep_samples(j % 10 >= 5);  // jobs already started keep the old setting
+    RenderAhead::Buffers& b = ahead.next();
+    ref.keep_samples = b.feedback.has_samples;
+    scene->render_spans(town_camera(j), vp, ref);
+    CHECK(same_spans(b.feedback, ref));
+    (b.feedback.has_samples ? with : without) += 1;
+    materialise_samples(b.feedback);  // the consumer completes a held buffer
+    ref.keep_samples = true;
+    scene->render_spans(town_camera(j), vp, ref);
+    CHECK(same_spans(b.feedback, ref));
+  }
+  CHECK(with > 5);
+  CHECK(without > 5);
+}
+
 TEST_CASE("render-ahead: a replay's summary and per-frame CSV do not depend on the thread count") {
   // A walk with a pause (equal poses: reused buffers), feedback every 2nd frame, a separate pop-in
   // buffer: every path that decides which frames render.
@@ -106,24 +133,30 @@ TEST_CASE("render-ahead: a replay's summary and per-frame CSV do not depend on t
   Trace t = generate_trace(g);
   test::hold_last_pose(t, 60);
   const test::ScratchDir dir;
-  const std::vector<std::string> sets = {"view.feedback_every=2", "view.popin_divisor=4", "vt.pool_pages=200"};
-  std::string csv0;
-  nlohmann::json sum0;
-  for (const int threads : {0, 1, 3}) {
-    CAPTURE(threads);
-    ReplayResult r = town_replay(t, sets, threads);
-    const std::string path = dir.file("frames_" + std::to_string(threads) + ".csv");
-    r.metrics.write_frames_csv(path);
-    CHECK(r.summary["run"]["render_threads"].get<int>() == threads);
-    r.summary.erase("run");
-    if (threads == 0) {
-      csv0 = test::slurp(path);
-      sum0 = r.summary;
-      REQUIRE(r.summary["popin"]["measured_frames"].get<int>() > 50);
-      continue;
+  // The second set: a pool small enough for Unreal's residency bias, whose frames the system
+  // reads per sample (wants_samples: rendered with samples, or expanded from spans).
+  for (const std::vector<std::string>& sets :
+       {std::vector<std::string>{"view.feedback_every=2", "view.popin_divisor=4", "vt.pool_pages=200"},
+        std::vector<std::string>{"vt.pool_pages=48", "throttle.policy=unreal_bias", "texture.border=4"}}) {
+    std::string csv0;
+    nlohmann::json sum0;
+    for (const int threads : {0, 1, 3}) {
+      CAPTURE(threads);
+      ReplayResult r = town_replay(t, sets, threads);
+      const std::string path = dir.file("frames_" + std::to_string(threads) + ".csv");
+      r.metrics.write_frames_csv(path);
+      CHECK(r.summary["run"]["render_threads"].get<int>() == threads);
+      r.summary.erase("run");
+      if (threads == 0) {
+        csv0 = test::slurp(path);
+        sum0 = r.summary;
+        REQUIRE(r.summary["popin"]["measured_frames"].get<int>() > 50);
+        if (sets[1] == "throttle.policy=unreal_bias") REQUIRE(r.summary["throttle"]["changes"].get<int>() > 50);
+        continue;
+      }
+      CHECK(test::slurp(path) == csv0);
+      CHECK(r.summary.dump() == sum0.dump());
     }
-    CHECK(test::slurp(path) == csv0);
-    CHECK(r.summary.dump() == sum0.dump());
   }
 }
 

@@ -73,52 +73,98 @@ std::unique_ptr<IScene> plane_scene(double origin_x = 0.0, double origin_y = 0.0
   return make_scene(cfg);
 }
 
+// render_spans of `sc` against spans_from_samples(render()) field for field, and every span's
+// expansion against render()'s samples. Returns the spans' count.
+std::size_t check_spans_exact(const IScene& sc, const RandomView& rv, ViewBuffer& vb, SpanBuffer& sb) {
+  const int levels = mip_level_count(sc.texture());
+  std::vector<ViewSpan> ref;
+  std::vector<ViewSample> expanded;
+  sc.render(rv.cam, rv.vp, vb);
+  spans_from_samples(vb, levels, rv.block_shift, ref);
+  sb.block_shift = rv.block_shift;
+  sb.keep_samples = false;
+  sc.render_spans(rv.cam, rv.vp, sb);
+  REQUIRE_FALSE(sb.has_samples);
+  REQUIRE(sb.width == vb.width);
+  REQUIRE(sb.height == vb.height);
+  REQUIRE(sb.levels == levels);
+  REQUIRE(sb.samples == vb.samples.size());
+  REQUIRE(same_counters(sb.counters, vb.counters));
+  REQUIRE(sb.spans.size() == ref.size());
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < ref.size(); ++i) differ += !same_span(sb.spans[i], ref[i]);
+  REQUIRE(differ == 0);
+  // Expansion re-renders exactly render()'s samples.
+  std::size_t bad = 0;
+  for (const ViewSpan& s : sb.spans) {
+    expanded.clear();
+    expand_span(sb, s, expanded);
+    REQUIRE(expanded.size() == s.count);
+    for (std::uint32_t k = 0; k < s.count; ++k) bad += !same_sample(expanded[k], vb.samples[s.first + k]);
+  }
+  REQUIRE(bad == 0);
+  // All spans at once (adjacent spans in one scene call), then materialised in place.
+  expanded.clear();
+  expand_spans(sb, 0, sb.spans.size(), expanded);
+  REQUIRE(expanded.size() == vb.samples.size());
+  for (std::size_t k = 0; k < expanded.size(); ++k) bad += !same_sample(expanded[k], vb.samples[k]);
+  REQUIRE(bad == 0);
+  materialise_samples(sb);
+  REQUIRE(sb.has_samples);
+  REQUIRE(sb.view.samples.size() == vb.samples.size());
+  for (std::size_t k = 0; k < expanded.size(); ++k) bad += !same_sample(sb.view.samples[k], vb.samples[k]);
+  REQUIRE(bad == 0);
+  return ref.size();
+}
+
 }  // namespace
 
 TEST_CASE("plane render_spans equals spans_from_samples(render) exactly on random cameras") {
   std::mt19937_64 rng(20240601);
   auto scene = plane_scene();
   const auto far_scene = plane_scene(1.0e7, -1.0e7);
-  const int levels = mip_level_count(scene->texture());
   ViewBuffer vb;
   SpanBuffer sb;
-  std::vector<ViewSpan> ref;
-  std::vector<ViewSample> expanded;
   std::size_t total_spans = 0, total_samples = 0;
   for (int it = 0; it < 250; ++it) {
     const bool far = it % 5 == 4;  // texture origin at (1e7 m, −1e7 m)
     const IScene& sc = far ? *far_scene : *scene;
     const RandomView rv = random_view(rng, far ? 1.0e7 + 4096.0 : 4096.0, far ? -1.0e7 + 4096.0 : 4096.0);
-    sc.render(rv.cam, rv.vp, vb);
-    spans_from_samples(vb, levels, rv.block_shift, ref);
-    sb.block_shift = rv.block_shift;
-    sb.keep_samples = false;
-    sc.render_spans(rv.cam, rv.vp, sb);
     CAPTURE(it);
-    REQUIRE(sb.width == vb.width);
-    REQUIRE(sb.height == vb.height);
-    REQUIRE(sb.levels == levels);
-    REQUIRE(sb.samples == vb.samples.size());
-    REQUIRE(same_counters(sb.counters, vb.counters));
-    REQUIRE(sb.spans.size() == ref.size());
-    std::size_t differ = 0;
-    for (std::size_t i = 0; i < ref.size(); ++i) differ += !same_span(sb.spans[i], ref[i]);
-    REQUIRE(differ == 0);
-    // Expansion re-renders exactly render()'s samples.
-    std::size_t bad = 0;
-    for (const ViewSpan& s : sb.spans) {
-      expanded.clear();
-      expand_span(sb, s, expanded);
-      REQUIRE(expanded.size() == s.count);
-      for (std::uint32_t k = 0; k < s.count; ++k) bad += !same_sample(expanded[k], vb.samples[s.first + k]);
-    }
-    REQUIRE(bad == 0);
-    total_spans += ref.size();
+    total_spans += check_spans_exact(sc, rv, vb, sb);
     total_samples += vb.samples.size();
   }
   // The cameras exercise the structure: many spans, most of them longer than one sample.
   CHECK(total_spans > 5000);
   CHECK(total_samples > 4 * total_spans);
+}
+
+// The mesh's span renderer (scene_mesh.cpp) over the test town: random views from street level to
+// 5 km (walls, roofs, back faces, near and far clips, the texture's edge) and walking cameras one
+// after another (the warm start's case). A camera inside or under the town included.
+TEST_CASE("town render_spans equals spans_from_samples(render) exactly on random cameras") {
+  std::mt19937_64 rng(20261202);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  SceneConfig cfg;
+  cfg.kind = SceneKind::town;
+  const auto scene = make_scene(cfg);
+  ViewBuffer vb;
+  SpanBuffer sb;
+  std::size_t total_spans = 0, total_samples = 0;
+  for (int it = 0; it < 150; ++it) {
+    RandomView rv = random_view(rng, -50.0 + 1100.0 * U(rng), -50.0 + 1100.0 * U(rng));
+    if (it % 2 == 0) {
+      rv.cam = make_camera(pose_from_angles({30.0 + 5.0 * U(rng), 8.0 + 200.0 * U(rng), 1.7}, 360.0 * U(rng),
+                                            -30.0 + 35.0 * U(rng)),
+                           1920, 1080);
+      rv.vp.divisor = it % 4 == 0 ? 8 : 4;
+    }
+    CAPTURE(it);
+    total_spans += check_spans_exact(*scene, rv, vb, sb);
+    total_samples += vb.samples.size();
+  }
+  CHECK(total_spans > 5000);
+  CHECK(total_samples > 3 * total_spans);
 }
 
 // The plane caches the level runs of rows without roll for a camera that only translates

@@ -17,14 +17,12 @@ RenderAhead::RenderAhead(const IScene& scene, std::size_t jobs, std::function<Ca
       camera_(std::move(camera)),
       feedback_(feedback),
       popin_(popin ? *popin : feedback),
-      has_popin_(popin != nullptr) {
+      has_popin_(popin != nullptr),
+      keep_samples_(keep_samples) {
   if (threads < 1) throw std::invalid_argument("render-ahead: threads must be at least 1");
   // threads + 2: every worker busy on a frame ahead while the consumer holds one and one is ready.
   slots_.resize(static_cast<std::size_t>(threads) + 2);
-  for (Slot& s : slots_) {
-    s.buf.feedback.block_shift = s.buf.popin.block_shift = block_shift;
-    s.buf.feedback.keep_samples = s.buf.popin.keep_samples = keep_samples;
-  }
+  for (Slot& s : slots_) s.buf.feedback.block_shift = s.buf.popin.block_shift = block_shift;
   workers_.reserve(static_cast<std::size_t>(threads));
   try {
     for (int i = 0; i < threads; ++i) workers_.emplace_back([this] { work(); });
@@ -61,6 +59,7 @@ void RenderAhead::work() {
     s.state = SlotState::rendering;
     s.job = j;
     s.error = nullptr;
+    s.buf.feedback.keep_samples = s.buf.popin.keep_samples = keep_samples_;
     lk.unlock();
     std::exception_ptr error;
     try {
@@ -77,7 +76,7 @@ void RenderAhead::work() {
   }
 }
 
-const RenderAhead::Buffers& RenderAhead::next() {
+RenderAhead::Buffers& RenderAhead::next() {
   std::unique_lock<std::mutex> lk(mu_);
   if (taken_ >= jobs_) throw std::logic_error("render-ahead: no job left");
   const std::size_t nslots = slots_.size();
@@ -89,6 +88,11 @@ const RenderAhead::Buffers& RenderAhead::next() {
   s.state = SlotState::held;
   if (s.error) std::rethrow_exception(s.error);
   return s.buf;
+}
+
+void RenderAhead::set_keep_samples(bool on) {
+  std::lock_guard<std::mutex> lk(mu_);
+  keep_samples_ = on;
 }
 
 int RenderAhead::resolve_threads(int setting) {

@@ -46,10 +46,16 @@ class RenderAhead {
   RenderAhead(const RenderAhead&) = delete;
   RenderAhead& operator=(const RenderAhead&) = delete;
 
-  // The next job's buffers, in job order; blocks until they are rendered. Releases the previous
-  // job's slot, so the buffers it returned are invalid from this call on. Rethrows what the render
-  // of this job threw. Throws std::logic_error past the last job.
-  const Buffers& next();
+  // The next job's buffers, in job order; blocks until they are rendered. They are the caller's
+  // until the next call (no worker touches a held slot: it may complete them, materialise_samples),
+  // which releases the slot and invalidates them. Rethrows what the render of this job threw.
+  // Throws std::logic_error past the last job.
+  Buffers& next();
+
+  // Whether jobs started from now on also keep their per-sample buffers (SpanBuffer::keep_samples;
+  // the constructor's value until called). A hint: the buffers' results are the same either way,
+  // only where the samples are shaded changes — a worker, or the consumer's materialise_samples.
+  void set_keep_samples(bool on);
 
   // The thread count `view.render_threads` resolves to: `setting` itself when >= 0, else (auto)
   // one worker per CPU the process may use (its affinity mask) up to 8, none on a single one.
@@ -85,6 +91,7 @@ class RenderAhead {
   std::size_t next_job_ = 0;           // next job a worker starts
   std::size_t taken_ = 0;              // jobs handed to the consumer
   bool stop_ = false;
+  bool keep_samples_;                  // for jobs started from now on
   std::vector<std::thread> workers_;   // last member: started after the state above exists
 };
 

@@ -208,8 +208,8 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
   if (render_threads > 0 && !render_frames.empty())
     ahead = std::make_unique<RenderAhead>(scene, render_frames.size(), camera_of, vp, separate_popin ? &pp : nullptr,
                                           fb.block_shift, fb.keep_samples, render_threads);
-  const SpanBuffer* fbp = &fb;  // this frame's feedback and pop-in buffers
-  const SpanBuffer* pbp = &pb;
+  SpanBuffer* fbp = &fb;  // this frame's feedback and pop-in buffers
+  SpanBuffer* pbp = &pb;
   std::size_t next_cam = 0;
   for (int f = 0; f < frames; ++f) {
     const Pose& pose = trace.poses[static_cast<std::size_t>(f)];
@@ -221,8 +221,14 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
     // The view: this frame's feedback (rendered here or ahead), else the last rendered one stands in.
     const bool render = f % cfg.feedback_every == 0;
     if (next_cam < render_frames.size() && render_frames[next_cam] == f) {
+      // Shade samples in the render (not afterwards, from the spans) while the system reads them.
+      const bool keep = !system->uses_spans() || system->wants_samples();
+      if (keep != fb.keep_samples) {
+        fb.keep_samples = pb.keep_samples = keep;
+        if (ahead) ahead->set_keep_samples(keep);
+      }
       if (ahead) {
-        const RenderAhead::Buffers& b = ahead->next();
+        RenderAhead::Buffers& b = ahead->next();
         fbp = &b.feedback;
         pbp = &b.popin;
       } else {
@@ -250,6 +256,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
       if (!cut && dt > 0) vel = d / dt;
     }
 
+    if (system->wants_samples()) materialise_samples(*fbp);
     SystemFrame sf{f, now, &pose, vel, fbp->has_samples ? &fbp->view : nullptr, finest_needed, fbp};
     system->begin_frame(sf);
     system->missing_bytes_by_level(missing);

@@ -31,10 +31,11 @@ class IScene {
   // allocation after warm-up. Throws like render, and std::invalid_argument for a bad block_shift.
   virtual void render_spans(const Camera& cam, const ViewParams& params, SpanBuffer& out) const;
 
-  // Appends render()'s samples of the `count` buffer pixels from `pixel` (one row; callers pass a
-  // span's pixels, so every one of them is a sample). Needed only by scenes whose render_spans
-  // leaves has_samples false; the default throws std::logic_error.
-  virtual void render_pixels(const Camera& cam, const ViewParams& params, std::uint32_t pixel, std::uint32_t count,
+  // Appends render()'s samples of the `count` buffer pixels from `pixel` of the frame `sb` holds
+  // (its camera and parameters; a mesh also reads its faces, SpanBuffer::surface): one row, a
+  // span's pixels, so every one of them is a sample (std::logic_error otherwise). Needed only by
+  // scenes whose render_spans leaves has_samples false; the default throws std::logic_error.
+  virtual void render_pixels(const SpanBuffer& sb, std::uint32_t pixel, std::uint32_t count,
                              std::vector<ViewSample>& out) const;
 };
 

@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "sim/render_util.h"
 #include "sim/simd.h"
+#include "sim/span_build.h"
 
 namespace vtsim {
 
@@ -127,6 +128,37 @@ struct ShadeBatch {
 // rejects wider textures (configs stop at 2^34, TileKey's range).
 constexpr double kMaxVectorExtent = 0x1p52;
 
+// The resolve's arithmetic of four samples at columns x (full-resolution px): d·n, the continuous
+// texel coordinates and the clamped squared footprint q of the LOD rule.
+struct ShadeLanes {
+  simd::v4d dn, tu, tv, q;
+};
+template <bool kAniso>
+[[gnu::always_inline]] inline void shade_lanes(const ShadeRow& k, const simd::v4d& x, ShadeLanes& o) {
+  using simd::v4d;
+  const v4d dn = k.dn0 + k.dnx * x;
+  const v4d inv_dn = 1.0 / dn;
+  const v4d tt = -k.kn * inv_dn;
+  const v4d gdu = k.gu0 + k.gux * x, gdv = k.gv0 + k.gvx * x;
+  const v4d ru = gdu * inv_dn, rv = gdv * inv_dn;
+  const v4d ux = tt * (k.gux - k.dnx * ru), vx = tt * (k.gvx - k.dnx * rv);
+  const v4d uy = tt * (k.guy - k.dny * ru), vy = tt * (k.gvy - k.dny * rv);
+  const v4d lx2 = ux * ux + vx * vx, ly2 = uy * uy + vy * vy;
+  v4d q;
+  if constexpr (!kAniso) {  // lod_from_lengths2, lane for lane
+    q = lx2 > ly2 ? lx2 : ly2;
+  } else {
+    const v4d major = lx2 > ly2 ? lx2 : ly2, minor = lx2 > ly2 ? ly2 : lx2, am = major * k.inv_a2;
+    q = minor > am ? minor : am;
+  }
+  const v4d qmin = v4d{} + kMinFootprint2, qmax = v4d{} + kMaxFootprint2;
+  q = q >= qmin ? q : qmin;  // also NaN -> min
+  o.q = q > qmax ? qmax : q;
+  o.dn = dn;
+  o.tu = k.cu + tt * gdu;
+  o.tv = k.cv + tt * gdv;
+}
+
 // Every lane computes exactly the scalar resolve's IEEE operations (texel_index, fast_log2,
 // lod_from_lengths2), so the samples are bit-identical to the per-sample code.
 template <bool kAniso>
@@ -143,25 +175,9 @@ template <bool kAniso>
     v4d x, izv;
     simd::load4(px + j, x);
     simd::load4(iz + j, izv);
-    const v4d dn = k.dn0 + k.dnx * x;
-    const v4d inv_dn = 1.0 / dn;
-    const v4d tt = -k.kn * inv_dn;
-    const v4d gdu = k.gu0 + k.gux * x, gdv = k.gv0 + k.gvx * x;
-    const v4d ru = gdu * inv_dn, rv = gdv * inv_dn;
-    const v4d ux = tt * (k.gux - k.dnx * ru), vx = tt * (k.gvx - k.dnx * rv);
-    const v4d uy = tt * (k.guy - k.dny * ru), vy = tt * (k.gvy - k.dny * rv);
-    const v4d lx2 = ux * ux + vx * vx, ly2 = uy * uy + vy * vy;
-    v4d q;
-    if constexpr (!kAniso) {  // lod_from_lengths2, lane for lane
-      q = lx2 > ly2 ? lx2 : ly2;
-    } else {
-      const v4d major = lx2 > ly2 ? lx2 : ly2, minor = lx2 > ly2 ? ly2 : lx2, am = major * k.inv_a2;
-      q = minor > am ? minor : am;
-    }
-    const v4d qmin = v4d{} + kMinFootprint2, qmax = v4d{} + kMaxFootprint2;
-    q = q >= qmin ? q : qmin;  // also NaN -> min
-    q = q > qmax ? qmax : q;
-    const v4d tu = k.cu + tt * gdu, tv = k.cv + tt * gdv;
+    ShadeLanes l;
+    shade_lanes<kAniso>(k, x, l);
+    const v4d dn = l.dn, q = l.q, tu = l.tu, tv = l.tv;
     // Classification, in the scalar order: clipped, then edge-on, then outside the texture.
     const v4i in_u = (tu >= 0.0) & (tu < k.W), in_v = (tv >= 0.0) & (tv < k.H);
     v4i cls = (in_u & in_v) ? v4i{} + kSample : v4i{} + kOutside;
@@ -206,6 +222,104 @@ VTSIM_CLONES_AVX2 void shade_batch(const ShadeRow& k, const double* px, const do
   else shade_batch_t<false>(k, px, iz, n, b);
 }
 
+// Where the mesh's render_spans writes: the spans so far and the row's open span, which runs of
+// different faces continue while their samples stay in its level and block.
+struct MeshSpanOut {
+  std::vector<ViewSpan>* spans;
+  ViewCounters& c;
+  const detail::LevelCuts* cuts;
+  int levels, block_shift;
+  double tw, th;                // texture extent, texels
+  std::uint32_t n_samples = 0;  // samples so far: the next span's `first`
+  int last_level = 0;
+  bool open = false;            // spans.back() may take the next pixel
+  detail::SpanBounds k{};       // its test
+};
+
+// One row run of a front face in render_spans (n samples from buffer pixel pix0; px and iz padded
+// to whole lanes): the arithmetic of shade_batch four lanes at a time, then the open span's test on
+// all four (as the plane's span_row). A group whose four samples all stay in the span only widens
+// its running box; any other group goes lane by lane with render()'s classification, and a sample
+// that leaves the span opens the next one, its level located among the cuts (no logarithm). The
+// samples and counters are render()'s: same lanes, same classification order, level and block
+// compared as double bounds equivalent to desired_level and the texel index (span_build.h).
+template <bool kAniso>
+[[gnu::always_inline]] inline void span_run_t(const ShadeRow& k, const double* px, const double* iz, int n,
+                                               std::uint32_t pix0, MeshSpanOut& o) {
+  using simd::v4d;
+  typedef std::int64_t v4i __attribute__((vector_size(32)));
+  detail::RunBox box;
+  const auto fold = [&]() __attribute__((always_inline)) {
+    if (box.run != 0) o.n_samples += box.fold(o.spans->back());
+  };
+  for (int j = 0; j < n; j += 4) {
+    v4d x, izv;
+    simd::load4(px + j, x);
+    simd::load4(iz + j, izv);
+    ShadeLanes l;
+    shade_lanes<kAniso>(k, x, l);
+    if (o.open && n - j >= 4) {
+      const detail::SpanBounds& b = o.k;
+      v4i m = (izv < k.far_iz) == 0;
+      m &= (l.dn < 0.0) & (l.q >= b.q_lo) & (l.q < b.q_hi) & (l.tu >= b.u_lo) & (l.tu < b.u_hi) & (l.tv >= b.v_lo) &
+           (l.tv < b.v_hi);
+      m &= __builtin_shufflevector(m, m, 2, 3, 0, 1);  // all four lanes set: reduce in registers
+      m &= __builtin_shufflevector(m, m, 1, 0, 3, 2);
+      if (m[0] != 0) {
+        box.add(l.tu, l.tv);
+        continue;
+      }
+    }
+    fold();
+    const int m = n - j < 4 ? n - j : 4;
+    for (int i = 0; i < m; ++i) {
+      const double dn = l.dn[i], tu = l.tu[i], tv = l.tv[i], q = l.q[i];
+      // render()'s classification order: clipped, edge-on, outside the texture.
+      if (izv[i] < k.far_iz) {
+        ++o.c.clipped;
+        o.open = false;
+        continue;
+      }
+      if (!(dn < 0.0)) {
+        ++o.c.backfacing;
+        o.open = false;
+        continue;
+      }
+      const detail::SpanBounds& b = o.k;
+      if (o.open && q >= b.q_lo && q < b.q_hi && tu >= b.u_lo && tu < b.u_hi && tv >= b.v_lo && tv < b.v_hi) {
+        const std::int64_t u = static_cast<std::int64_t>(tu), v = static_cast<std::int64_t>(tv);  // floors: tu, tv >= 0
+        ViewSpan& sp = o.spans->back();
+        sp.u_lo = std::min(sp.u_lo, u);
+        sp.u_hi = std::max(sp.u_hi, u);
+        sp.v_lo = std::min(sp.v_lo, v);
+        sp.v_hi = std::max(sp.v_hi, v);
+        ++sp.count;
+        ++o.n_samples;
+        continue;
+      }
+      if (!(tu >= 0.0 && tu < k.W && tv >= 0.0 && tv < k.H)) {
+        ++o.c.outside_texture;
+        o.open = false;
+        continue;
+      }
+      const std::int64_t u = static_cast<std::int64_t>(tu), v = static_cast<std::int64_t>(tv);
+      const int level = detail::cut_level(*o.cuts, q, o.last_level, o.levels);
+      o.last_level = level;
+      o.spans->push_back(ViewSpan{u, u, v, v, pix0 + static_cast<std::uint32_t>(j + i), 1, o.n_samples, level});
+      ++o.n_samples;
+      o.k = detail::span_bounds(*o.cuts, level, u, v, o.block_shift, o.tw, o.th);
+      o.open = true;
+    }
+  }
+  fold();
+}
+// Reads px[0 .. ceil(n/4)·4) and iz[0 .. ceil(n/4)·4).
+VTSIM_CLONES_AVX2 void span_run(const ShadeRow& k, const double* px, const double* iz, int n, std::uint32_t pix0,
+                                bool aniso, MeshSpanOut& o) {
+  if (aniso) span_run_t<true>(k, px, iz, n, pix0, o);
+  else span_run_t<false>(k, px, iz, n, pix0, o);
+}
+
 // A triangle's resolve coefficients for one frame: functions affine in the full-resolution pixel
 // (px, py) stored as (constant, ∂/∂px, ∂/∂py).
 struct Shade {
@@ -214,6 +328,43 @@ struct Shade {
   double kn = 0.0;      // (camera − p0) · normal
   double cu = 0.0, cv = 0.0;  // texel coordinates of the camera position on the plane's map
 };
+
+// The coefficients of triangle t for camera `cam` (its ray d = D0 + px·ddx + py·ddy).
+template <class Tri>
+void shade_of(const Tri& t, const Camera& cam, Shade& h) {
+  const glm::dvec3 o = cam.pos_m, ddx = -cam.left, ddy = -cam.up;
+  const glm::dvec3 D0 = cam.ray_dir(0.0, 0.0);
+  const glm::dvec3 op = o - t.p[0];
+  h.dn = {glm::dot(D0, t.n), glm::dot(ddx, t.n), glm::dot(ddy, t.n)};
+  h.kn = glm::dot(op, t.n);
+  h.gdu = {glm::dot(D0, t.gu), glm::dot(ddx, t.gu), glm::dot(ddy, t.gu)};
+  h.gdv = {glm::dot(D0, t.gv), glm::dot(ddx, t.gv), glm::dot(ddy, t.gv)};
+  h.cu = t.tu0 + glm::dot(t.gu, op);
+  h.cv = t.tv0 + glm::dot(t.gv, op);
+}
+
+// A row's resolve constants of a face with coefficients h at full-resolution row py.
+ShadeRow shade_row(const Shade& h, double py, const LodRule& rule, double far_iz, TextureExtent extent) {
+  ShadeRow k;
+  k.dn0 = h.dn.x + h.dn.z * py;
+  k.gu0 = h.gdu.x + h.gdu.z * py;
+  k.gv0 = h.gdv.x + h.gdv.z * py;
+  k.dnx = h.dn.y;
+  k.dny = h.dn.z;
+  k.gux = h.gdu.y;
+  k.guy = h.gdu.z;
+  k.gvx = h.gdv.y;
+  k.gvy = h.gdv.z;
+  k.kn = h.kn;
+  k.cu = h.cu;
+  k.cv = h.cv;
+  k.inv_a2 = rule.inv_aniso2;
+  k.far_iz = far_iz;
+  k.W = static_cast<double>(extent.width);
+  k.H = static_cast<double>(extent.height);
+  k.bias = rule.bias;
+  return k;
+}
 
 struct Scratch {
   std::vector<double> invz;          // 1/view depth of the nearest surface, 0 = none
@@ -482,8 +633,36 @@ MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
 
 void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) const {
   detail::begin_frame(cam, p, out);
+  render_impl(cam, p, &out, nullptr);
+}
+
+void MeshScene::render_spans(const Camera& cam, const ViewParams& p, SpanBuffer& out) const {
+  validate_view_params(p);
+  const int levels = mip_level_count(extent_);
+  // The per-sample buffer is wanted anyway, or the level cuts are not trustworthy: derive the
+  // spans from render()'s samples.
+  if (out.keep_samples || !detail::level_cuts(detail::lod_rule(p).bias, levels).ok) {
+    IScene::render_spans(cam, p, out);
+    return;
+  }
+  if (out.block_shift < 0 || out.block_shift > 62) throw std::invalid_argument("spans: block_shift must be in [0, 62]");
+  out.width = buffer_extent(cam.width, p.divisor);
+  out.height = buffer_extent(cam.height, p.divisor);
+  out.divisor = p.divisor;
+  out.levels = levels;
+  out.spans.clear();
+  out.has_samples = false;
+  out.view.samples.clear();
+  out.scene = this;
+  out.cam = cam;
+  out.params = p;
+  render_impl(cam, p, nullptr, &out);
+}
+
+void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* view, SpanBuffer* spans) const {
+  const bool to_spans = spans != nullptr;
   const LodRule rule = detail::lod_rule(p);
-  const int div = p.divisor, bw = out.width, bh = out.height;
+  const int div = p.divisor, bw = to_spans ? spans->width : view->width, bh = to_spans ? spans->height : view->height;
   const std::size_t npix = static_cast<std::size_t>(bw) * static_cast<std::size_t>(bh);
   thread_local Scratch s;
   s.invz.assign(npix + 4, 0.0);  // + 4: shade_batch reads whole lanes
@@ -631,8 +810,6 @@ void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) 
   //   dT/dx (Igehy's ray differential, lod.h): t·(gu·ddx − (ddx·n)(gu·d)/(d·n)), likewise v, y.
   // Algebraically the ray-plane intersection and plane_footprint_lod; the rounding differs by ulps.
   const double far_iz = 1.0 / p.far_m;
-  const glm::dvec3 ddx = -cam.left, ddy = -cam.up;
-  const glm::dvec3 D0 = cam.ray_dir(0.0, 0.0);
   s.hint.clear();  // this frame's visible triangles, for the next frame's warm start
   const auto seen = [&](std::uint32_t k) {
     if (s.hint_stamp[k] != stamp) {
@@ -641,86 +818,115 @@ void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) 
     }
   };
   ViewCounters c;
+  [[maybe_unused]] MeshSpanOut so{to_spans ? &spans->spans : nullptr, c,
+                                  to_spans ? &detail::level_cuts(rule.bias, spans->levels) : nullptr, to_spans ? spans->levels : 1,
+                                  to_spans ? spans->block_shift : 0, static_cast<double>(extent_.width),
+                                  static_cast<double>(extent_.height)};
   for (int y = 0; y < bh; ++y) {
     const double py = s.sy[static_cast<std::size_t>(y)];
     const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(bw);
+    if (to_spans) so.open = false;  // spans stay in a row
     for (int x = 0; x < bw;) {
       const std::size_t idx = row + static_cast<std::size_t>(x);
       const std::uint32_t id = s.id[idx];
-      if (id == kNoTri) {
-        if (s.near_cut[idx]) ++c.clipped;
-        else ++c.sky;
+      if (id == kNoTri || (id & kBackBit) || !tris_[id].textured) {
+        if (id == kNoTri) {
+          if (s.near_cut[idx]) ++c.clipped;
+          else ++c.sky;
+        } else {
+          seen(id & ~kBackBit);
+          if (s.invz[idx] < far_iz) ++c.clipped;
+          else if (id & kBackBit) ++c.backfacing;
+          else ++c.untextured;
+        }
+        if (to_spans) so.open = false;
         ++x;
         continue;
       }
-      seen(id & ~kBackBit);
-      if (id & kBackBit) {
-        if (s.invz[idx] < far_iz) ++c.clipped;
-        else ++c.backfacing;
-        ++x;
-        continue;
-      }
-      const Tri& t = tris_[id];
-      if (!t.textured) {
-        if (s.invz[idx] < far_iz) ++c.clipped;
-        else ++c.untextured;
-        ++x;
-        continue;
-      }
+      seen(id);
       Shade& h = s.shade[id];
       if (s.shade_stamp[id] != stamp) {
         s.shade_stamp[id] = stamp;
-        const glm::dvec3 op = o - t.p[0];
-        h.dn = {glm::dot(D0, t.n), glm::dot(ddx, t.n), glm::dot(ddy, t.n)};
-        h.kn = glm::dot(op, t.n);
-        h.gdu = {glm::dot(D0, t.gu), glm::dot(ddx, t.gu), glm::dot(ddy, t.gu)};
-        h.gdv = {glm::dot(D0, t.gv), glm::dot(ddx, t.gv), glm::dot(ddy, t.gv)};
-        h.cu = t.tu0 + glm::dot(t.gu, op);
-        h.cv = t.tv0 + glm::dot(t.gv, op);
+        shade_of(tris_[id], cam, h);
       }
-      // The run of this row's samples the same front face owns: its arithmetic in batches of
-      // four lanes (shade_batch), then the classification and the logarithm per sample.
+      // The run of this row's samples the same front face owns, four lanes at a time.
       int xe = x + 1;
       while (xe < bw && s.id[row + static_cast<std::size_t>(xe)] == id) ++xe;
-      ShadeRow k;
-      k.dn0 = h.dn.x + h.dn.z * py;
-      k.gu0 = h.gdu.x + h.gdu.z * py;
-      k.gv0 = h.gdv.x + h.gdv.z * py;
-      k.dnx = h.dn.y;
-      k.dny = h.dn.z;
-      k.gux = h.gdu.y;
-      k.guy = h.gdu.z;
-      k.gvx = h.gdv.y;
-      k.gvy = h.gdv.z;
-      k.kn = h.kn;
-      k.cu = h.cu;
-      k.cv = h.cv;
-      k.inv_a2 = rule.inv_aniso2;
-      k.far_iz = far_iz;
-      k.W = static_cast<double>(extent_.width);
-      k.H = static_cast<double>(extent_.height);
-      k.bias = rule.bias;
-      for (int xb = x; xb < xe; xb += kShadeBatch) {
-        const int n = std::min(kShadeBatch, xe - xb);
-        const std::size_t pix0 = row + static_cast<std::size_t>(xb);
-        shade_batch(k, s.sx.data() + xb, s.invz.data() + pix0, n, rule.anisotropic, s.batch);
-        for (int j = 0; j < n; ++j) {
-          switch (s.batch.cls[j]) {
-            case kSample: {
-              const auto pix = static_cast<std::uint32_t>(pix0 + static_cast<std::size_t>(j));
-              out.samples.push_back(ViewSample{s.batch.u[j], s.batch.v[j], s.batch.lod[j], pix});
-              break;
+      const ShadeRow k = shade_row(h, py, rule, far_iz, extent_);
+      if (to_spans) {
+        span_run(k, s.sx.data() + x, s.invz.data() + idx, xe - x, static_cast<std::uint32_t>(idx), rule.anisotropic, so);
+      } else {
+        for (int xb = x; xb < xe; xb += kShadeBatch) {
+          const int n = std::min(kShadeBatch, xe - xb);
+          const std::size_t pix0 = row + static_cast<std::size_t>(xb);
+          shade_batch(k, s.sx.data() + xb, s.invz.data() + pix0, n, rule.anisotropic, s.batch);
+          for (int j = 0; j < n; ++j) {
+            switch (s.batch.cls[j]) {
+              case kSample: {
+                const auto pix = static_cast<std::uint32_t>(pix0 + static_cast<std::size_t>(j));
+                view->samples.push_back(ViewSample{s.batch.u[j], s.batch.v[j], s.batch.lod[j], pix});
+                break;
+              }
+              case kClipped: ++c.clipped; break;
+              case kBackfacing: ++c.backfacing; break;
+              default: ++c.outside_texture; break;
             }
-            case kClipped: ++c.clipped; break;
-            case kBackfacing: ++c.backfacing; break;
-            default: ++c.outside_texture; break;
           }
         }
       }
       x = xe;
     }
   }
-  out.counters = c;
+  if (to_spans) {
+    spans->counters = c;
+    spans->samples = so.n_samples;
+    // render_pixels shades a span's pixels again from their faces; the swap keeps both buffers'
+    // storage (no allocation after warm-up).
+    spans->surface = s.id;
+  } else {
+    view->counters = c;
+  }
+}
+
+void MeshScene::render_pixels(const SpanBuffer& sb, std::uint32_t pixel, std::uint32_t count,
+                              std::vector<ViewSample>& out) const {
+  const std::uint32_t bw = static_cast<std::uint32_t>(sb.width);
+  if (bw == 0 || pixel / bw >= static_cast<std::uint32_t>(sb.height) || pixel % bw + count > bw)
+    throw std::invalid_argument("render_pixels: the pixels are not within one buffer row");
+  if (sb.surface.size() != static_cast<std::size_t>(bw) * static_cast<std::size_t>(sb.height))
+    throw std::logic_error("render_pixels: the span buffer holds no faces of a mesh render");
+  const Camera& cam = sb.cam;
+  const ViewParams& p = sb.params;
+  const LodRule rule = detail::lod_rule(p);
+  const double far_iz = 1.0 / p.far_m;
+  const int y = static_cast<int>(pixel / bw), x0 = static_cast<int>(pixel % bw);
+  const double py = sample_pos(y, p.divisor, cam.height);
+  thread_local std::vector<double> px, iz;
+  thread_local ShadeBatch batch;
+  // A span's pixels are samples, so none was clipped: 1/z = +inf passes the far test.
+  px.resize(static_cast<std::size_t>(count) + 4);
+  iz.assign(static_cast<std::size_t>(count) + 4, INFINITY);
+  for (std::uint32_t i = 0; i < count + 4; ++i)
+    px[i] = sample_pos(x0 + static_cast<int>(std::min(i, count - 1)), p.divisor, cam.width);
+  for (std::uint32_t a = 0; a < count;) {
+    const std::uint32_t id = sb.surface[pixel + a];
+    std::uint32_t e = a + 1;
+    while (e < count && sb.surface[pixel + e] == id) ++e;
+    if (id == kNoTri || (id & kBackBit) || id >= tris_.size() || !tris_[id].textured)
+      throw std::logic_error("render_pixels: a pixel of the span is not a sample");
+    Shade h;
+    shade_of(tris_[id], cam, h);
+    const ShadeRow k = shade_row(h, py, rule, far_iz, extent_);
+    for (std::uint32_t b = a; b < e; b += kShadeBatch) {
+      const int n = static_cast<int>(std::min<std::uint32_t>(kShadeBatch, e - b));
+      shade_batch(k, px.data() + b, iz.data() + b, n, rule.anisotropic, batch);
+      for (int j = 0; j < n; ++j) {
+        if (batch.cls[j] != kSample) throw std::logic_error("render_pixels: a pixel of the span is not a sample");
+        out.push_back(ViewSample{batch.u[j], batch.v[j], batch.lod[j], pixel + b + static_cast<std::uint32_t>(j)});
+      }
+    }
+    a = e;
+  }
 }
 
 }  // namespace vtsim

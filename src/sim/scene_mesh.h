@@ -29,6 +29,14 @@ class MeshScene final : public IScene {
   MeshScene(const Mesh& mesh, TextureExtent extent);
   TextureExtent texture() const override { return extent_; }
   void render(const Camera& cam, const ViewParams& params, ViewBuffer& out) const override;
+  // Spans without materialising samples: the same rasterisation, then per row run of a front face
+  // the resolve's arithmetic four samples at a time and the open span's test as double
+  // comparisons (level cuts instead of the logarithm, span_build.h); only a span's first sample is
+  // classified one by one. Keeps the buffer's faces (SpanBuffer::surface) for render_pixels.
+  // keep_samples falls back to render() + spans.
+  void render_spans(const Camera& cam, const ViewParams& params, SpanBuffer& out) const override;
+  void render_pixels(const SpanBuffer& sb, std::uint32_t pixel, std::uint32_t count,
+                     std::vector<ViewSample>& out) const override;
 
   std::size_t triangle_count() const { return tris_.size(); }
   // Occlusion culling (on by default): chunks drawn nearest first, those hidden behind what is
@@ -48,6 +56,10 @@ class MeshScene final : public IScene {
     glm::dvec3 lo, hi;    // bounding box, world metres
     std::uint32_t first = 0, count = 0;
   };
+  // render (view: the begun per-sample buffer) and render_spans (spans: its fields set but the
+  // spans'): rasterise, then resolve into samples or spans.
+  void render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* view, SpanBuffer* spans) const;
+
   TextureExtent extent_;
   std::vector<Tri> tris_;
   std::vector<Chunk> chunks_;

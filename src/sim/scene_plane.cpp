@@ -9,10 +9,18 @@
 
 #include "sim/render_util.h"
 #include "sim/simd.h"
+#include "sim/span_build.h"
 
 namespace vtsim {
 
 namespace {
+
+using detail::block_bounds;
+using detail::cut_level;
+using detail::LevelCuts;
+using detail::level_cuts;
+using detail::span_bounds;
+using detail::SpanBounds;
 
 constexpr int kChunk = 64;  // pixels per batch: arrays stay in L1, loops long enough
 
@@ -211,63 +219,6 @@ const double* column_offsets(const Camera& cam, int div, int bw) {
   return col.data();
 }
 
-// Level cuts of the LOD rule: cut[k] = the least squared footprint q whose desired level
-// desired_level(float(0.5·fast_log2(q) + bias), levels) is >= k. The level is a monotone step
-// function of q (fast_log2 is monotone, so are the addition, the rounding to float and floor),
-// so a sample is at level k exactly when cut[k] <= q < cut[k + 1]: the span test compares q and
-// never takes a logarithm. Found by bisection over the bit patterns of positive doubles (ordered
-// like the values) in [kMinFootprint2, kMaxFootprint2], the range fill_batch clamps q to; cached
-// per thread for the last (bias, levels), which a replay never changes. Monotonicity is what the
-// cuts rest on; rounding could only break it within a few ulps of q around a cut (the LOD's
-// rounding error is an ulp or two), so each cut is checked over ±kCheckUlps ulps and a failed
-// check sends render_spans to the per-sample path (`ok` false) rather than risk a wrong span.
-struct LevelCuts {
-  double bias = 0.0;
-  int levels = 0;
-  bool ok = true;
-  double cut[66] = {};
-};
-constexpr std::uint64_t kCheckUlps = 256;
-int level_of_q(double q, double bias, int levels) {
-  return desired_level(static_cast<float>(0.5 * fast_log2(q) + bias), levels);
-}
-const LevelCuts& level_cuts(double bias, int levels) {
-  thread_local LevelCuts lc;
-  if (lc.levels == levels && std::bit_cast<std::uint64_t>(lc.bias) == std::bit_cast<std::uint64_t>(bias)) return lc;
-  lc.bias = bias;
-  lc.levels = levels;
-  lc.ok = true;
-  const std::uint64_t lo_bits = std::bit_cast<std::uint64_t>(kMinFootprint2), hi_bits = std::bit_cast<std::uint64_t>(kMaxFootprint2);
-  lc.cut[0] = -INFINITY;
-  for (int k = 1; k <= levels; ++k) {
-    if (level_of_q(kMinFootprint2, bias, levels) >= k) {
-      lc.cut[k] = -INFINITY;
-    } else if (level_of_q(kMaxFootprint2, bias, levels) < k) {
-      lc.cut[k] = INFINITY;
-    } else {  // level(lo) < k <= level(hi)
-      std::uint64_t lo = lo_bits, hi = hi_bits;
-      while (hi - lo > 1) {
-        const std::uint64_t mid = lo + (hi - lo) / 2;
-        if (level_of_q(std::bit_cast<double>(mid), bias, levels) >= k) hi = mid;
-        else lo = mid;
-      }
-      lc.cut[k] = std::bit_cast<double>(hi);
-      for (std::uint64_t d = 1; d <= kCheckUlps; ++d) {
-        if (hi - d >= lo_bits && level_of_q(std::bit_cast<double>(hi - d), bias, levels) >= k) lc.ok = false;
-        if (hi + d <= hi_bits && level_of_q(std::bit_cast<double>(hi + d), bias, levels) < k) lc.ok = false;
-      }
-    }
-  }
-  return lc;
-}
-
-// The open span's test, as double comparisons on a sample's values: a sample (as classify) at
-// the span's level (q in [q_lo, q_hi)) whose texel lies in the span's block (u in [u_lo, u_hi),
-// bounds clipped to the texture, so the texture test is included).
-struct SpanBounds {
-  double q_lo, q_hi, u_lo, u_hi, v_lo, v_hi;
-};
-
 // Where render_spans writes, across rows.
 struct SpanOut {
   std::vector<ViewSpan>& spans;
@@ -284,28 +235,11 @@ void open_span(const PlaneFrame& fr, const Batch& b, int j, std::uint32_t pixel,
   std::int64_t u = static_cast<std::int64_t>(b.tu[j]), v = static_cast<std::int64_t>(b.tv[j]);
   if (u >= fr.W) u = fr.W - 1;  // as sample()
   if (v >= fr.H) v = fr.H - 1;
-  const double q = b.q[j];
-  int level = o.last_level;
-  while (level > 0 && q < o.cuts.cut[level]) --level;
-  while (level + 1 < o.levels && q >= o.cuts.cut[level + 1]) ++level;
+  const int level = cut_level(o.cuts, b.q[j], o.last_level, o.levels);
   o.last_level = level;
   o.spans.push_back(ViewSpan{u, u, v, v, pixel, 1, o.n_samples, level});
   ++o.n_samples;
-  k.q_lo = o.cuts.cut[level];
-  k.q_hi = o.cuts.cut[level + 1];
-  const int sh = level + o.block_shift;
-  if (sh < 63) {  // the block's texel range, as spans_from_samples defines it
-    const std::int64_t bu = u >> sh, bv = v >> sh;
-    const double p2 = std::bit_cast<double>(static_cast<std::uint64_t>(1023 + sh) << 52);  // 2^sh, exact
-    k.u_lo = std::max(0.0, static_cast<double>(bu) * p2);
-    k.u_hi = std::min(fr.tw, static_cast<double>(bu + 1) * p2);
-    k.v_lo = std::max(0.0, static_cast<double>(bv) * p2);
-    k.v_hi = std::min(fr.th, static_cast<double>(bv + 1) * p2);
-  } else {
-    k.u_lo = k.v_lo = 0.0;
-    k.u_hi = fr.tw;
-    k.v_hi = fr.th;
-  }
+  k = span_bounds(o.cuts, level, u, v, o.block_shift, fr.tw, fr.th);
 }
 
 // Without roll, a whole run of g columns [x, x + g) at once. Every quantity of the span test is
@@ -367,25 +301,9 @@ template <bool kAniso, bool kFlat>
   thread_local Batch b;
   SpanBounds k{};
   bool open = false;
-  bool acc = false;  // umin..vmax and run hold groups not yet folded into o.spans.back()
-  std::uint32_t run = 0;
-  v4d umin{}, umax{}, vmin{}, vmax{};
-  const auto fold = [&] {
-    if (!acc) return;
-    ViewSpan& sp = o.spans.back();
-    const double ul = std::min(std::min(umin[0], umin[1]), std::min(umin[2], umin[3]));
-    const double uh = std::max(std::max(umax[0], umax[1]), std::max(umax[2], umax[3]));
-    const double vl = std::min(std::min(vmin[0], vmin[1]), std::min(vmin[2], vmin[3]));
-    const double vh = std::max(std::max(vmax[0], vmax[1]), std::max(vmax[2], vmax[3]));
-    // Texels are truncations (tu >= 0), and truncation is monotone.
-    sp.u_lo = std::min(sp.u_lo, static_cast<std::int64_t>(ul));
-    sp.u_hi = std::max(sp.u_hi, static_cast<std::int64_t>(uh));
-    sp.v_lo = std::min(sp.v_lo, static_cast<std::int64_t>(vl));
-    sp.v_hi = std::max(sp.v_hi, static_cast<std::int64_t>(vh));
-    sp.count += run;
-    o.n_samples += run;
-    run = 0;
-    acc = false;
+  detail::RunBox box;
+  const auto fold = [&]() __attribute__((always_inline)) {
+    if (box.run != 0) o.n_samples += box.fold(o.spans.back());
   };
   const double oz = fr.oz, tn = fr.t_near, tf = fr.t_far;
   const int bw = fr.bw;
@@ -415,17 +333,7 @@ template <bool kAniso, bool kFlat>
       m &= __builtin_shufflevector(m, m, 2, 3, 0, 1);  // all four lanes set: reduce in registers
       m &= __builtin_shufflevector(m, m, 1, 0, 3, 2);
       if (m[0] != 0) {
-        if (!acc) {
-          umin = umax = l.tu;
-          vmin = vmax = l.tv;
-          acc = true;
-        } else {
-          umin = l.tu < umin ? l.tu : umin;
-          umax = l.tu > umax ? l.tu : umax;
-          vmin = l.tv < vmin ? l.tv : vmin;
-          vmax = l.tv > vmax ? l.tv : vmax;
-        }
-        run += 4;
+        box.add(l.tu, l.tv);
         continue;
       }
     }
@@ -654,16 +562,9 @@ void span_row_runs(const PlaneFrame& fr, const RowConsts& k, const RowFlat& rf, 
       std::int64_t u = static_cast<std::int64_t>(tu), v = static_cast<std::int64_t>(tv);
       if (u >= fr.W) u = fr.W - 1;  // as open_span
       if (v >= fr.H) v = fr.H - 1;
-      double ulo = 0.0, uhi = fr.tw, vlo = 0.0, vhi = fr.th;
-      const int sh = level + o.block_shift;
-      if (sh < 63) {  // as open_span
-        const std::int64_t bu = u >> sh, bv = v >> sh;
-        const double p2 = std::bit_cast<double>(static_cast<std::uint64_t>(1023 + sh) << 52);
-        ulo = std::max(0.0, static_cast<double>(bu) * p2);
-        uhi = std::min(fr.tw, static_cast<double>(bu + 1) * p2);
-        vlo = std::max(0.0, static_cast<double>(bv) * p2);
-        vhi = std::min(fr.th, static_cast<double>(bv + 1) * p2);
-      }
+      SpanBounds bb;
+      block_bounds(u, v, level + o.block_shift, fr.tw, fr.th, bb);  // as open_span
+      const double ulo = bb.u_lo, uhi = bb.u_hi, vlo = bb.v_lo, vhi = bb.v_hi;
       const double n = std::min(guess_exit(tu, iu, ulo, uhi), guess_exit(tv, iv, vlo, vhi));
       double last_u = tu, last_v = tv;  // at the greatest column pred accepted: e − 1 when it returns
       const int e = prefix_end(x, xe, to_col(x, n, xe), [&](int c) {
@@ -724,8 +625,10 @@ void PlaneScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out)
   out.counters = c;
 }
 
-void PlaneScene::render_pixels(const Camera& cam, const ViewParams& p, std::uint32_t pixel, std::uint32_t count,
+void PlaneScene::render_pixels(const SpanBuffer& sb, std::uint32_t pixel, std::uint32_t count,
                                std::vector<ViewSample>& out) const {
+  const Camera& cam = sb.cam;
+  const ViewParams& p = sb.params;
   const PlaneFrame fr(cam, p, tex_, z_);
   const std::uint32_t bw = static_cast<std::uint32_t>(fr.bw);
   if (pixel / bw >= static_cast<std::uint32_t>(fr.bh) || pixel % bw + count > bw)

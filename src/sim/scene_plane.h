@@ -24,7 +24,7 @@ class PlaneScene final : public IScene {
   // block as double comparisons); only a span's first sample takes the logarithm. O(pixels) with
   // a small constant, O(spans) scalar work. keep_samples falls back to render() + spans.
   void render_spans(const Camera& cam, const ViewParams& params, SpanBuffer& out) const override;
-  void render_pixels(const Camera& cam, const ViewParams& params, std::uint32_t pixel, std::uint32_t count,
+  void render_pixels(const SpanBuffer& sb, std::uint32_t pixel, std::uint32_t count,
                      std::vector<ViewSample>& out) const override;
 
  private:

@@ -22,7 +22,39 @@ void expand_span(const SpanBuffer& sb, const ViewSpan& s, std::vector<ViewSample
     return;
   }
   if (!sb.scene) throw std::logic_error("expand_span: the span buffer has neither samples nor a scene");
-  sb.scene->render_pixels(sb.cam, sb.params, s.pixel, s.count, out);
+  sb.scene->render_pixels(sb, s.pixel, s.count, out);
+}
+
+void expand_spans(const SpanBuffer& sb, std::size_t begin, std::size_t end, std::vector<ViewSample>& out) {
+  if (begin >= end) return;
+  if (end > sb.spans.size()) throw std::invalid_argument("expand_spans: span range beyond the buffer");
+  if (sb.has_samples) {  // spans cover consecutive samples in order
+    const auto b = sb.view.samples.begin() + static_cast<std::ptrdiff_t>(sb.spans[begin].first);
+    const ViewSpan& last = sb.spans[end - 1];
+    out.insert(out.end(), b, sb.view.samples.begin() + static_cast<std::ptrdiff_t>(last.first + last.count));
+    return;
+  }
+  if (!sb.scene) throw std::logic_error("expand_spans: the span buffer has neither samples nor a scene");
+  const std::uint32_t w = static_cast<std::uint32_t>(sb.width > 0 ? sb.width : 1);
+  for (std::size_t i = begin; i < end;) {
+    const std::uint32_t pixel = sb.spans[i].pixel;
+    std::uint32_t count = sb.spans[i].count;
+    std::size_t j = i + 1;
+    while (j < end && sb.spans[j].pixel == pixel + count && sb.spans[j].pixel / w == pixel / w) count += sb.spans[j++].count;
+    sb.scene->render_pixels(sb, pixel, count, out);
+    i = j;
+  }
+}
+
+void materialise_samples(SpanBuffer& sb) {
+  if (sb.has_samples) return;
+  sb.view.samples.clear();
+  expand_spans(sb, 0, sb.spans.size(), sb.view.samples);
+  sb.view.width = sb.width;
+  sb.view.height = sb.height;
+  sb.view.divisor = sb.divisor;
+  sb.view.counters = sb.counters;
+  sb.has_samples = true;
 }
 
 void spans_from_samples(const ViewBuffer& vb, int num_levels, int block_shift, std::vector<ViewSpan>& out) {
@@ -89,7 +121,7 @@ void IScene::render_spans(const Camera& cam, const ViewParams& params, SpanBuffe
   spans_from_samples(out.view, out.levels, out.block_shift, out.spans);
 }
 
-void IScene::render_pixels(const Camera&, const ViewParams&, std::uint32_t, std::uint32_t, std::vector<ViewSample>&) const {
+void IScene::render_pixels(const SpanBuffer&, std::uint32_t, std::uint32_t, std::vector<ViewSample>&) const {
   throw std::logic_error("render_pixels: this scene keeps its samples (render_spans sets has_samples)");
 }
 

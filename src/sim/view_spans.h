@@ -49,11 +49,22 @@ struct SpanBuffer {
   const IScene* scene = nullptr;
   Camera cam;
   ViewParams params;
+  std::vector<std::uint32_t> surface;  // per buffer pixel, the scene's surface there (mesh: the
+                                       // triangle), for scenes whose render_pixels needs it
 };
 
 // Appends span s's samples to `out`: exactly render()'s samples at those pixels (copied from
 // `view` or recomputed by the scene). O(s.count).
 void expand_span(const SpanBuffer& sb, const ViewSpan& s, std::vector<ViewSample>& out);
+
+// Appends the samples of spans [begin, end) of sb in order: exactly render()'s samples at their
+// pixels, as expand_span of each, with one scene call per row segment of adjacent spans (a face's
+// coefficients are computed once per segment, not per span). O(samples).
+void expand_spans(const SpanBuffer& sb, std::size_t begin, std::size_t end, std::vector<ViewSample>& out);
+
+// Fills sb.view with the frame's samples (every span expanded) and sets has_samples, so that later
+// expansions copy. No-op when has_samples is already set. O(samples).
+void materialise_samples(SpanBuffer& sb);
 
 // The spans of a per-sample buffer (the reference definition). `out` is cleared first; its
 // storage is reused. `num_levels` = mip_level_count of the scene's texture. Throws

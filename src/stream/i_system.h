@@ -44,6 +44,10 @@ class IStreamingSystem : public IResidency {
   // True when the system reads SystemFrame::spans and resolves spans (span_resident_levels); the
   // frame loop then renders spans only. Otherwise it also passes the per-sample buffer (`view`).
   virtual bool uses_spans() const { return false; }
+  // True when the next begin_frame will read every sample although the system uses spans (a VT
+  // feedback bias): the frame loop then materialises the span buffer's samples once
+  // (materialise_samples) and passes them as `view`, and every later expansion is a copy.
+  virtual bool wants_samples() const { return false; }
   virtual double pool_occupancy() const { return 0.0; }
   virtual double pool_pressure() const { return 0.0; }
   // Virtual texturing: pages wanted per level and pool slots (ThrottleInput); clipmaps: none.

@@ -78,7 +78,7 @@ void VtSystem::build_wanted() {
   const int n = geo_.levels();
   for (auto& v : by_level_) v.clear();
   const float bias = static_cast<float>(bias_);
-  if (view_) {
+  if (spans_ || view_) {
     // Aggregate samples into desired pages: a run of samples on one page costs one hash lookup.
     agg_.clear();
     std::uint64_t run_key = PageMap<int>::kEmpty;
@@ -111,15 +111,18 @@ void VtSystem::build_wanted() {
       run = 1;
     };
     // Spans (one page of one level each when cut at pages) stand for their samples when the bias
-    // is zero: desired_level(lod + 0, n) = min(span.level, n − 1). Same runs, same order.
-    if (bias == 0.0f && spans_ && spans_->has_samples && &spans_->view == view_ && spans_->levels >= n) {
+    // is zero: desired_level(lod + 0, n) = min(span.level, n − 1). Same runs, same order. Other
+    // spans (a biased LOD, a page edge inside the span) go sample by sample (expand_span).
+    if (bias == 0.0f && spans_ && spans_->levels >= n) {
       for (const ViewSpan& sp : spans_->spans) {
         const int l = std::min(sp.level, n - 1);
         const std::int64_t u0 = std::clamp<std::int64_t>(sp.u_lo, 0, W - 1), u1 = std::clamp<std::int64_t>(sp.u_hi, 0, W - 1);
         const std::int64_t v0 = std::clamp<std::int64_t>(sp.v_lo, 0, H - 1), v1 = std::clamp<std::int64_t>(sp.v_hi, 0, H - 1);
         const std::int64_t px = geo_.page_of(u0 >> l), py = geo_.page_of(v0 >> l);
         if (px != geo_.page_of(u1 >> l) || py != geo_.page_of(v1 >> l)) {
-          for (std::uint32_t k = 0; k < sp.count; ++k) add_sample(view_->samples[sp.first + k]);
+          expanded_.clear();
+          expand_span(*spans_, sp, expanded_);
+          for (const ViewSample& s : expanded_) add_sample(s);
           continue;
         }
         const std::uint64_t key = page_key(l, px, py).bits;
@@ -131,7 +134,15 @@ void VtSystem::build_wanted() {
         run += sp.count;
       }
     } else {
-      for (const ViewSample& s : view_->samples) add_sample(s);
+      // A biased LOD moves levels inside spans: per sample. The frame loop materialises them
+      // while wants_samples(); on the frame the bias turns on they are expanded here.
+      const std::vector<ViewSample>* all = view_ ? &view_->samples : nullptr;
+      if (!all) {
+        expanded_.clear();
+        expand_spans(*spans_, 0, spans_->spans.size(), expanded_);
+        all = &expanded_;
+      }
+      for (const ViewSample& s : *all) add_sample(s);
     }
     flush();
   }

@@ -71,6 +71,10 @@ class VtSystem final : public IStreamingSystem {
   std::uint32_t throttled_needs() const override { return throttled_tiles_; }
   bool commit(TileKey key, int frame) override;
   void set_mark_sampled(bool on) override { mark_sampled_ = on; }
+  bool uses_spans() const override { return true; }
+  // build_wanted reads every sample under a feedback bias (levels move inside spans), and with a
+  // page size that is not a power of two (spans are cut at 2^k-texel blocks, so many cross pages).
+  bool wants_samples() const override { return bias_ != 0.0 || !geo_.pow2_page(); }
   double pool_occupancy() const override { return occupancy_; }
   double pool_pressure() const override { return pressure_; }
   void pool_demand(std::vector<std::uint64_t>& pages_by_level, std::uint64_t& slots) const override;
@@ -146,6 +150,7 @@ class VtSystem final : public IStreamingSystem {
   std::vector<Candidate> candidates_;
   std::vector<std::uint8_t> got_slot_;
   std::vector<std::uint64_t> scratch_keys_;
+  std::vector<ViewSample> expanded_;  // samples expanded from spans_ (build_wanted)
 
   // resident_level memo: page at the sampled level -> resolved level and slot.
   struct Memo {
