@@ -72,7 +72,7 @@ void RenderAhead::work() {
     lk.lock();
     s.error = error;
     s.state = SlotState::ready;
-    job_ready_.notify_all();
+    job_ready_.notify_one();  // one consumer
   }
 }
 
@@ -82,7 +82,7 @@ RenderAhead::Buffers& RenderAhead::next() {
   const std::size_t nslots = slots_.size();
   if (taken_ > 0) slots_[(taken_ - 1) % nslots].state = SlotState::free;
   const std::size_t j = taken_++;
-  can_work_.notify_all();  // the released slot can take a new job
+  can_work_.notify_one();  // the released slot makes one more job startable: one worker
   Slot& s = slots_[j % nslots];
   job_ready_.wait(lk, [&] { return s.state == SlotState::ready && s.job == j; });
   s.state = SlotState::held;
