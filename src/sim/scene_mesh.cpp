@@ -288,12 +288,7 @@ template <bool kAniso>
       const detail::SpanBounds& b = o.k;
       if (o.open && q >= b.q_lo && q < b.q_hi && tu >= b.u_lo && tu < b.u_hi && tv >= b.v_lo && tv < b.v_hi) {
         const std::int64_t u = static_cast<std::int64_t>(tu), v = static_cast<std::int64_t>(tv);  // floors: tu, tv >= 0
-        ViewSpan& sp = o.spans->back();
-        sp.u_lo = std::min(sp.u_lo, u);
-        sp.u_hi = std::max(sp.u_hi, u);
-        sp.v_lo = std::min(sp.v_lo, v);
-        sp.v_hi = std::max(sp.v_hi, v);
-        ++sp.count;
+        detail::widen(o.spans->back(), u, u, v, v, 1);
         ++o.n_samples;
         continue;
       }

@@ -347,13 +347,8 @@ template <bool kAniso, bool kFlat>
     for (int j = 0; j < n; ++j) {
       if (open && (b.dz[j] * oz < 0.0) && b.t[j] >= tn && b.t[j] <= tf && b.q[j] >= k.q_lo && b.q[j] < k.q_hi &&
           b.tu[j] >= k.u_lo && b.tu[j] < k.u_hi && b.tv[j] >= k.v_lo && b.tv[j] < k.v_hi) {
-        ViewSpan& sp = o.spans.back();
         const std::int64_t u = static_cast<std::int64_t>(b.tu[j]), v = static_cast<std::int64_t>(b.tv[j]);
-        sp.u_lo = std::min(sp.u_lo, u);
-        sp.u_hi = std::max(sp.u_hi, u);
-        sp.v_lo = std::min(sp.v_lo, v);
-        sp.v_hi = std::max(sp.v_hi, v);
-        ++sp.count;
+        detail::widen(o.spans.back(), u, u, v, v, 1);
         ++o.n_samples;
         continue;
       }
@@ -458,9 +453,7 @@ template <bool kAniso>
       const double q = l.q[j];
       if (level >= 0 && q >= cuts.cut[level] && q < cuts.cut[level + 1]) continue;
       if (level >= 0) out.push_back(LevelRun{x + j, level});
-      if (level < 0) level = 0;
-      while (level > 0 && q < cuts.cut[level]) --level;
-      while (level + 1 < levels && q >= cuts.cut[level + 1]) ++level;
+      level = cut_level(cuts, q, level < 0 ? 0 : level, levels);
     }
   }
   out.push_back(LevelRun{bw, level});

@@ -72,6 +72,16 @@ inline SpanBounds span_bounds(const LevelCuts& c, int level, std::int64_t u, std
   return b;
 }
 
+// Adds n samples whose texels lie in [u_lo, u_hi] × [v_lo, v_hi] to span sp.
+[[gnu::always_inline]] inline void widen(ViewSpan& sp, std::int64_t u_lo, std::int64_t u_hi, std::int64_t v_lo,
+                                         std::int64_t v_hi, std::uint32_t n) {
+  sp.u_lo = std::min(sp.u_lo, u_lo);
+  sp.u_hi = std::max(sp.u_hi, u_hi);
+  sp.v_lo = std::min(sp.v_lo, v_lo);
+  sp.v_hi = std::max(sp.v_hi, v_hi);
+  sp.count += n;
+}
+
 // Groups of four samples that passed the open span's test, not yet folded into the span: the box
 // of their continuous texel coordinates, lane-wise. Inlined into each target clone of the span
 // loops: an out-of-line call from an AVX2 clone into default code leaves the upper register
@@ -99,11 +109,8 @@ struct RunBox {
     const double uh = std::max(std::max(umax[0], umax[1]), std::max(umax[2], umax[3]));
     const double vl = std::min(std::min(vmin[0], vmin[1]), std::min(vmin[2], vmin[3]));
     const double vh = std::max(std::max(vmax[0], vmax[1]), std::max(vmax[2], vmax[3]));
-    sp.u_lo = std::min(sp.u_lo, static_cast<std::int64_t>(ul));
-    sp.u_hi = std::max(sp.u_hi, static_cast<std::int64_t>(uh));
-    sp.v_lo = std::min(sp.v_lo, static_cast<std::int64_t>(vl));
-    sp.v_hi = std::max(sp.v_hi, static_cast<std::int64_t>(vh));
-    sp.count += run;
+    widen(sp, static_cast<std::int64_t>(ul), static_cast<std::int64_t>(uh), static_cast<std::int64_t>(vl),
+          static_cast<std::int64_t>(vh), run);
     const std::uint32_t n = run;
     run = 0;
     return n;

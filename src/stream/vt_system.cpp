@@ -111,8 +111,8 @@ void VtSystem::build_wanted() {
       run = 1;
     };
     // Spans (one page of one level each when cut at pages) stand for their samples when the bias
-    // is zero: desired_level(lod + 0, n) = min(span.level, n − 1). Same runs, same order. Other
-    // spans (a biased LOD, a page edge inside the span) go sample by sample (expand_span).
+    // is zero: desired_level(lod + 0, n) = min(span.level, n − 1). Same runs, same order. A span
+    // across a page edge goes sample by sample (expand_span).
     if (bias == 0.0f && spans_ && spans_->levels >= n) {
       for (const ViewSpan& sp : spans_->spans) {
         const int l = std::min(sp.level, n - 1);
