@@ -5,7 +5,8 @@
 //  - replay_town_walk        the whole frame loop: feedback render, VT system, pipeline, pop-in;
 //  - replay_town_walk_every4 the same with view.feedback_every = 4 (a fidelity knob);
 //  - render_only             the same 36,000 feedback renders alone, as the replay renders them
-//                            (spans, no per-sample buffer): the floor the renderer sets;
+//                            (spans, no per-sample buffer): the floor the renderer sets; against
+//                            render() plus spans_from_samples (the per-sample path) side by side;
 //  - replay_town_static      a static camera for the same time (no requests after warm-up);
 //  - replay_town_walk_render_ahead  the first with view.render_threads = -1 (auto: feedback
 //                            rendered ahead on one worker per core, same results), the wall-clock
@@ -84,14 +85,26 @@ int main(int argc, char** argv) {
   vp.divisor = cfg.divisor;
   SpanBuffer sb;
   sb.block_shift = std::bit_width(static_cast<unsigned>(cfg.tile_size)) - 1;  // as the replay
+  ViewBuffer vb;
+  std::vector<ViewSpan> ref_spans;
   std::size_t samples = 0;
-  const bench::Result* render = h.run(
+  const bench::Result* render = h.compare(
       {.name = "render_only", .metric = bench::Metric::kOpsPerS, .work = frames, .params = {{"unit", "frames/s"}}},
-      {"render", {}, [&] {
+      {"render_spans", {}, [&] {
          samples = 0;
          for (const Pose& p : walk.poses) {
            scene->render_spans(make_camera(p, walk.image_width, walk.image_height), vp, sb);
-           samples += sb.samples;
+           samples += sb.spans.size();
+         }
+         bench::do_not_optimize(samples);
+       }},
+      {"render+spans_from_samples", {}, [&] {
+         samples = 0;
+         const int levels = mip_level_count(scene->texture());
+         for (const Pose& p : walk.poses) {
+           scene->render(make_camera(p, walk.image_width, walk.image_height), vp, vb);
+           spans_from_samples(vb, levels, sb.block_shift, ref_spans);
+           samples += ref_spans.size();
          }
          bench::do_not_optimize(samples);
        }});
