@@ -23,6 +23,8 @@ CASES=(
   "drive_hdd_clipmap    clipmap  1  traces/drive.csv  disk.preset=hdd"
   "walk_faults_clipmap  clipmap  0  traces/walk.csv   io.fault_rate=0.02"
   "flight_vt            vt       1  traces/flight.csv vt.pool_pages=160 texture.border=4 throttle.policy=rage_watermarks"
+  "town_walk_vt         vt       1  tests/data/town_walk.csv scene.kind=town"
+  "town_walk_unreal_vt  vt       0  tests/data/town_walk.csv scene.kind=town vt.pool_pages=96 texture.border=4 throttle.policy=unreal_bias"
 )
 dir=tests/baselines
 tolerances=$dir/tolerances.toml
