@@ -165,7 +165,7 @@ template <bool kAniso>
 [[gnu::always_inline]] inline void shade_batch_t(const ShadeRow& k, const double* px, const double* iz, int n,
                                                   ShadeBatch& b) {
   using simd::v4d;
-  typedef std::int64_t v4i __attribute__((vector_size(32)));
+  using simd::v4i;
   typedef float v4f __attribute__((vector_size(16)));
   constexpr double two52 = 0x1p52;
   constexpr std::int64_t two52_bits = 0x4330000000000000;
@@ -247,7 +247,6 @@ template <bool kAniso>
 [[gnu::always_inline]] inline void span_run_t(const ShadeRow& k, const double* px, const double* iz, int n,
                                                std::uint32_t pix0, MeshSpanOut& o) {
   using simd::v4d;
-  typedef std::int64_t v4i __attribute__((vector_size(32)));
   detail::RunBox box;
   const auto fold = [&]() __attribute__((always_inline)) {
     if (box.run != 0) o.n_samples += box.fold(o.spans->back());
@@ -258,17 +257,9 @@ template <bool kAniso>
     simd::load4(iz + j, izv);
     ShadeLanes l;
     shade_lanes<kAniso>(k, x, l);
-    if (o.open && n - j >= 4) {
-      const detail::SpanBounds& b = o.k;
-      v4i m = (izv < k.far_iz) == 0;
-      m &= (l.dn < 0.0) & (l.q >= b.q_lo) & (l.q < b.q_hi) & (l.tu >= b.u_lo) & (l.tu < b.u_hi) & (l.tv >= b.v_lo) &
-           (l.tv < b.v_hi);
-      m &= __builtin_shufflevector(m, m, 2, 3, 0, 1);  // all four lanes set: reduce in registers
-      m &= __builtin_shufflevector(m, m, 1, 0, 3, 2);
-      if (m[0] != 0) {
-        box.add(l.tu, l.tv);
-        continue;
-      }
+    if (o.open && n - j >= 4 && detail::all_in_span(o.k, l.q, l.tu, l.tv, ((izv < k.far_iz) == 0) & (l.dn < 0.0))) {
+      box.add(l.tu, l.tv);
+      continue;
     }
     fold();
     const int m = n - j < 4 ? n - j : 4;

@@ -328,11 +328,9 @@ template <bool kAniso, bool kFlat>
     shade4<kAniso, kFlat>(av, rc, rf, l);
     if (open && x + 4 <= bw) {
       // Without roll d.z and t are the row's (RowFlat), and a span is open only if they passed.
-      auto m = (l.q >= k.q_lo) & (l.q < k.q_hi) & (l.tu >= k.u_lo) & (l.tu < k.u_hi) & (l.tv >= k.v_lo) & (l.tv < k.v_hi);
-      if constexpr (!kFlat) m &= (l.dz * oz < 0.0) & (l.t >= tn) & (l.t <= tf);
-      m &= __builtin_shufflevector(m, m, 2, 3, 0, 1);  // all four lanes set: reduce in registers
-      m &= __builtin_shufflevector(m, m, 1, 0, 3, 2);
-      if (m[0] != 0) {
+      simd::v4i ray = simd::v4i{} - 1;
+      if constexpr (!kFlat) ray = (l.dz * oz < 0.0) & (l.t >= tn) & (l.t <= tf);
+      if (detail::all_in_span(k, l.q, l.tu, l.tv, ray)) {
         box.add(l.tu, l.tv);
         continue;
       }

@@ -10,12 +10,16 @@
 #define VTSIM_CLONES_AVX2 __attribute__((target_clones("avx2", "default")))
 #endif
 
+#include <cstdint>
+
 namespace vtsim::simd {
 
 // Four doubles (GCC vector extension): one AVX register in the avx2 clones, two SSE2 registers
 // otherwise. Every lane does exactly the scalar IEEE operations in the same order, and no clone
 // enables FMA, so the values are the same bits whichever clone runs.
 typedef double v4d __attribute__((vector_size(32)));
+// A comparison of two v4d: per lane all ones (true) or zero.
+typedef std::int64_t v4i __attribute__((vector_size(32)));
 
 // By reference: a 32-byte vector passed or returned by value would change the ABI between the
 // clones (-Wpsabi).

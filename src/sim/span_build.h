@@ -44,6 +44,15 @@ struct SpanBounds {
   double q_lo, q_hi, u_lo, u_hi, v_lo, v_hi;
 };
 
+// True when four samples all pass the span's test and the caller's own lane conditions `also`.
+[[gnu::always_inline]] inline bool all_in_span(const SpanBounds& b, const simd::v4d& q, const simd::v4d& tu,
+                                               const simd::v4d& tv, const simd::v4i& also) {
+  simd::v4i m = also & (q >= b.q_lo) & (q < b.q_hi) & (tu >= b.u_lo) & (tu < b.u_hi) & (tv >= b.v_lo) & (tv < b.v_hi);
+  m &= __builtin_shufflevector(m, m, 2, 3, 0, 1);  // all four lanes set: reduce in registers
+  m &= __builtin_shufflevector(m, m, 1, 0, 3, 2);
+  return m[0] != 0;
+}
+
 // The texel range of the 2^sh-texel block holding level-0 texel (u, v), as spans_from_samples
 // defines blocks (sh = level + block_shift; from 63 on, one block covers every texel), clipped to
 // [0, tw) × [0, th).
