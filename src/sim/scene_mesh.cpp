@@ -128,14 +128,18 @@ struct ShadeBatch {
 // rejects wider textures (configs stop at 2^34, TileKey's range).
 constexpr double kMaxVectorExtent = 0x1p52;
 
-// The resolve's arithmetic of four samples at columns x (full-resolution px): d·n, the continuous
-// texel coordinates and the clamped squared footprint q of the LOD rule.
+// The resolve's arithmetic of the four samples at px[0..3] (full-resolution columns) with depth
+// buffer values iz[0..3]: d·n, the continuous texel coordinates and the clamped squared footprint q
+// of the LOD rule.
 struct ShadeLanes {
-  simd::v4d dn, tu, tv, q;
+  simd::v4d iz, dn, tu, tv, q;
 };
 template <bool kAniso>
-[[gnu::always_inline]] inline void shade_lanes(const ShadeRow& k, const simd::v4d& x, ShadeLanes& o) {
+[[gnu::always_inline]] inline void shade_lanes(const ShadeRow& k, const double* px, const double* iz, ShadeLanes& o) {
   using simd::v4d;
+  v4d x;
+  simd::load4(px, x);
+  simd::load4(iz, o.iz);
   const v4d dn = k.dn0 + k.dnx * x;
   const v4d inv_dn = 1.0 / dn;
   const v4d tt = -k.kn * inv_dn;
@@ -172,12 +176,9 @@ template <bool kAniso>
   constexpr double c1 = detail::kLog2C1, c2 = detail::kLog2C2, c3 = detail::kLog2C3, c4 = detail::kLog2C4;
   const auto& tab = detail::kLog2Table;
   for (int j = 0; j < n; j += 4) {
-    v4d x, izv;
-    simd::load4(px + j, x);
-    simd::load4(iz + j, izv);
     ShadeLanes l;
-    shade_lanes<kAniso>(k, x, l);
-    const v4d dn = l.dn, q = l.q, tu = l.tu, tv = l.tv;
+    shade_lanes<kAniso>(k, px + j, iz + j, l);
+    const v4d izv = l.iz, dn = l.dn, q = l.q, tu = l.tu, tv = l.tv;
     // Classification, in the scalar order: clipped, then edge-on, then outside the texture.
     const v4i in_u = (tu >= 0.0) & (tu < k.W), in_v = (tv >= 0.0) & (tv < k.H);
     v4i cls = (in_u & in_v) ? v4i{} + kSample : v4i{} + kOutside;
@@ -246,18 +247,14 @@ struct MeshSpanOut {
 template <bool kAniso>
 [[gnu::always_inline]] inline void span_run_t(const ShadeRow& k, const double* px, const double* iz, int n,
                                                std::uint32_t pix0, MeshSpanOut& o) {
-  using simd::v4d;
   detail::RunBox box;
   const auto fold = [&]() __attribute__((always_inline)) {
     if (box.run != 0) o.n_samples += box.fold(o.spans->back());
   };
   for (int j = 0; j < n; j += 4) {
-    v4d x, izv;
-    simd::load4(px + j, x);
-    simd::load4(iz + j, izv);
     ShadeLanes l;
-    shade_lanes<kAniso>(k, x, l);
-    if (o.open && n - j >= 4 && detail::all_in_span(o.k, l.q, l.tu, l.tv, ((izv < k.far_iz) == 0) & (l.dn < 0.0))) {
+    shade_lanes<kAniso>(k, px + j, iz + j, l);
+    if (o.open && n - j >= 4 && detail::all_in_span(o.k, l.q, l.tu, l.tv, ((l.iz < k.far_iz) == 0) & (l.dn < 0.0))) {
       box.add(l.tu, l.tv);
       continue;
     }
@@ -266,7 +263,7 @@ template <bool kAniso>
     for (int i = 0; i < m; ++i) {
       const double dn = l.dn[i], tu = l.tu[i], tv = l.tv[i], q = l.q[i];
       // render()'s classification order: clipped, edge-on, outside the texture.
-      if (izv[i] < k.far_iz) {
+      if (l.iz[i] < k.far_iz) {
         ++o.c.clipped;
         o.open = false;
         continue;
