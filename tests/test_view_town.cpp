@@ -5,6 +5,8 @@
 #include <cmath>
 #include <random>
 
+#include <glm/geometric.hpp>
+
 #include "core/error.h"
 #include "sim/scene.h"
 #include "sim/scene_mesh.h"
@@ -108,6 +110,7 @@ TEST_CASE("town: occlusion culling renders exactly what drawing every chunk in i
   std::uniform_real_distribution<double> U(0.0, 1.0);
   ViewBuffer a, b;
   std::size_t samples = 0;
+  int skipping = 0;  // views rendered without back faces (the plain render draws them)
   for (int it = 0; it < 60; ++it) {
     // Mostly eye height in the town (streets, sometimes inside a building or a wall), some from
     // above; any heading; divisors 1–16.
@@ -119,6 +122,7 @@ TEST_CASE("town: occlusion culling renders exactly what drawing every chunk in i
     const int divisors[] = {1, 2, 4, 8, 16};
     vp.divisor = divisors[rng() % 5];
     if (it % 7 == 0) vp.near_m = 3.0;
+    skipping += culled.skips_back_faces(cam, vp);
     culled.render(cam, vp, a);
     plain.render(cam, vp, b);
     CAPTURE(it);
@@ -148,4 +152,96 @@ TEST_CASE("town: occlusion culling renders exactly what drawing every chunk in i
     samples += a.samples.size();
   }
   CHECK(samples > 100000);
+  CHECK(skipping > 20);
+  CHECK(skipping < 60);
+}
+
+namespace {
+
+double distance_to(const Mesh::Box& b, const glm::dvec3& p) {
+  const glm::dvec3 d = glm::max(glm::max(b.lo - p, p - b.hi), glm::dvec3(0.0));
+  return std::sqrt(glm::dot(d, d));
+}
+
+}  // namespace
+
+TEST_CASE("town: back faces are skipped only where the solids allow it, and the buffer is the same") {
+  SceneConfig cfg;
+  cfg.kind = SceneKind::town;
+  const Mesh mesh = generate_town(cfg);
+  REQUIRE(mesh.solids.size() == 1u + 4u * 16u * 16u + 2u * 16u * 16u);  // below ground, buildings, walls
+  MeshScene culled(mesh, scene_texture(cfg)), plain(mesh, scene_texture(cfg));
+  plain.set_occlusion_culling(false);
+  const double x0 = cfg.origin_x_m, y0 = cfg.origin_y_m;
+  ViewParams vp;
+  vp.divisor = 4;
+  const auto at = [](glm::dvec3 p, double heading = 30.0, double pitch = -10.0) {
+    return make_camera(pose_from_angles(p, heading, pitch), 640, 360);
+  };
+  // The street corner: clear.
+  CHECK(culled.skips_back_faces(at({x0 + 8, y0 + 8, 1.7}), vp));
+  CHECK_FALSE(plain.skips_back_faces(at({x0 + 8, y0 + 8, 1.7}), vp));
+  // Inside the first building, and below the ground: not clear, and the back faces are seen.
+  const Mesh::Box& house = mesh.solids[1];
+  const glm::dvec3 inside = (house.lo + house.hi) * 0.5;
+  ViewBuffer vb;
+  for (const glm::dvec3& p : {inside, glm::dvec3(x0 + 8, y0 + 8, -1.0)}) {
+    CAPTURE(p.z);
+    CHECK_FALSE(culled.skips_back_faces(at(p), vp));
+    culled.render(at(p, 45.0, 30.0), vp, vb);  // looking up: walls and ceiling, or the ground's underside
+    CHECK(vb.counters.backfacing > 0);
+  }
+  // One metre off the building's −x wall: clear until the near plane's corners reach the nearest
+  // solid. Their distance is near·sqrt(1 + (cx/f)² + (cy/f)²) for a centred principal point.
+  const glm::dvec3 off(house.lo.x - 1.0, inside.y, 1.0);
+  double nearest = INFINITY;
+  for (const Mesh::Box& b : mesh.solids) nearest = std::min(nearest, distance_to(b, off));
+  REQUIRE(nearest <= 1.0);
+  const Camera cam = at(off, 180.0);
+  const double ax = cam.cx / cam.focal_px, ay = cam.cy / cam.focal_px, k = std::sqrt(1.0 + ax * ax + ay * ay);
+  vp.near_m = 0.999 * nearest / k;
+  CHECK(culled.skips_back_faces(cam, vp));
+  vp.near_m = 1.001 * nearest / k;
+  CHECK_FALSE(culled.skips_back_faces(cam, vp));
+  vp.near_m = 0.05;
+  // A mesh without solids (an OBJ file) makes no promise.
+  Mesh open = mesh;
+  open.solids.clear();
+  CHECK_FALSE(MeshScene(open, scene_texture(cfg)).skips_back_faces(at({x0 + 8, y0 + 8, 1.7}), vp));
+  // Bad solids are rejected naming the box.
+  Mesh bad = mesh;
+  bad.solids[3].hi.y = std::nan("");
+  CHECK_THROWS_WITH_AS(MeshScene(bad, scene_texture(cfg)), doctest::Contains("mesh solid 3"), InputError);
+  bad.solids[3] = Mesh::Box{{1, 1, 1}, {0, 2, 2}};
+  CHECK_THROWS_WITH_AS(MeshScene(bad, scene_texture(cfg)), doctest::Contains("lo > hi"), InputError);
+
+  // Eye-level views along the building fronts (silhouettes everywhere), every divisor: the render
+  // without back faces equals the one that draws them, sample for sample.
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  int compared = 0;
+  ViewBuffer a, b;
+  for (int it = 0; it < 120; ++it) {
+    const Mesh::Box& h = mesh.solids[1 + rng() % (mesh.solids.size() - 1)];
+    const glm::dvec3 p(h.lo.x - 0.2 - 6.0 * U(rng), h.lo.y + (h.hi.y - h.lo.y) * U(rng), 0.3 + 3.0 * U(rng));
+    const Camera c = make_camera(pose_from_angles(p, 360.0 * U(rng), -30.0 + 45.0 * U(rng)), 640, 360);
+    ViewParams v;
+    v.divisor = 1 << (rng() % 4);
+    if (!culled.skips_back_faces(c, v)) continue;
+    ++compared;
+    culled.render(c, v, a);
+    plain.render(c, v, b);
+    CAPTURE(it);
+    REQUIRE(a.samples.size() == b.samples.size());
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < a.samples.size(); ++i)
+      differ += a.samples[i].u != b.samples[i].u || a.samples[i].v != b.samples[i].v ||
+                a.samples[i].pixel != b.samples[i].pixel ||
+                std::bit_cast<std::uint32_t>(a.samples[i].lod) != std::bit_cast<std::uint32_t>(b.samples[i].lod);
+    REQUIRE(differ == 0);
+    CHECK(a.counters.backfacing == b.counters.backfacing);
+    CHECK(a.counters.clipped == b.counters.clipped);
+    CHECK(a.counters.sky == b.counters.sky);
+  }
+  CHECK(compared > 80);
 }

@@ -15,9 +15,19 @@ struct Mesh {
     std::uint32_t p[3];  // indices into positions, counter-clockwise seen from the front
     std::int32_t t[3];   // indices into uvs, or −1 for all three when the face has no texture
   };
+  // An axis-aligned box, world metres; infinite bounds make a slab or a half-space.
+  struct Box {
+    glm::dvec3 lo, hi;
+  };
   std::vector<glm::dvec3> positions;  // world metres
   std::vector<glm::dvec2> uvs;        // texture coordinates; [0, 1) spans the virtual texture
   std::vector<Tri> tris;
+  // Optional, a promise from the mesh's maker (the town generator; never an OBJ file): every ray
+  // that starts outside all these boxes meets a front face before any back face — the mesh closes
+  // them off, as box buildings standing on a ground that covers their footprints do. The renderer
+  // then skips back faces while no box comes within the near plane's reach of the camera
+  // (docs/view.md, "Scenes", mesh). Empty: no promise, back faces are always drawn.
+  std::vector<Box> solids;
 };
 
 // Limits for untrusted OBJ files (InputError beyond them).

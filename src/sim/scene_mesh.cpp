@@ -580,6 +580,12 @@ MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
     }
     tris.push_back(t);
   }
+  for (std::size_t k = 0; k < mesh.solids.size(); ++k) {
+    const Mesh::Box& b = mesh.solids[k];
+    if (!(b.lo.x <= b.hi.x && b.lo.y <= b.hi.y && b.lo.z <= b.hi.z))
+      throw InputError("mesh solid " + std::to_string(k), "bounds are NaN or lo > hi");
+  }
+  solids_ = mesh.solids;
   // Spatial order (Morton code of the centroid in the mesh's box) so that chunks are compact.
   glm::dvec3 lo = tris[0].p[0], hi = lo;
   for (const Tri& t : tris)
@@ -612,6 +618,24 @@ MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
       }
     chunks_.push_back(ch);
   }
+}
+
+// Along any ray from outside the solids a front face comes first (Mesh::solids), so back faces can
+// be skipped when the part of every pixel's ray that is cut away (up to the near plane) lies
+// outside the solids too: no solid comes within the distance of the near plane's farthest corner.
+// The 2^-20 covers the rounding of that distance. O(solids), ~2 µs for the town's 1,537.
+bool MeshScene::skips_back_faces(const Camera& cam, const ViewParams& p) const {
+  if (!occlusion_culling_ || solids_.empty()) return false;
+  const double ax = std::max(cam.cx, cam.width - cam.cx) / cam.focal_px;
+  const double ay = std::max(cam.cy, cam.height - cam.cy) / cam.focal_px;
+  const double reach = p.near_m * std::sqrt(1.0 + ax * ax + ay * ay) * (1.0 + 0x1p-20);
+  const double r2 = reach * reach;
+  for (const Mesh::Box& b : solids_) {
+    // Distance to the box; 0 inside it, also for infinite bounds (the camera is finite).
+    const glm::dvec3 d = glm::max(glm::max(b.lo - cam.pos_m, cam.pos_m - b.hi), glm::dvec3(0.0));
+    if (!(glm::dot(d, d) > r2)) return false;
+  }
+  return true;
 }
 
 void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) const {
@@ -673,6 +697,7 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
       -U + (cam.cy / f) * F,                    // below the top border: y <= (cy/f)·z
       U + ((cam.height - cam.cy) / f) * F,      // above the bottom border
   };
+  const bool skip_back = skips_back_faces(cam, p);
   CV cv[3], clip_a[4], clip_b[5], tmp[4];
   PV pv[5];
   // Chunks in the frustum, nearest first by the least view depth of their box (a linear function
@@ -718,6 +743,8 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
   // One triangle: clip at near, project, occlusion-test, rasterise.
   const auto draw_tri = [&](std::uint32_t k) {
     const Tri& t = tris_[k];
+    const bool front = glm::dot(o - t.p[0], t.n) > 0.0;
+    if (!front && skip_back) return;
     bool all_near = true, any_flag = false;
     for (int c = 0; c < 3; ++c) {
       const glm::dvec3 q = t.p[c] - o;
@@ -726,7 +753,6 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
       any_flag = any_flag || cv[c].z >= zflag;
     }
     if (!any_flag) return;  // wholly behind the camera or nearer than near/1024
-    const bool front = glm::dot(o - t.p[0], t.n) > 0.0;
     const std::uint32_t tag = front ? k : (k | kBackBit);
     const auto project = [&](const CV* poly, int n) {
       for (int c = 0; c < n; ++c) {

@@ -20,7 +20,10 @@ namespace vtsim {
 // fill nearly the same depth), which never changes the result, only how much is culled. The depth buffer is per-thread scratch
 // (thread_local, reused, so no allocation after warm-up): render is thread-safe.
 // Back faces (seen from behind, per triangle: the camera is behind its plane) are rasterised as
-// occluders and never sampled: a camera inside a closed wall sees nothing, as on a solid.
+// occluders and never sampled: a camera inside a closed wall sees nothing, as on a solid. When the
+// mesh promises solids (Mesh::solids) and none comes within the near plane's reach of the camera,
+// no back face can be the nearest surface, and they are skipped (~60 % of the triangles a town
+// street view draws).
 class MeshScene final : public IScene {
  public:
   // texel = floor(uv · (W, H)) for the texture extent; throws InputError("mesh", ...) for an empty
@@ -40,9 +43,14 @@ class MeshScene final : public IScene {
 
   std::size_t triangle_count() const { return tris_.size(); }
   // Occlusion culling (on by default): chunks drawn nearest first, those hidden behind what is
-  // drawn skipped. Off: every chunk in the frustum, in index order — the reference the tests
-  // compare with. Not to be changed while another thread renders.
+  // drawn skipped, and back faces skipped where the solids allow. Off: every chunk in the
+  // frustum, in index order, every back face — the reference the tests compare with. Not to be
+  // changed while another thread renders.
   void set_occlusion_culling(bool on) { occlusion_culling_ = on; }
+  // Whether a render from this camera skips back faces: culling is on, the mesh has solids, and
+  // none of them holds the camera or reaches the near plane (then no back face is the nearest
+  // surface anywhere, and the buffer is what drawing them gives).
+  bool skips_back_faces(const Camera& cam, const ViewParams& params) const;
 
  private:
   struct Tri {
@@ -63,6 +71,7 @@ class MeshScene final : public IScene {
   TextureExtent extent_;
   std::vector<Tri> tris_;
   std::vector<Chunk> chunks_;
+  std::vector<Mesh::Box> solids_;
   bool occlusion_culling_ = true;
 };
 

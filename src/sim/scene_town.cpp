@@ -64,9 +64,10 @@ struct Builder {
     mesh.tris.push_back(Mesh::Tri{{p, p + 2, p + 3}, {t, t + 2, t + 3}});
   }
 
-  // Four sides and a roof (no floor: it is never seen from outside).
+  // Four sides and a roof (no floor: it is never seen from outside; the ground closes the box).
   void box(double xa, double ya, double xb, double yb, double h) {
     const double za = 0.0, zb = h;
+    mesh.solids.push_back(Mesh::Box{{xa, ya, za}, {xb, yb, zb}});
     packed_quad({xb, ya, za}, {xb, yb, za}, {xb, yb, zb}, {xb, ya, zb});  // +x
     packed_quad({xa, yb, za}, {xa, ya, za}, {xa, ya, zb}, {xa, yb, zb});  // −x
     packed_quad({xb, yb, za}, {xa, yb, za}, {xa, yb, zb}, {xb, yb, zb});  // +y
@@ -118,6 +119,9 @@ Mesh generate_town(const SceneConfig& cfg) {
   for (int j = 0; j < cells; ++j)
     for (int i = 0; i < cells; ++i)
       b.ground_quad(b.x0 + i * cell, b.y0 + j * cell, b.x0 + (i + 1) * cell, b.y0 + (j + 1) * cell);
+  // Below the ground: a ray from above meets the ground's front side first, and a camera below
+  // it sees the ground's back (docs/view.md, "Scenes", mesh).
+  b.mesh.solids.push_back(Mesh::Box{{-INFINITY, -INFINITY, -INFINITY}, {INFINITY, INFINITY, 0.0}});
   Rng rng{cfg.seed};
   const double lot = (cfg.town_block_m - kLotGapM) / 2.0;
   for (int bj = 0; bj < cfg.town_blocks; ++bj)
