@@ -260,7 +260,10 @@ int main(int argc, char** argv) {
   Options opt = parse(argc, argv);
   std::vector<char*> hargv;
   for (auto& a : opt.harness_args) hargv.push_back(a.data());
-  bench::Harness h("feedback", static_cast<int>(hargv.size()), hargv.data(), opt.reps, opt.reps);
+  bench::Harness h("feedback", static_cast<int>(hargv.size()), hargv.data(), 3, 1,
+                   "  --scenes LIST   plane,heightfield,town (default all three)\n"
+                   "  --frames N      sampled frames per trace (default 10; quick 3)\n"
+                   "  --fast-paths-only  only the fast paths against their references\n");
   nlohmann::json report = nlohmann::json::object();
   report["image"] = {opt.width, opt.height};
   report["tile_size_texels"] = kTileSize;

@@ -33,15 +33,11 @@ using namespace vtsim;
 
 int main(int argc, char** argv) {
   std::vector<char*> args(argv, argv + argc);
-  bool has_reps = false, has_warmup = false;
-  for (int i = 1; i < argc; ++i) {
-    has_reps = has_reps || std::strcmp(argv[i], "--reps") == 0;
-    has_warmup = has_warmup || std::strcmp(argv[i], "--warmup") == 0;
-  }
-  std::string reps = "--reps", three = "3", warm = "--warmup", zero = "0";
-  if (!has_reps) args.insert(args.end(), {reps.data(), three.data()});
+  bool has_warmup = false;  // a replay warms itself up: no untimed repetition unless asked
+  for (int i = 1; i < argc; ++i) has_warmup = has_warmup || std::strcmp(argv[i], "--warmup") == 0;
+  std::string warm = "--warmup", zero = "0";
   if (!has_warmup) args.insert(args.end(), {warm.data(), zero.data()});
-  bench::Harness h("vt", static_cast<int>(args.size()), args.data());
+  bench::Harness h("vt", static_cast<int>(args.size()), args.data(), 3, 3);
 
   const double duration_s = h.pick(600.0, 60.0);
   TraceGenParams gp = default_gen_params(TraceKind::walk);

@@ -24,6 +24,7 @@
 #include <cstdlib>
 #include <ctime>
 #include <deque>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <iostream>
@@ -147,26 +148,30 @@ struct Options {
   bool strict = false;     // --strict: exit 1 when a case misses its target ratio
 };
 
-inline const char* usage_text() {
+// extra: the benchmark's own flags, one "  --flag ...  what\n" line each.
+inline std::string usage_text(int default_reps, int default_quick_reps, const std::string& extra) {
   return "options:\n"
          "  --quick         fewer repetitions and smaller inputs (also VTSIM_BENCH_QUICK=1)\n"
-         "  --json PATH     write results as JSON (schema vtsim-bench/1, docs/bench.md)\n"
-         "  --reps N        timed repetitions per side (default 15; quick 7)\n"
+         "  --json PATH     write results as JSON (schema vtsim-bench/1, docs/bench.md; directories are created)\n"
+         "  --reps N        timed repetitions per side (default " +
+         std::to_string(default_reps) + "; quick " + std::to_string(default_quick_reps) +
+         ")\n"
          "  --warmup N      untimed repetitions per side first (default 1)\n"
          "  --filter S      only cases whose name contains S\n"
-         "  --strict        exit 1 if a case misses its target ratio\n"
-         "  --help          this text\n";
+         "  --strict        exit 1 if a case misses its target ratio\n" +
+         extra + "  --help          this text\n";
 }
 
 // Parses the common flags; on a usage error prints it and exits 2, on --help exits 0.
 // default_reps / default_quick_reps: the repetitions when --reps is not given.
 inline Options parse_options(const std::string& benchmark, int argc, char** argv, int default_reps = 15,
-                             int default_quick_reps = 7) {
+                             int default_quick_reps = 7, const std::string& extra_usage = "") {
+  const std::string usage = usage_text(default_reps, default_quick_reps, extra_usage);
   Options o;
   if (const char* q = std::getenv("VTSIM_BENCH_QUICK"); q && std::string(q) != "" && std::string(q) != "0")
     o.quick = true;
   auto fail = [&](const std::string& msg) {
-    std::cerr << "bench_" << benchmark << ": " << msg << "\n" << usage_text();
+    std::cerr << "bench_" << benchmark << ": " << msg << "\n" << usage;
     std::exit(2);
   };
   auto int_arg = [&](int& i, const std::string& flag, int lo, int hi) {
@@ -194,7 +199,7 @@ inline Options parse_options(const std::string& benchmark, int argc, char** argv
       if (i + 1 >= argc) fail(a + " needs a value");
       (a == "--json" ? o.json_path : o.filter) = argv[++i];
     } else if (a == "--help" || a == "-h") {
-      std::cout << "bench_" << benchmark << " [options]\n" << usage_text();
+      std::cout << "bench_" << benchmark << " [options]\n" << usage;
       std::exit(0);
     } else {
       fail("unknown option '" + a + "'");
@@ -274,9 +279,11 @@ inline nlohmann::json machine_info() {
 class Harness {
  public:
   // default_reps / default_quick_reps replace 15 / 7 for benchmarks whose repetition is costly
-  // (a whole replay).
-  Harness(std::string benchmark, int argc, char** argv, int default_reps = 15, int default_quick_reps = 7)
-      : name_(std::move(benchmark)), opt_(parse_options(name_, argc, argv, default_reps, default_quick_reps)),
+  // (a whole replay); extra_usage lists the benchmark's own flags in --help.
+  Harness(std::string benchmark, int argc, char** argv, int default_reps = 15, int default_quick_reps = 7,
+          const std::string& extra_usage = "")
+      : name_(std::move(benchmark)),
+        opt_(parse_options(name_, argc, argv, default_reps, default_quick_reps, extra_usage)),
         started_(detail::utc_now()),
         machine_(machine_info()) {
     std::cout << fmt::format("bench_{}: {} repetitions per side after {} warm-up{}\n", name_, opt_.reps,
@@ -333,6 +340,9 @@ class Harness {
     bool missed = false;
     for (const Result& r : results_) missed |= !r.meets_target;
     if (!opt_.json_path.empty()) {
+      std::error_code ec;  // e.g. out/bench/ before bench/run made it; a failure shows at the write
+      if (const auto dir = std::filesystem::path(opt_.json_path).parent_path(); !dir.empty())
+        std::filesystem::create_directories(dir, ec);
       std::ofstream out(opt_.json_path);
       out << to_json().dump(2) << "\n";
       out.close();

@@ -13,6 +13,7 @@
 #include "sim/scene.h"
 #include "sim/trace_gen.h"
 #include "stream/i_throttle.h"
+#include "test_util.h"
 #include "view_test_util.h"
 
 using namespace vtsim;
@@ -256,4 +257,30 @@ TEST_CASE("vt config: impossible sizes are rejected at load with the field named
   const int status = pclose(p);
   CHECK(WEXITSTATUS(status) == 2);
   CHECK(out.find("vt.pool_pages") != std::string::npos);
+}
+
+TEST_CASE("replay CLI: a camera that never sees a textured surface is warned about, with where both are") {
+  const std::string err = test::temp_path("blind_replay.err");
+  const std::string traces = std::string(VTSIM_SOURCE_DIR) + "/traces/";
+  // The standard traces start at (4096, 4096) m: on the default texture, but 2.9 km off the town.
+  test::CliRun r = test::run_vtsim_capture(
+      "replay --system vt --set scene.kind=town --set view.render_threads=0 --trace " + traces + "static.csv", err);
+  CHECK(r.code == 0);
+  CHECK(r.err.find("no frame saw a textured surface (0 samples in 1201 measured frames)") != std::string::npos);
+  CHECK(r.err.find("starts at (4096.0, 4096.0, 1.7) m and the town covers x 0.0..1232.0 m, y 0.0..1232.0 m") !=
+        std::string::npos);
+  CHECK(r.out.find("vt replay") != std::string::npos);  // the summary still follows
+  // Moved off the texture: the texture's extent instead.
+  r = test::run_vtsim_capture("replay --set texture.origin_x_m=5000 --set view.render_threads=0 --trace " + traces +
+                                  "static.csv",
+                              err);
+  CHECK(r.code == 0);
+  CHECK(r.err.find("the texture covers x 5000.0..13192.0 m, y 0.0..8192.0 m") != std::string::npos);
+  // -q prints nothing; a trace that sees the ground has no warning.
+  r = test::run_vtsim_capture("replay -q --set texture.origin_x_m=5000 --trace " + traces + "static.csv", err);
+  CHECK(r.err.empty());
+  r = test::run_vtsim_capture("replay --set view.render_threads=0 --trace " + traces + "static.csv", err);
+  CHECK(r.code == 0);
+  CHECK(r.err.find("warning") == std::string::npos);
+  std::filesystem::remove(err);
 }

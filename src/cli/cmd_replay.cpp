@@ -13,6 +13,7 @@
 #include "sim/replay.h"
 #include "sim/report_html.h"
 #include "sim/scene.h"
+#include "sim/scene_town.h"
 #include "sim/trace_import.h"
 #include "stream/tile_store.h"
 
@@ -37,6 +38,33 @@ void write_text(const std::string& path, const std::string& text) {
   if (!out) throw InputError(path, "cannot open for writing");
   out << text;
   if (!out.flush()) throw InputError(path, "write failed");
+}
+
+// A replay whose camera never sees a textured surface measures nothing, and its summary looks
+// like a perfect run (no pop-in, no bandwidth). Usually the trace was made for another texture
+// placement or scene: say where the camera and the texture are. Empty when some frame saw one.
+std::string blind_replay_warning(const MetricsCollector& m, const Trace& trace, const ReplayConfig& cfg) {
+  std::size_t measured = 0;
+  for (const FrameRow& f : m.frames()) {
+    if (f.samples > 0) return {};
+    measured += f.measured;
+  }
+  if (measured == 0 || trace.poses.empty()) return {};
+  const glm::dvec3 p = trace.poses.front().pos_m;
+  const double x1 = cfg.origin_x_m + static_cast<double>(cfg.width) / cfg.texels_per_m;
+  const double y1 = cfg.origin_y_m + static_cast<double>(cfg.height) / cfg.texels_per_m;
+  std::string where = fmt::format("the texture covers x {:.1f}..{:.1f} m, y {:.1f}..{:.1f} m", cfg.origin_x_m, x1,
+                                  cfg.origin_y_m, y1);
+  if (cfg.scene == "town") {  // the town's layout is fixed (SceneConfig's defaults) from the texture's origin
+    const double S = town_size_m(SceneConfig{});
+    where = fmt::format("the town covers x {:.1f}..{:.1f} m, y {:.1f}..{:.1f} m (a walk in it: `vtsim trace gen walk "
+                        "--start 30,8`)",
+                        cfg.origin_x_m, cfg.origin_x_m + S, cfg.origin_y_m, cfg.origin_y_m + S);
+  }
+  return fmt::format("no frame saw a textured surface (0 samples in {} measured frames): the trace starts at "
+                     "({:.1f}, {:.1f}, {:.1f}) m and {} (texture.origin_x_m, texture.origin_y_m, "
+                     "texture.texels_per_m; docs/traces.md)",
+                     measured, p.x, p.y, p.z, where);
 }
 
 }  // namespace
@@ -79,6 +107,8 @@ void run_replay_command(const ReplayArgs& a) {
   }
   if (a.speed != 1.0) r.summary["trace"]["speed"] = a.speed;
   if (progress) fmt::print(stderr, "\r{:40}\r", "");
+  if (const std::string blind = blind_replay_warning(r.metrics, trace, cfg); !blind.empty() && !a.quiet)
+    fmt::print(stderr, "vtsim: warning: {}\n", blind);
   if (!a.summary.empty()) write_text(a.summary, r.summary.dump(2) + "\n");
   if (!a.frames.empty()) r.metrics.write_frames_csv(a.frames);
   if (!a.report.empty()) write_text(a.report, html_report(r.summary, r.metrics));
