@@ -187,6 +187,13 @@ TEST_CASE("impossible configs are rejected with the field's name") {
   rejects({"view.divisor=-3"}, "view.divisor");
   rejects({"throttle.policy=magic"}, "throttle.policy");
   rejects({"run.fps=abc"}, "run.fps");
+  // Sizes and rates that would make the simulation endless or overflow its nanosecond clock.
+  rejects({"texture.tile_size=4"}, "texture.tile_size");
+  rejects({"clipmap.clipsize=65536"}, "clipmap.clipsize");  // 512 tiles a side
+  rejects({"disk.bandwidth_MBps=1e-300"}, "disk.bandwidth_MBps");
+  rejects({"decode.throughput_MBps=1e-4"}, "decode.throughput_MBps");
+  rejects({"upload.link_MBps=1e-10"}, "upload.link_MBps");
+  CHECK_NOTHROW(load_replay_config("", {"disk.bandwidth_MBps=0.001", "clipmap.clipsize=32768"}));
 
   const std::string path = std::string(VTSIM_TEST_DATA) + "/../../build-test-config.toml";
   {

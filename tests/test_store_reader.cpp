@@ -1,5 +1,6 @@
 #include <doctest/doctest.h>
 
+#include <sys/stat.h>
 #include <sys/wait.h>
 
 #include <algorithm>
@@ -9,6 +10,7 @@
 #include "core/error.h"
 #include "store_test_util.h"
 #include "test_util.h"
+#include "trace_test_util.h"
 #include "stream/store_builder.h"
 #include "stream/tile_store.h"
 
@@ -292,6 +294,35 @@ TEST_CASE("the writer refuses missing and duplicate tiles and leaves nothing beh
   }
   CHECK_FALSE(std::filesystem::exists(out));
   CHECK(std::filesystem::is_empty(dir.path));
+}
+
+TEST_CASE("stores are written only over regular files; FIFOs, directories and devices are never read or replaced") {
+  test::TempDir dir;
+  StoreSpec spec;
+  spec.width = spec.height = 8;
+  spec.tile = 8;
+  spec.levels = 1;
+  spec.layers = {{"a", 1, {CodecId::raw, 0}, Transfer::linear}};
+  const std::string fifo = dir.file("fifo"), sub = dir.file("sub");
+  REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
+  std::filesystem::create_directory(sub);
+  // The store is renamed into place at commit: it must not replace a FIFO (or /dev/null as root).
+  for (const std::string& out : {fifo, sub}) {
+    CAPTURE(out);
+    const std::string e = test::input_error([&] { StoreWriter w(out, spec); });
+    CHECK(contains(e, out + ": exists and is not a regular file"));
+  }
+  CHECK(std::filesystem::is_fifo(fifo));
+  // Opening a FIFO to read would block until a writer comes: refused before the open.
+  CHECK(contains(test::input_error([&] { TileStore::open(fifo); }), fifo + ": not a regular file"));
+  CHECK(contains(test::input_error([&] { TileStore::open(sub); }), sub + ": is a directory"));
+  CHECK(contains(test::input_error([&] { TileStore::open("/dev/zero"); }), "/dev/zero: not a regular file"));
+  // An index beyond 2^27 tiles is refused before it is allocated, naming --size.
+  spec.width = std::uint64_t{1} << 34;
+  spec.height = 1;
+  spec.tile = 128;
+  spec.levels = 0;
+  CHECK(contains(test::input_error([&] { StoreWriter w(dir.file("big.vts"), spec); }), "--size"));
 }
 
 TEST_CASE("incompressible tiles are stored raw, and still decode") {

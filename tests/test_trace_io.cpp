@@ -63,7 +63,7 @@ Trace awkward_trace() {
     p.pos_m = {(next() - 0.5) * 2e9, next() * 1e-300, i == 0 ? -0.0 : (next() - 0.5) / 3.0};
     glm::dquat q(next() - 0.5, next() - 0.5, next() - 0.5, next() - 0.5);
     p.q = glm::normalize(q);
-    p.vfov_deg = 1e-3 + next() * 179.0;
+    p.vfov_deg = kMinVfov_deg + next() * (kMaxVfov_deg - kMinVfov_deg);
     t.poses.push_back(p);
   }
   return t;
@@ -183,8 +183,11 @@ TEST_CASE("native reader: bad input names the file and line") {
       {"image too large", "# vtsim-trace v1 image_width=100000 image_height=1\n", 1, "image_width"},
       {"missing image size", "# vtsim-trace v1 image_width=10\n", 1, "image_height"},
       {"vfov", kHead + "0,1,2,3,1,0,0,0,180\n", 3, "vfov"},
+      {"vfov the camera refuses", kHead + "0,1,2,3,1,0,0,0,179.5\n", 3, "vfov"},  // replay would fail later
+      {"vfov too narrow", kHead + "0,1,2,3,1,0,0,0,0.001\n", 3, "vfov"},
       {"coordinate too large", kHead + "0,1e11,2,3,1,0,0,0,60\n", 3, "not within"},
       {"time too large", kHead + "1e11,1,2,3,1,0,0,0,60\n", 3, "not within"},
+      {"time beyond the tick clock", kHead + "0,1,2,3,1,0,0,0,60\n9.3e9,1,2,3,1,0,0,0,60\n", 4, "not within"},
       {"binary garbage", kHead + kRow0 + std::string("\x7f" "ELF\x02\x01\x00\x00\x00", 9) + "\n", 4, "NUL byte"},
       {"non-UTF-8", kHead + kRow0 + "0.5,1,2,3,1,0,0,0,60 \xff\xfe\n", 4, "invalid UTF-8"},
       {"overlong UTF-8", kHead + "# \xc0\xaf\n" + kRow0, 3, "invalid UTF-8"},

@@ -1,4 +1,5 @@
 #include <doctest/doctest.h>
+#include <sys/stat.h>
 
 #include <array>
 #include <cmath>
@@ -12,6 +13,7 @@
 #include "sim/scene.h"
 #include "sim/scene_heightfield.h"
 #include "sim/scene_plane.h"
+#include "test_util.h"
 #include "view_test_util.h"
 
 using namespace vtsim;
@@ -272,6 +274,24 @@ TEST_CASE("heightfield: images load as heights / bad files are rejected") {
   CHECK_THROWS_WITH_AS(load_heightfield(png, 2.0, 1.0, 0.0, 0.0, 0.0, 11), doctest::Contains("11-post limit"),
                        InputError);
   std::remove(png.c_str());
+
+  // Cut short: an error naming the file (OpenImageIO leaks its message string here, which
+  // scripts/lsan.supp suppresses for the ASan run), and a FIFO is refused, not waited on.
+  const std::string big = test::temp_path("big.png"), cut = test::temp_path("cut.png"), fifo = test::temp_path("hm.fifo");
+  {
+    std::vector<std::uint16_t> px(64 * 64);
+    for (std::size_t k = 0; k < px.size(); ++k) px[k] = static_cast<std::uint16_t>(k * 2654435761u >> 7);
+    REQUIRE(image_io::write_file(big, 64, 64, 1, image_io::PixelType::u16, px.data(), false).status ==
+            image_io::WriteStatus::ok);
+    const std::string bytes = test::slurp(big);
+    REQUIRE(bytes.size() > 200);
+    std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  }
+  CHECK_THROWS_WITH_AS(load_heightfield(cut, 1.0, 1.0, 0.0, 0.0, 0.0), doctest::Contains(cut.c_str()), InputError);
+  REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
+  CHECK_THROWS_WITH_AS(load_heightfield(fifo, 1.0, 1.0, 0.0, 0.0, 0.0), doctest::Contains("not a regular file"),
+                       InputError);
+  for (const std::string& f : {big, cut, fifo}) std::remove(f.c_str());
 
   const std::string tif = test::temp_path("nan.tif");
   {

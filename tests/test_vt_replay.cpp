@@ -284,3 +284,25 @@ TEST_CASE("replay CLI: a camera that never sees a textured surface is warned abo
   CHECK(r.err.find("warning") == std::string::npos);
   std::filesystem::remove(err);
 }
+
+TEST_CASE("CLI: lost output, a config that contradicts the command and options that pick nothing exit 2") {
+  const std::string err = test::temp_path("cli_errors.err");
+  if (std::filesystem::exists("/dev/full")) {  // every write fails with ENOSPC
+    test::CliRun r = test::run_vtsim_capture("capacity >/dev/full", err);
+    CHECK(r.code == 2);
+    CHECK(r.err.find("stdout: write failed") != std::string::npos);
+    r = test::run_vtsim_capture("replay --print-config >/dev/full", err);  // large enough to fail inside fmt
+    CHECK(r.code == 2);
+  }
+  const std::string traces = std::string(VTSIM_SOURCE_DIR) + "/traces/";
+  test::CliRun r = test::run_vtsim_capture(
+      "vt compare --traces " + traces + "static.csv --policies none --set run.system=clipmap", err);
+  CHECK(r.code == 2);
+  CHECK(r.err.find("field 'run.system'") != std::string::npos);
+  r = test::run_vtsim_capture("view --frame 2 -o x.png", err);
+  CHECK(r.code == 2);
+  CHECK(r.err.find("--frame") != std::string::npos);
+  r = test::run_vtsim_capture("view --trace " + traces + "static.csv --time nan -o x.png", err);
+  CHECK(r.code == 2);
+  std::filesystem::remove(err);
+}

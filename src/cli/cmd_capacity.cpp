@@ -93,7 +93,8 @@ void run_vt_capacity(const CapacityArgs& a) {
     throw InputError("--layers", e.what());
   }
   if (a.tile < 2 || a.tile % 2 != 0) throw InputError("--tile", fmt::format("{}: a VT page must be even", a.tile));
-  if (a.border < 0 || a.border > a.tile)
+  if (a.border < 0) throw InputError("--border", fmt::format("{} texels: a border is 0 or more", a.border));
+  if (a.border > a.tile)
     throw InputError("--border", fmt::format("{} texels is larger than the page ({} texels)", a.border, a.tile));
   int sw = 0, sh = 0;
   char x = 0;
@@ -115,6 +116,11 @@ void run_vt_capacity(const CapacityArgs& a) {
   in.overdraw = a.overdraw;
   in.redundancy = a.redundancy;
   in.texels_per_pixel = a.texels_per_pixel;
+  // The pool's texel count is printed as an integer: keep it exact (a double holds 2^53).
+  const double screen_texels = static_cast<double>(sw) * sh * a.overdraw * a.redundancy * a.texels_per_pixel;
+  if (!(screen_texels <= 0x1p53))
+    throw InputError("--overdraw", fmt::format("screen {}×{} × overdraw × redundancy × texels/pixel = {:.3g} texels, "
+                                               "beyond 2^53 (9.0e15)", sw, sh, screen_texels));
   VtCapacity c;
   try {
     c = vt_capacity(in);

@@ -108,6 +108,8 @@ void run_view(const ViewOptions& o) {
   }
 
   Pose pose = pose_from_angles(pos, o.yaw, o.pitch, o.roll, o.vfov);
+  if (o.trace.empty() && (o.frame >= 0 || o.time_s >= 0))
+    throw InputError(o.frame >= 0 ? "--frame" : "--time", "picks a pose of --trace: give the trace too");
   if (!o.trace.empty()) {
     const Trace tr = load_any_trace(o.trace);
     if (o.frame >= 0 && o.time_s >= 0) throw InputError("--frame", "give --frame or --time, not both");
@@ -200,8 +202,14 @@ void register_view_commands(CLI::App& app) {
     opt->size_given = true;
   });
   cmd->add_option("--trace", opt->trace, "take the camera from this trace (pose, vfov, image size)");
-  cmd->add_option("--frame", opt->frame, "frame index of --trace (default 0)");
-  cmd->add_option("--time", opt->time_s, "time in --trace, s (interpolated)");
+  cmd->add_option("--frame", opt->frame, "frame index of --trace (default 0)")->check(CLI::Range(0, 1 << 30));
+  cmd->add_option("--time", opt->time_s, "time in --trace, s (interpolated)")
+      ->check(CLI::Validator(
+          [](std::string& v) {
+            const double t = std::strtod(v.c_str(), nullptr);
+            return std::isfinite(t) && t >= 0.0 ? std::string() : "must be a finite time >= 0 s, not '" + v + "'";
+          },
+          "TIME>=0"));
   cmd->add_option("--divisor", opt->divisor, "feedback buffer = image / divisor")->capture_default_str();
   cmd->add_option("--lod-bias", opt->lod_bias, "added to every LOD")->capture_default_str();
   cmd->add_option("--aniso", opt->aniso, "anisotropic LOD with this max ratio (0: isotropic)")->capture_default_str();

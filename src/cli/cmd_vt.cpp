@@ -66,6 +66,8 @@ void run_compare(const VtCompareArgs& a) {
   const auto files = trace_files(a.traces);
   // The shared budget: one config for every run, the policy the only difference.
   ReplayConfig base = load_replay_config(a.config, a.sets, "vt");
+  if (base.system != "vt")  // --set run.system=... comes after the command's own "vt"
+    throw InputError("config", "field 'run.system': vt compare replays the vt system, not '" + base.system + "'");
   nlohmann::json rows = nlohmann::json::array();
   auto scene = make_scene_from_config(base);
   for (const auto& file : files) {

@@ -2,11 +2,27 @@
 // the library so that engines can embed it.
 #include <fmt/core.h>
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <exception>
+#include <iostream>
+#include <string>
 
 #include "cli/commands.h"
 #include "core/error.h"
+
+namespace {
+
+// What a command printed did not all reach stdout (> /dev/full, a closed pipe): an error, not a
+// success with the summary lost.
+int stdout_failed() {
+  const int err = errno;
+  fmt::print(stderr, "vtsim: error: stdout: write failed{}\n", err ? std::string(": ") + std::strerror(err) : "");
+  return vtsim::cli::kExitBadInput;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"vtsim — asynchronous texture-streaming engine and cache-hierarchy simulator"};
@@ -37,8 +53,12 @@ int main(int argc, char** argv) {
     fmt::print(stderr, "vtsim: error: {}\n", e.what());
     return vtsim::cli::kExitBadInput;
   } catch (const std::exception& e) {
+    if (std::ferror(stdout)) return stdout_failed();  // fmt::print threw on a full or closed stdout
     fmt::print(stderr, "vtsim: internal error: {}\n", e.what());
     return vtsim::cli::kExitInternal;
   }
+  // Output still in the buffers is written here: a full disk or a closed pipe shows only now.
+  std::cout.flush();
+  if (!std::cout || std::fflush(stdout) != 0 || std::ferror(stdout)) return stdout_failed();
   return vtsim::cli::kExitOk;
 }

@@ -1,4 +1,5 @@
 #include "core/config_table.h"
+#include "core/input_file.h"
 
 #include <fmt/format.h>
 
@@ -125,6 +126,7 @@ void flatten(const toml::table& t, const std::string& prefix, const std::string&
 }  // namespace
 
 std::vector<TomlEntry> read_toml_entries(const std::string& path) {
+  require_regular_file(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot open config file");
   std::ostringstream ss;

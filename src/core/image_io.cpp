@@ -12,6 +12,7 @@
 #include <system_error>
 
 #include "core/error.h"
+#include "core/input_file.h"
 
 // The module's path in the build tree (CMakeLists.txt sets it on this file only).
 #ifndef VTSIM_IMAGE_MODULE_BUILD_PATH
@@ -149,6 +150,12 @@ const std::string& require_module() {
 ImageReader ImageReader::open_file(const std::string& path, bool unassociated_alpha) {
   ImageReader r;
   r.api_ = &api();
+  try {
+    require_regular_file(path);  // a FIFO would block inside the reader's open
+  } catch (const InputError& e) {
+    r.error_ = e.what();
+    return r;
+  }
   ErrorBuf err{};
   abi::Spec spec{};
   if (r.api_->open_file(path.c_str(), unassociated_alpha ? 1 : 0, &r.reader_, &spec, err.data(), err.size()) != abi::kOk) {

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <string>
 
+#include <fmt/format.h>
 #include <glm/gtc/quaternion.hpp>
 
 #include "core/error.h"
@@ -25,8 +26,8 @@ Camera make_camera(const Pose& pose, int width, int height, double vfov_deg) {
   if (width < 1 || height < 1 || width > kMaxImageSide || height > kMaxImageSide)
     throw InputError("image size", std::to_string(width) + "x" + std::to_string(height) +
                                        " is outside 1.." + std::to_string(kMaxImageSide) + " per side");
-  if (!(vfov_deg >= 0.01 && vfov_deg <= 179.0))
-    throw InputError("vfov_deg", "vertical field of view must be in [0.01, 179] degrees");
+  if (!(vfov_deg >= kMinVfov_deg && vfov_deg <= kMaxVfov_deg))
+    throw InputError("vfov_deg", fmt::format("vertical field of view {} is not in [{}, {}] degrees", vfov_deg, kMinVfov_deg, kMaxVfov_deg));
   if (!std::isfinite(pose.pos_m.x) || !std::isfinite(pose.pos_m.y) || !std::isfinite(pose.pos_m.z))
     throw InputError("pose.pos_m", "camera position is not finite");
   const glm::dquat& q = pose.q;

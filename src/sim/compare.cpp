@@ -12,6 +12,7 @@
 
 #include "core/config_table.h"
 #include "core/error.h"
+#include "core/input_file.h"
 
 namespace vtsim {
 
@@ -242,6 +243,7 @@ Tolerance resolve_tolerance(const std::vector<ToleranceRule>& user, const std::v
 }
 
 json load_json_file(const std::string& path) {
+  require_regular_file(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot open for reading");
   std::ostringstream ss;

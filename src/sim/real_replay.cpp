@@ -5,10 +5,12 @@
 #include <time.h>
 
 #include <algorithm>
+#include <cmath>
 #include <thread>
 
 #include "core/error.h"
 #include "sim/scene.h"
+#include "sim/trace_io.h"
 #include "stream/threaded_executor.h"
 
 namespace vtsim {
@@ -86,6 +88,11 @@ TileSizer store_sizer(const TileStore& store) {
 void apply_speed(ReplayConfig& cfg, Trace& trace, double speed) {
   if (!(speed > 0.0 && speed <= 1000.0)) throw InputError("--speed", fmt::format("{} is outside (0, 1000]", speed));
   if (speed == 1.0) return;
+  if (cfg.fps * speed > 10000.0)  // the resampler's limit (trace_resample.cpp)
+    throw InputError("--speed", fmt::format("{} times run.fps {} is above 10000 frames/s", speed, cfg.fps));
+  for (const Pose& p : trace.poses)
+    if (std::abs(p.t_s / speed) > kMaxAbsTime_s)
+      throw InputError("--speed", fmt::format("{} stretches the trace's time {} s beyond +-{:g} s", speed, p.t_s, kMaxAbsTime_s));
   for (Pose& p : trace.poses) p.t_s /= speed;
   cfg.fps *= speed;
 }

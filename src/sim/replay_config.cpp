@@ -96,7 +96,8 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
         .add(cfg::real<C>("texture.texels_per_m", &C::texels_per_m, 1e-6, 1e6, "ground texel density at level 0, texels/m"))
         .add(cfg::real<C>("texture.origin_x_m", &C::origin_x_m, -1e12, 1e12, "world x of texel column 0, m"))
         .add(cfg::real<C>("texture.origin_y_m", &C::origin_y_m, -1e12, 1e12, "world y of texel row 0, m"))
-        .add(cfg::integer<C>("texture.tile_size", &C::tile_size, 1, 1 << 16, "tile payload, texels a side"))
+        .add(cfg::integer<C>("texture.tile_size", &C::tile_size, 8, 1 << 16,
+                             "tile payload, texels a side (>= 8: smaller tiles are no streaming unit, and millions of them a frame)"))
         .add(cfg::integer<C>("texture.border", &C::border, 0, 1 << 10, "tile border, texels a side (stored T+2B)"))
         .add(cfg::text<C>("texture.layers", &C::layers, [](const std::string& v) { parse_layers(v); },
                           "layers as name:format[:compression ratio], comma separated"))
@@ -209,6 +210,13 @@ std::uint64_t tile_disk_bytes(const ReplayConfig& c, const LayerSpec& layer) {
   throw InputError("config", "field '" + key + "': " + what);
 }
 
+// Largest clip window side in tiles: 256² tiles a level is already far beyond any engine's window
+// (RAGE-style clipmaps keep 8-32 tiles a side), and a frame tracks every tile of every window.
+constexpr int kMaxClipTiles = 256;
+// Least bandwidth or throughput the simulated clock accepts: below it one tile's transfer time
+// leaves the 64-bit nanosecond clock's range (1 KB/s moves a 1 MB tile in 1,000 s).
+constexpr double kMinRateMBps = 1e-3;
+
 void validate(ReplayConfig& c) {
   try {
     c.layer_specs = parse_layers(c.layers);
@@ -218,6 +226,10 @@ void validate(ReplayConfig& c) {
   if (c.system == "clipmap") {
     if (c.clipsize % c.tile_size != 0)
       bad("clipmap.clipsize", fmt::format("{} is not a multiple of texture.tile_size {}", c.clipsize, c.tile_size));
+    // A window is (clipsize / tile)² tiles per level, all tracked every frame.
+    if (c.clipsize / c.tile_size > kMaxClipTiles)
+      bad("clipmap.clipsize", fmt::format("{} is more than {} tiles of {} texels a side: use larger tiles", c.clipsize,
+                                          kMaxClipTiles, c.tile_size));
     if (c.border != 0 && c.system == "clipmap")
       bad("texture.border", "the clipmap's toroidal windows keep neighbours adjacent: borders must be 0");
   }
@@ -254,6 +266,13 @@ void validate(ReplayConfig& c) {
   if (ram_bytes < static_cast<double>(max_tile))
     bad("ram.capacity_MiB", fmt::format("{} MiB is smaller than one tile ({} bytes)", c.ram_MiB, max_tile));
   if (c.far_m <= c.near_m) bad("view.far_m", "must be greater than view.near_m");
+  const auto rate = [](const char* key, double v) {
+    if (v > 0.0 && v < kMinRateMBps)
+      bad(key, fmt::format("{} MB/s is below {} MB/s (one tile would take longer than the clock can count)", v, kMinRateMBps));
+  };
+  rate("disk.bandwidth_MBps", c.disk_bandwidth_MBps);
+  rate("decode.throughput_MBps", c.decode_throughput_MBps);
+  rate("upload.link_MBps", c.upload_link_MBps);
   if (c.scene == "mesh" && c.scene_file.empty()) bad("scene.file", "scene.kind = \"mesh\" needs an OBJ file");
   const std::int64_t max_side = std::max(c.width, c.height);
   if (max_side / c.tile_size > TileKey::kMaxCoord)

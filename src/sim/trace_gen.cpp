@@ -52,7 +52,7 @@ void validate(const TraceGenParams& p) {
        "is not in [-1e7, 1e7] m");
   need(std::isfinite(p.pitch_deg) && std::abs(p.pitch_deg) <= 90.0, "pitch_deg", p.pitch_deg,
        "is not in [-90, 90]");
-  need(p.vfov_deg > 0.0 && p.vfov_deg < 180.0, "vfov_deg", p.vfov_deg, "is not in (0, 180)");
+  need(p.vfov_deg >= kMinVfov_deg && p.vfov_deg <= kMaxVfov_deg, "vfov_deg", p.vfov_deg, "is not in [0.01, 179]");
   for (int k = 0; k < 2; ++k)
     need(std::isfinite(p.start_m[k]) && std::abs(p.start_m[k]) <= 1e9, "start_m", p.start_m[k],
          "is not in [-1e9, 1e9] m");

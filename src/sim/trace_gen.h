@@ -28,7 +28,7 @@ struct TraceGenParams {
   double heading_deg = 0.0;    // direction of travel and view at t = 0, counter-clockwise from +x
   double height_m = 1.7;       // camera z (ground plane z = 0)
   double pitch_deg = -15.0;    // view pitch, [-90, 90], up positive (orbit: computed, see below)
-  double vfov_deg = 60.0;      // (0, 180)
+  double vfov_deg = 60.0;      // [0.01, 179]
   glm::dvec2 start_m{kDefaultWorldSize_m / 2, kDefaultWorldSize_m / 2};  // x, y at t = 0; orbit: centre
   int image_width = 1920;      // pixels
   int image_height = 1080;

@@ -75,8 +75,8 @@ void check_pose_ranges(const Pose& p, const std::string& where) {
     if (!std::isfinite(p.pos_m[k]) || std::abs(p.pos_m[k]) > kMaxAbsCoordinate_m)
       throw InputError(where, fmt::format("coordinate {} = {} m is not within +-{:g} m", "xyz"[k],
                                           p.pos_m[k], kMaxAbsCoordinate_m));
-  if (!(p.vfov_deg > 0.0 && p.vfov_deg < 180.0))
-    throw InputError(where, fmt::format("vfov_deg {} is outside (0, 180)", p.vfov_deg));
+  if (!(p.vfov_deg >= kMinVfov_deg && p.vfov_deg <= kMaxVfov_deg))
+    throw InputError(where, fmt::format("vfov_deg {} is outside [{}, {}]", p.vfov_deg, kMinVfov_deg, kMaxVfov_deg));
 }
 
 }  // namespace
@@ -162,7 +162,7 @@ void validate_trace(const Trace& trace, const std::string& where) {
     const Pose& p = trace.poses[i];
     const auto w = [&] { return fmt::format("{} pose {}", where, i); };  // only on error
     if (!std::isfinite(p.t_s)) throw InputError(w(), "time is not finite");
-    bool in_range = std::abs(p.t_s) <= kMaxAbsTime_s && p.vfov_deg > 0.0 && p.vfov_deg < 180.0;
+    bool in_range = std::abs(p.t_s) <= kMaxAbsTime_s && p.vfov_deg >= kMinVfov_deg && p.vfov_deg <= kMaxVfov_deg;
     for (int k = 0; k < 3; ++k) in_range = in_range && std::abs(p.pos_m[k]) <= kMaxAbsCoordinate_m;
     if (!in_range) check_pose_ranges(p, w());
     if (i > 0 && !(p.t_s > trace.poses[i - 1].t_s))

@@ -55,7 +55,8 @@ inline constexpr double kQuatNormSilent = 1e-6;      // up to this (or to what t
 inline constexpr double kQuatNormTolerance = 1e-3;   // beyond this a quaternion is an error
 inline constexpr double kMaxAbsCoordinate_m = 1e10;  // ~1500 Earth radii: keeps squared distances
                                                      // finite and planet-scale worlds legal
-inline constexpr double kMaxAbsTime_s = 1e10;        // ~317 years: fits int64 nanosecond ticks
+inline constexpr double kMaxAbsTime_s = 4e9;         // ~127 years: int64 nanosecond ticks reach 9.2e9 s, and a
+                                                     // replay adds latencies and its pacing on top
 
 // Reads a native trace. Throws InputError("path:line", ...) on any malformed input; repairs per
 // TraceRepairs (counted in *report when given).
@@ -71,7 +72,7 @@ void save_trace(const Trace& trace, const std::string& path);
 
 // Checks the invariants every consumer may rely on: at least one pose; finite values; times
 // strictly increasing and |t| <= kMaxAbsTime_s; |coordinates| <= kMaxAbsCoordinate_m;
-// | |q| - 1 | <= kQuatUnitTolerance; vfov in (0, 180); image sides in [1, kMaxImageSide].
+// | |q| - 1 | <= kQuatUnitTolerance; vfov in [kMinVfov_deg, kMaxVfov_deg]; image sides in [1, kMaxImageSide].
 // Throws InputError(where + " pose i", ...) naming the first offending pose (0-based).
 void validate_trace(const Trace& trace, const std::string& where);
 

@@ -104,8 +104,8 @@ void transform_trace(Trace& trace, const TraceTransform& tf, const std::string& 
   need(std::isfinite(tf.time_scale) && tf.time_scale > 0.0, "time_scale", tf.time_scale,
        "must be finite and > 0");
   need(std::isfinite(tf.time_offset_s), "time_offset", tf.time_offset_s, "must be finite");
-  need(tf.vfov_deg == 0.0 || (tf.vfov_deg > 0.0 && tf.vfov_deg < 180.0), "vfov", tf.vfov_deg,
-       "must be in (0, 180), or 0 to keep");
+  need(tf.vfov_deg == 0.0 || (tf.vfov_deg >= kMinVfov_deg && tf.vfov_deg <= kMaxVfov_deg), "vfov", tf.vfov_deg,
+       "must be in [0.01, 179], or 0 to keep");
   const AxisConvention world =
       parse_world_axes(tf.world_axes.empty() ? "ENU" : tf.world_axes, where + ": world_axes");
   const AxisConvention camera =

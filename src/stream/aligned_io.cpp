@@ -1,5 +1,7 @@
 #include "stream/aligned_io.h"
 
+#include "core/input_file.h"
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -75,6 +77,7 @@ std::size_t ReadFile::pread_full(void* buf, std::size_t bytes, std::uint64_t off
 }
 
 DirectOpen open_for_read(const std::string& path, bool want_direct) {
+  require_regular_file(path);
   DirectOpen result;
   if (want_direct) {
     const int fd = ::open(path.c_str(), O_RDONLY | O_DIRECT | O_CLOEXEC);

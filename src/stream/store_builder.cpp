@@ -40,6 +40,8 @@ void write_all(int fd, const std::uint8_t* p, std::size_t n, std::uint64_t offse
   }
 }
 
+constexpr std::uint64_t kMaxWriterTiles = std::uint64_t{1} << 27;
+
 void validate_spec(const StoreSpec& s) {
   if (s.tile < 1 || s.tile > kMaxTileSize) throw InputError("--tile", u(s.tile) + " is out of range 1.." + u(kMaxTileSize));
   if (s.border > kMaxBorder || s.tile + 2 * s.border > kMaxStoredSide)
@@ -54,6 +56,14 @@ void validate_spec(const StoreSpec& s) {
     throw InputError("--levels", u(s.levels) + " is more than the " + u(full) + " levels down to 1x1 of " + u(s.width) + "x" + u(s.height));
   if (s.layers.empty() || s.layers.size() > kMaxLayers)
     throw InputError("--layers", u(s.layers.size()) + " layers; a store has 1.." + u(kMaxLayers));
+  // The writer holds the whole index in memory (32 B a tile): 2^27 tiles = 4 GiB. The default
+  // 2^20² texture at tile 128 has 89 M tiles (~2.9 GB of index, 6.6 TB of data).
+  const std::uint64_t tiles = Geometry::make(s.width, s.height, s.tile, s.border, s.levels ? s.levels : full,
+                                             static_cast<std::uint32_t>(s.layers.size()))
+                                  .tile_count();
+  if (tiles > kMaxWriterTiles)
+    throw InputError("--size", u(s.width) + "x" + u(s.height) + " at tile " + u(s.tile) + " is " + u(tiles) +
+                                   " tiles; a store has at most " + u(kMaxWriterTiles) + " (use larger tiles or a smaller texture)");
   for (std::size_t i = 0; i < s.layers.size(); ++i) {
     const StoreLayerSpec& L = s.layers[i];
     const std::string where = "layer " + u(i) + " ('" + L.name + "')";
@@ -74,6 +84,12 @@ void validate_spec(const StoreSpec& s) {
 
 StoreWriter::StoreWriter(const std::string& out_path, const StoreSpec& spec) : out_path_(out_path) {
   validate_spec(spec);
+  // The store is renamed into place at the end: that would replace a device (/dev/null, run as
+  // root), a FIFO or a socket with a regular file.
+  std::error_code ec;
+  const fs::file_status st = fs::status(out_path, ec);
+  if (fs::exists(st) && !fs::is_regular_file(st))
+    throw InputError(out_path, "exists and is not a regular file: a store is written only to a new or regular file");
   const std::uint32_t levels = spec.levels ? spec.levels : full_level_count(spec.width, spec.height);
   header_.geom = Geometry::make(spec.width, spec.height, spec.tile, spec.border, levels,
                                 static_cast<std::uint32_t>(spec.layers.size()));
