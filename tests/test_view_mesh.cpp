@@ -101,7 +101,10 @@ TEST_CASE("OBJ: degenerate triangles are skipped and counted") {
 TEST_CASE("OBJ: malformed input names the file and line") {
   expect_error("v 0 0\n", "t.obj:1", "v needs 3 coordinates");
   expect_error("v 0 0 0 0 0 0 0 0\n", "t.obj:1", "v needs 3 coordinates");
-  expect_error("v 0 0 x\n", "t.obj:1", "malformed vertex coordinate 'x'");
+  expect_error("v 0 0 x\n", "t.obj:1", "malformed vertex coordinate \"x\"");
+  // Tokens are quoted as in the trace reader: cut at 40 bytes, control bytes (a NUL) escaped.
+  expect_error("v 0 0 " + std::string(200, '7') + "x\n", "t.obj:1", "\"" + std::string(40, '7') + "...\"");
+  expect_error(std::string("v 0 0 1\n") + "f 1/2" + std::string(1, '\0') + "3 1 1\n", "t.obj:2", "\\x00");
   expect_error("v 0 0 1e400\n", "t.obj:1", "not a finite number");
   expect_error("\n\nv nan 0 0\n", "t.obj:3", "not a finite number");
   expect_error("v inf 0 0\n", "t.obj:1", "not a finite number");

@@ -10,6 +10,7 @@
 #include <glm/geometric.hpp>
 
 #include "core/error.h"
+#include "sim/trace_text.h"
 #include "sim/mesh.h"
 
 namespace vtsim {
@@ -34,11 +35,11 @@ double parse_number(std::string_view tok, const std::string& where, const char* 
   if (!tok.empty() && tok[0] == '+') ++first;  // from_chars rejects a leading '+'
   const auto [ptr, ec] = std::from_chars(first, tok.data() + tok.size(), x);
   if (ec == std::errc::result_out_of_range && ptr == tok.data() + tok.size())
-    throw InputError(where, std::string(what) + " '" + std::string(tok) + "' is not a finite number within ±1e12");
+    throw InputError(where, std::string(what) + " " + trace_text::quote(tok) + " is not a finite number within ±1e12");
   if (ec != std::errc() || ptr != tok.data() + tok.size() || tok.empty())
-    throw InputError(where, std::string("malformed ") + what + " '" + std::string(tok) + "'");
+    throw InputError(where, std::string("malformed ") + what + " " + trace_text::quote(tok));
   if (!std::isfinite(x) || std::fabs(x) > kMaxCoord)
-    throw InputError(where, std::string(what) + " '" + std::string(tok) + "' is not a finite number within ±1e12");
+    throw InputError(where, std::string(what) + " " + trace_text::quote(tok) + " is not a finite number within ±1e12");
   return x;
 }
 
@@ -47,7 +48,7 @@ std::uint32_t resolve_index(std::string_view tok, std::size_t count, const std::
   long long idx = 0;
   const auto [ptr, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), idx);
   if (ec != std::errc() || ptr != tok.data() + tok.size() || tok.empty())
-    throw InputError(where, std::string("malformed ") + what + " index '" + std::string(tok) + "'");
+    throw InputError(where, std::string("malformed ") + what + " index " + trace_text::quote(tok));
   const long long n = static_cast<long long>(count);
   long long r;
   if (idx > 0) r = idx - 1;
@@ -116,14 +117,14 @@ Mesh parse_obj(const std::string& text, const std::string& name, ObjStats* stats
           const std::size_t s2 = rest.find('/');
           const std::string_view vt = rest.substr(0, s2);
           if (s2 != std::string_view::npos && rest.find('/', s2 + 1) != std::string_view::npos)
-            throw InputError(where, "malformed face corner '" + std::string(tok) + "'");
+            throw InputError(where, "malformed face corner " + trace_text::quote(tok));
           if (!vt.empty()) {
             t = static_cast<std::int32_t>(resolve_index(vt, m.uvs.size(), where, "texture coordinate"));
             ++with_uv;
           }
           // the normal index (after the second '/') is not needed by the feedback renderer
           if (s2 != std::string_view::npos && rest.substr(s2 + 1).empty())
-            throw InputError(where, "malformed face corner '" + std::string(tok) + "' (empty normal index)");
+            throw InputError(where, "malformed face corner " + trace_text::quote(tok) + " (empty normal index)");
         }
         ft.push_back(t);
       }
