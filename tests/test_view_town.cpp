@@ -100,6 +100,33 @@ TEST_CASE("town: renders ground / walls and roofs / bad parameters are rejected"
   CHECK_THROWS_WITH_AS(generate_town(bad_cfg), doctest::Contains("do not fit"), InputError);
 }
 
+namespace {
+
+// Samples of two buffers of the same size that differ in any field (the LOD bit for bit).
+std::size_t differing_samples(const ViewBuffer& a, const ViewBuffer& b) {
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < a.samples.size(); ++i)
+    differ += a.samples[i].u != b.samples[i].u || a.samples[i].v != b.samples[i].v ||
+              a.samples[i].pixel != b.samples[i].pixel ||
+              std::bit_cast<std::uint32_t>(a.samples[i].lod) != std::bit_cast<std::uint32_t>(b.samples[i].lod);
+  return differ;
+}
+
+double distance_to(const Mesh::Box& b, const glm::dvec3& p) {
+  const glm::dvec3 d = glm::max(glm::max(b.lo - p, p - b.hi), glm::dvec3(0.0));
+  return std::sqrt(glm::dot(d, d));
+}
+
+void check_same_counters(const ViewBuffer& a, const ViewBuffer& b) {
+  CHECK(a.counters.sky == b.counters.sky);
+  CHECK(a.counters.clipped == b.counters.clipped);
+  CHECK(a.counters.backfacing == b.counters.backfacing);
+  CHECK(a.counters.outside_texture == b.counters.outside_texture);
+  CHECK(a.counters.untextured == b.counters.untextured);
+}
+
+}  // namespace
+
 TEST_CASE("town: occlusion culling renders exactly what drawing every chunk in index order renders, from any warm start") {
   SceneConfig cfg;
   cfg.kind = SceneKind::town;
@@ -138,32 +165,14 @@ TEST_CASE("town: occlusion culling renders exactly what drawing every chunk in i
                  again.samples[i].pixel == a.samples[i].pixel &&
                  std::bit_cast<std::uint32_t>(again.samples[i].lod) == std::bit_cast<std::uint32_t>(a.samples[i].lod)));
     }
-    std::size_t differ = 0;
-    for (std::size_t i = 0; i < a.samples.size(); ++i)
-      differ += a.samples[i].u != b.samples[i].u || a.samples[i].v != b.samples[i].v ||
-                a.samples[i].pixel != b.samples[i].pixel ||
-                std::bit_cast<std::uint32_t>(a.samples[i].lod) != std::bit_cast<std::uint32_t>(b.samples[i].lod);
-    REQUIRE(differ == 0);
-    CHECK(a.counters.sky == b.counters.sky);
-    CHECK(a.counters.clipped == b.counters.clipped);
-    CHECK(a.counters.backfacing == b.counters.backfacing);
-    CHECK(a.counters.outside_texture == b.counters.outside_texture);
-    CHECK(a.counters.untextured == b.counters.untextured);
+    REQUIRE(differing_samples(a, b) == 0);
+    check_same_counters(a, b);
     samples += a.samples.size();
   }
   CHECK(samples > 100000);
   CHECK(skipping > 20);
   CHECK(skipping < 60);
 }
-
-namespace {
-
-double distance_to(const Mesh::Box& b, const glm::dvec3& p) {
-  const glm::dvec3 d = glm::max(glm::max(b.lo - p, p - b.hi), glm::dvec3(0.0));
-  return std::sqrt(glm::dot(d, d));
-}
-
-}  // namespace
 
 TEST_CASE("town: back faces are skipped only where the solids allow it, and the buffer is the same") {
   SceneConfig cfg;
@@ -233,15 +242,8 @@ TEST_CASE("town: back faces are skipped only where the solids allow it, and the 
     plain.render(c, v, b);
     CAPTURE(it);
     REQUIRE(a.samples.size() == b.samples.size());
-    std::size_t differ = 0;
-    for (std::size_t i = 0; i < a.samples.size(); ++i)
-      differ += a.samples[i].u != b.samples[i].u || a.samples[i].v != b.samples[i].v ||
-                a.samples[i].pixel != b.samples[i].pixel ||
-                std::bit_cast<std::uint32_t>(a.samples[i].lod) != std::bit_cast<std::uint32_t>(b.samples[i].lod);
-    REQUIRE(differ == 0);
-    CHECK(a.counters.backfacing == b.counters.backfacing);
-    CHECK(a.counters.clipped == b.counters.clipped);
-    CHECK(a.counters.sky == b.counters.sky);
+    REQUIRE(differing_samples(a, b) == 0);
+    check_same_counters(a, b);
   }
   CHECK(compared > 80);
 }
