@@ -42,6 +42,9 @@ class RealScratch {
 // 1024² texels, tile 64, no border, every level, albedo (zstd) + normal (lz4): 2 × 341 tiles,
 // made once per build tree (real_test_util.cpp). Tests that change a store copy it first.
 const std::string& small_store();
+// The same texture as virtual-texture pages: 1024² texels, page 64 with a 4-texel border (72²
+// stored), every level, albedo (zstd) + normal (lz4).
+const std::string& small_vt_store();
 
 inline std::vector<std::uint8_t> file_bytes(const std::string& p) {
   std::ifstream f(p, std::ios::binary);

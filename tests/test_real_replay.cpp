@@ -11,6 +11,7 @@
 #include "sim/scene.h"
 #include "sim/trace_gen.h"
 #include "stream/calibrate.h"
+#include "stream/store_generator.h"
 
 // Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
 TEST_SUITE_BEGIN("threads");
@@ -216,6 +217,161 @@ TEST_CASE("real clock with injected faults: retried or failed, every fault count
     const auto want = test::decoded(store, k);
     CHECK(std::equal(want.begin(), want.end(), got.begin()));  // nothing corrupt reached VRAM
   }
+}
+
+// Virtual texturing in the real clock: pages go to the slots the page pool chose (VramArena's pool
+// layout). Every layer a pool slot holds is the store's page, byte for byte; `held` counts them.
+namespace {
+
+std::uint64_t check_pool_arena(const VramArena& arena, const TileStore& store, std::uint32_t slots, bool one_slot_per_page) {
+  REQUIRE(arena.pool());
+  std::uint64_t held = 0;
+  for (TileKey k : test::all_keys(store)) {
+    int in_slots = 0;
+    for (std::uint32_t s = 0; s < slots; ++s) {
+      const auto got = arena.peek(k, s);
+      if (got.empty()) continue;
+      ++held;
+      ++in_slots;
+      const auto want = test::decoded(store, k);
+      REQUIRE(got.size() == want.size());
+      CHECK(std::equal(want.begin(), want.end(), got.begin()));
+    }
+    if (one_slot_per_page) CHECK(in_slots <= 1);
+  }
+  return held;
+}
+
+}  // namespace
+
+TEST_CASE("real clock, virtual texturing: pages land byte-exact in their pool slots, and the simulated clock reads the same") {
+  const TileStore store = TileStore::open(test::small_vt_store());
+  const ReplayConfig cfg = bound_cfg(store, {"run.system=vt", "vt.pool_pages=64"});
+  CHECK(cfg.tile_size == 64);
+  CHECK(cfg.border == 4);  // pages stored 72² with their borders
+  const Trace trace = still_trace(1.5);
+  const auto scene = make_scene_from_config(cfg);
+  const RealRun run = run_real_replay(cfg, trace, *scene, store);
+  const auto& s = run.result.summary;
+  const auto& frames = run.result.metrics.frames();
+  REQUIRE(frames.size() == trace.poses.size());
+  CHECK(s["system"] == "vt");
+  CHECK(s["clock"] == "real");
+  CHECK(frames.back().needs == 0);
+  CHECK(frames.back().live_requests == 0);
+  CHECK(frames.back().samples > 0);
+  const std::uint64_t uploads = s["bandwidth"]["uploads"].get<std::uint64_t>();
+  CHECK(uploads > 10);
+  CHECK(uploads % 2 == 0);  // both layers of every page
+  CHECK(s["real_clock"]["uploads_without_data"] == 0);
+  CHECK(s["vt"]["vram_evictions"] == 0);
+  const VramArena& arena = *run.arena;
+  CHECK(arena.stats().uploads == uploads);
+  CHECK(arena.stats().overwrites == 0);
+  CHECK(arena.capacity_bytes() == 64u * (store.tile_bytes(0) + store.tile_bytes(1)));
+  CHECK(check_pool_arena(arena, store, 64, true) == uploads);
+  CHECK(s["vt"]["layer_commits"].get<std::uint64_t>() == uploads);
+
+  // The simulated clock over the same store needs and reads exactly the same pages.
+  ReplayEnv env;
+  env.sizer = store_sizer(store);
+  const ReplayResult sim = run_replay(cfg, trace, *scene, env);
+  CHECK(sim.summary["bandwidth"]["disk_read_bytes"] == s["bandwidth"]["disk_read_bytes"]);
+  CHECK(sim.summary["bandwidth"]["uploads"] == s["bandwidth"]["uploads"]);
+  CHECK(sim.summary["vt"]["pages_mapped"] == s["vt"]["pages_mapped"]);
+  CHECK(sim.metrics.frames().back().blurry == frames.back().blurry);
+  CHECK(sim.metrics.frames().back().deficit_sum == frames.back().deficit_sum);
+}
+
+TEST_CASE("real clock, virtual texturing: an oversubscribed pool evicts and reuses slots, and VRAM stays the store's bytes") {
+  const TileStore store = TileStore::open(test::small_vt_store());
+  const ReplayConfig cfg = bound_cfg(store, {"run.system=vt", "vt.pool_pages=12", "upload.tiles_per_frame=4"});
+  TraceGenParams g = default_gen_params(TraceKind::walk);
+  g.start_m = {4.0, 16.0};
+  g.speed_mps = 12.0;
+  g.duration_s = 2.0;
+  g.image_width = 640;
+  g.image_height = 360;
+  const Trace trace = generate_trace(g);
+  const auto scene = make_scene_from_config(cfg);
+  const RealRun run = run_real_replay(cfg, trace, *scene, store);
+  const auto& s = run.result.summary;
+  CHECK(s["faults"]["faults"] == 0);
+  CHECK(s["vt"]["vram_evictions"].get<std::uint64_t>() > 0);
+  CHECK(run.arena->stats().overwrites > 0);
+  CHECK(run.arena->stats().uploads == s["bandwidth"]["uploads"].get<std::uint64_t>());
+  for (const auto& row : run.result.metrics.frames()) CHECK(row.uploads <= 4);
+  check_pool_arena(*run.arena, store, 12, false);  // a partly overwritten slot keeps stale layers
+}
+
+TEST_CASE("bind_store_texture, virtual texturing: pages with borders, every level down to one page, the field named") {
+  const TileStore vt_store = TileStore::open(test::small_vt_store());
+  // A bordered store is no clipmap texture (its windows keep neighbours adjacent).
+  ReplayConfig clip;
+  validate(clip);
+  try {
+    bind_store_texture(clip, vt_store);
+    FAIL("a clipmap bound to a bordered store");
+  } catch (const InputError& e) {
+    CHECK(std::string(e.what()).find("texture.border") != std::string::npos);
+  }
+  // Levels 0..2 of a texture whose pages reach one page at level 4.
+  test::RealScratch dir;
+  GenOptions g;
+  g.width = g.height = 1024;
+  g.tile = 64;
+  g.border = 4;
+  g.levels = 3;
+  g.layers = parse_gen_layers("albedo:zstd", "layers");
+  generate_store(g, dir.file("three.vts"));
+  const TileStore three = TileStore::open(dir.file("three.vts"));
+  ReplayConfig vt;
+  apply_set(replay_config_table(), vt, "run.system=vt");
+  validate(vt);
+  try {
+    bind_store_texture(vt, three);
+    FAIL("a virtual texture bound to a store without its coarse levels");
+  } catch (const InputError& e) {
+    const std::string m = e.what();
+    CHECK(m.find("level_count") != std::string::npos);
+    CHECK(m.find("single page (5)") != std::string::npos);
+  }
+  // The CLI end to end.
+  REQUIRE(test::run_cli(dir, "trace gen static --duration 0.5 --start 16,16 --image 640x360 -o " + dir.file("t.csv")).code == 0);
+  const auto r = test::run_cli(dir, "replay --clock real --system vt --store " + test::small_vt_store() + " --trace " +
+                                        dir.file("t.csv") + " --set texture.texels_per_m=32 --json");
+  REQUIRE(r.code == 0);
+  const auto j = nlohmann::json::parse(r.out);
+  CHECK(j["system"] == "vt");
+  CHECK(j["clock"] == "real");
+  CHECK(j["bandwidth"]["uploads"].get<int>() > 0);
+}
+
+TEST_CASE("VRAM arena: a pool arena places by slot, a window arena by key, and a wrong placement is refused") {
+  const TileStore store = TileStore::open(test::small_vt_store());
+  const std::uint32_t b0 = store.tile_bytes(0), b1 = store.tile_bytes(1);
+  VramArena pool = VramArena::for_pool(3, {b0, b1});
+  TileData t;
+  t.key = TileKey(1, 0, 2, 3);
+  t.bytes = b1;
+  t.texels = std::make_unique<std::uint8_t[]>(b1);
+  t.texels[0] = 42;
+  pool.upload(t, 2);
+  CHECK(pool.peek(t.key, 2).size() == b1);
+  CHECK(pool.peek(t.key, 2)[0] == 42);
+  CHECK(pool.peek(t.key, 1).empty());
+  CHECK(pool.peek(TileKey(0, 0, 2, 3), 2).empty());  // the other layer of the slot is empty
+  CHECK_THROWS_AS(pool.upload(t), std::invalid_argument);     // no slot
+  CHECK_THROWS_AS(pool.upload(t, 3), std::invalid_argument);  // outside the pool
+  pool.upload(t, 0);
+  t.key = TileKey(1, 0, 0, 0);
+  pool.upload(t, 2);
+  CHECK(pool.stats().overwrites == 1);
+  CHECK(pool.stats().uploads == 3);
+  VramArena windows({{2, 2}}, {b0, b1});
+  CHECK_THROWS_AS(windows.upload(t, 0), std::invalid_argument);  // placed by key
+  windows.upload(t);
+  CHECK(windows.peek(t.key).size() == b1);
 }
 
 TEST_CASE("real clock: the frame loop never waits for IO (every read takes 10 s, and the replay does not)") {

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <thread>
 
+#include "cache/page_table.h"
 #include "core/error.h"
 #include "sim/scene.h"
 #include "sim/trace_io.h"
@@ -67,12 +68,17 @@ std::vector<std::string> bind_store_texture(ReplayConfig& cfg, const TileStore& 
                                      layers + "'); leave it unset to take the store's");
   }
   cfg.layers = layers;
-  const std::uint32_t full = store::full_level_count(g.width, g.height);
-  if (g.levels != full)
-    throw InputError(path + ": header field 'level_count'",
-                     fmt::format("{} levels; a clipmap samples every level down to 1×1 ({}): generate the store without --levels",
-                                 g.levels, full));
   validate(cfg);
+  // The clipmap samples every level down to 1×1; a virtual texture's levels go down to one page.
+  const bool vt = cfg.system == "vt";
+  const std::uint32_t need = vt ? static_cast<std::uint32_t>(VtGeometry({cfg.width, cfg.height}, cfg.tile_size, cfg.border).levels())
+                                : store::full_level_count(g.width, g.height);
+  if (g.levels < need || (!vt && g.levels != need))
+    throw InputError(path + ": header field 'level_count'",
+                     fmt::format("{} levels; {} ({}): generate the store without --levels", g.levels,
+                                 vt ? "a virtual texture needs every level down to a single page"
+                                    : "a clipmap samples every level down to 1×1",
+                                 need));
   return {fmt::format("texture from the store {}: {}×{} texels, tile {}, border {}, {} levels, layers {}", path, g.width,
                       g.height, g.tile, g.border, g.levels, layers)};
 }
@@ -99,8 +105,6 @@ void apply_speed(ReplayConfig& cfg, Trace& trace, double speed) {
 
 RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const TileStore& store,
                         const RealClockOptions& options) {
-  if (cfg.system != "clipmap")
-    throw InputError("config", "field 'run.system': the real clock drives the clipmap ('" + cfg.system + "' is not available)");
   ThreadedExecutorConfig xc;
   xc.io_threads = cfg.io_threads;
   xc.decode_workers = cfg.decode_workers;
@@ -109,15 +113,19 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
   xc.faults = cfg.faults;
   ThreadedExecutor exec(store, xc);
 
-  ClipmapParams cp;
-  cp.extent = scene.texture();
-  cp.tile_size = cfg.tile_size;
-  cp.clipsize = cfg.clipsize;
-  cp.layers = static_cast<int>(store.layer_count());
   std::vector<std::uint32_t> layer_bytes;
   for (std::uint32_t i = 0; i < store.layer_count(); ++i) layer_bytes.push_back(store.tile_bytes(i));
   RealRun run;
-  run.arena = std::make_unique<VramArena>(VramArena::for_clipmap(cp, layer_bytes));
+  if (cfg.system == "vt") {
+    run.arena = std::make_unique<VramArena>(VramArena::for_pool(static_cast<std::uint32_t>(cfg.vt_pool_pages), layer_bytes));
+  } else {
+    ClipmapParams cp;
+    cp.extent = scene.texture();
+    cp.tile_size = cfg.tile_size;
+    cp.clipsize = cfg.clipsize;
+    cp.layers = static_cast<int>(store.layer_count());
+    run.arena = std::make_unique<VramArena>(VramArena::for_clipmap(cp, layer_bytes));
+  }
   VramArena& arena = *run.arena;
 
   // Frame pacing: frame f starts at its trace time on the wall clock, or as soon as the previous
@@ -158,8 +166,8 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
     cpu_start = thread_cpu_ms();
     return now;
   };
-  env.on_upload = [&](const UploadItem& u) {
-    if (u.data) arena.upload(*u.data);
+  env.on_upload = [&](const UploadItem& u, std::int64_t slot) {
+    if (u.data) arena.upload(*u.data, slot);
     else ++no_data;
   };
   run.result = run_replay(cfg, trace, scene, env);

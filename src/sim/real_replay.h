@@ -17,8 +17,9 @@ namespace vtsim {
 // Makes the config's texture the store's: texture.width, .height, .tile_size, .border and .layers
 // left at their defaults are taken from the store header (formats from the channel counts,
 // compression ratios from the index); a value that differs from both the default and the store is
-// rejected with InputError naming the field. Checks that the store holds every level the clipmap
-// uses, then re-validates. Returns notes saying what was taken from the store.
+// rejected with InputError naming the field. Re-validates, then checks that the store holds every
+// level the system uses (clipmap: all, down to 1×1; VT: down to a single page). Returns notes
+// saying what was taken from the store.
 std::vector<std::string> bind_store_texture(ReplayConfig& cfg, const TileStore& store);
 
 // Per-tile sizes from the store's index: disk bytes = the aligned read (what crosses the disk under
@@ -40,7 +41,8 @@ struct RealRun {
 
 // Runs the trace in the real clock: IO and decode threads (io.threads, decode.workers,
 // io.max_in_flight, io.direct, io.fault*), frames paced to the trace's times in wall time, uploads
-// copied into the VRAM arena. `cfg` must have been bound to `store` (bind_store_texture).
+// copied into the VRAM arena (clipmap: its windows; VT: the physical page pool, each page in the
+// slot the system gave it). `cfg` must have been bound to `store` (bind_store_texture).
 RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const TileStore& store,
                         const RealClockOptions& options = {});
 

@@ -309,7 +309,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
       level_upload[u.key.level()] += u.bytes;
       row.upload_bytes += u.bytes;
       ++row.uploads;
-      if (env.on_upload) env.on_upload(u);
+      if (env.on_upload) env.on_upload(u, system->vram_slot(u.key));
     }
     if (render) {
       system->set_mark_sampled(true);

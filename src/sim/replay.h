@@ -32,8 +32,9 @@ struct ReplayEnv {
   std::function<Ticks(int frame, Ticks target)> pace;
   // Per-tile sizes; null: from the config's layer formats and compression ratios.
   TileSizer sizer;
-  // Called after each uploaded tile (real clock: copy into the VRAM arena).
-  std::function<void(const UploadItem&)> on_upload;
+  // Called after each uploaded tile with its VRAM slot (IStreamingSystem::vram_slot; real clock:
+  // copy into the VRAM arena).
+  std::function<void(const UploadItem&, std::int64_t slot)> on_upload;
   // Progress callback (frame, frames), called about once a second of wall time.
   std::function<void(int, int)> progress;
   std::string clock_name = "simulated";

@@ -40,6 +40,10 @@ class IStreamingSystem : public IResidency {
   virtual std::uint32_t throttled_needs() const = 0;
   // An uploaded tile becomes resident; false if it is no longer wanted (stale).
   virtual bool commit(TileKey key, int frame) = 0;
+  // Where a tile that commit() just accepted lives in VRAM: its physical pool slot (virtual
+  // texturing: every layer of a page shares one slot), or -1 when the key alone places it (the
+  // clipmap's toroidal windows). The real clock copies the tile's texels there.
+  virtual std::int64_t vram_slot(TileKey) const { return -1; }
   virtual void set_mark_sampled(bool on) = 0;
   // True when the system reads SystemFrame::spans and resolves spans (span_resident_levels); the
   // frame loop then renders spans only. Otherwise it also passes the per-sample buffer (`view`).

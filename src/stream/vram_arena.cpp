@@ -43,8 +43,25 @@ VramArena VramArena::for_clipmap(const ClipmapParams& p, std::vector<std::uint32
   return VramArena(std::move(levels), std::move(layer_bytes));
 }
 
-std::size_t VramArena::slot(TileKey key) const {
-  if (key.level() >= levels_.size() || key.layer() >= layer_bytes_.size())
+VramArena VramArena::for_pool(std::uint32_t slots, std::vector<std::uint32_t> layer_bytes) {
+  VramArena a({LevelWindow{static_cast<std::int64_t>(slots), 1}}, std::move(layer_bytes));
+  a.pool_ = true;
+  return a;
+}
+
+std::size_t VramArena::slot(TileKey key, std::int64_t pool_slot) const {
+  if (key.layer() >= layer_bytes_.size())
+    throw std::invalid_argument("VramArena: tile layer " + std::to_string(key.layer()) + " is outside the arena");
+  if (pool_ != (pool_slot >= 0))
+    throw std::invalid_argument(pool_ ? "VramArena: a pool arena needs the page's pool slot"
+                                      : "VramArena: a window arena places tiles by key, not by pool slot");
+  if (pool_) {
+    if (pool_slot >= levels_[0].wx)
+      throw std::invalid_argument("VramArena: pool slot " + std::to_string(pool_slot) + " is outside the pool of " +
+                                  std::to_string(levels_[0].wx));
+    return static_cast<std::size_t>(static_cast<std::uint64_t>(pool_slot) * layer_bytes_.size() + key.layer());
+  }
+  if (key.level() >= levels_.size())
     throw std::invalid_argument("VramArena: tile level " + std::to_string(key.level()) + " layer " +
                                 std::to_string(key.layer()) + " is outside the arena");
   const LevelWindow& L = levels_[key.level()];
@@ -53,8 +70,8 @@ std::size_t VramArena::slot(TileKey key) const {
                                   static_cast<std::uint64_t>(sy * L.wx + sx) * layer_bytes_.size() + key.layer());
 }
 
-void VramArena::upload(const TileData& tile) {
-  const std::size_t s = slot(tile.key);
+void VramArena::upload(const TileData& tile, std::int64_t pool_slot) {
+  const std::size_t s = slot(tile.key, pool_slot);
   if (tile.bytes != layer_bytes_[tile.key.layer()] || !tile.texels)
     throw std::invalid_argument("VramArena: tile of " + std::to_string(tile.bytes) + " bytes for a slot of " +
                                 std::to_string(layer_bytes_[tile.key.layer()]));
@@ -67,8 +84,8 @@ void VramArena::upload(const TileData& tile) {
   stats_.bytes += tile.bytes;
 }
 
-std::span<const std::uint8_t> VramArena::peek(TileKey key) const {
-  const std::size_t s = slot(key);
+std::span<const std::uint8_t> VramArena::peek(TileKey key, std::int64_t pool_slot) const {
+  const std::size_t s = slot(key, pool_slot);
   if (owner_[s] != key) return {};
   return {mem_.get() + slot_offset_[s], layer_bytes_[key.layer()]};
 }

@@ -3,10 +3,13 @@
 // upload stage copies each decoded tile chosen within the frame's upload budget into it — the
 // memcpy a driver's staging upload would do. Layout mirrors the clipmap's textures (seed 000
 // §3-2): per level a window of wx × wy tile slots addressed toroidally, (x mod wx, y mod wy), one
-// slot per layer, so a tile overwrites exactly the slot of the tile that left its window.
+// slot per layer, so a tile overwrites exactly the slot of the tile that left its window. Or the
+// physical page pool of virtual texturing (for_pool): M slots of one stored page (P + 2B texels a
+// side) per layer, where the streaming system, not the key, says which slot a page fills
+// (IStreamingSystem::vram_slot).
 //
-// Memory: sum over levels of wx · wy · Σ layer tile bytes, reserved up front (pages are touched
-// only when written). upload O(tile bytes); peek O(1). Single-threaded (the frame loop).
+// Memory: sum over levels of wx · wy · Σ layer tile bytes (pool: M · Σ layer tile bytes),
+// allocated and zeroed up front. upload O(tile bytes); peek O(1). Single-threaded (the frame loop).
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -26,12 +29,18 @@ class VramArena {
   VramArena(std::vector<LevelWindow> levels, std::vector<std::uint32_t> layer_bytes);
   // The arena of a clipmap's stack windows and pyramid levels.
   static VramArena for_clipmap(const ClipmapParams& p, std::vector<std::uint32_t> layer_bytes);
+  // A virtual texture's physical page pool of `slots` pages.
+  static VramArena for_pool(std::uint32_t slots, std::vector<std::uint32_t> layer_bytes);
+  bool pool() const { return pool_; }
 
-  // Copies `tile` into its slot, replacing whatever tile held it. Throws std::invalid_argument if
-  // the tile's level or layer is outside the arena or its size is not the layer's.
-  void upload(const TileData& tile);
-  // The texels of `key` if its slot holds that tile now; empty otherwise.
-  std::span<const std::uint8_t> peek(TileKey key) const;
+  // Copies `tile` into its slot, replacing whatever tile held it: the slot its key addresses, or in
+  // a pool arena pool slot `pool_slot` (its layer's part). Throws std::invalid_argument if the
+  // tile's level, layer or pool slot is outside the arena, a pool slot is missing (or given to a
+  // window arena), or its size is not the layer's.
+  void upload(const TileData& tile, std::int64_t pool_slot = -1);
+  // The texels of `key` if its slot (in a pool arena: pool slot `pool_slot`) holds that tile now;
+  // empty otherwise.
+  std::span<const std::uint8_t> peek(TileKey key, std::int64_t pool_slot = -1) const;
 
   std::uint64_t capacity_bytes() const { return bytes_; }
   struct Stats {
@@ -43,7 +52,7 @@ class VramArena {
   const Stats& stats() const { return stats_; }
 
  private:
-  std::size_t slot(TileKey key) const;
+  std::size_t slot(TileKey key, std::int64_t pool_slot) const;
 
   std::vector<LevelWindow> levels_;
   std::vector<std::uint32_t> layer_bytes_;
@@ -52,6 +61,7 @@ class VramArena {
   std::vector<TileKey> owner_;             // tile held by each slot; kNone if empty
   std::unique_ptr<std::uint8_t[]> mem_;
   std::uint64_t bytes_ = 0;
+  bool pool_ = false;
   Stats stats_;
 };
 

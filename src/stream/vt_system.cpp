@@ -372,6 +372,11 @@ bool VtSystem::commit(TileKey key, int frame) {
   return true;
 }
 
+std::int64_t VtSystem::vram_slot(TileKey key) const {
+  const std::uint32_t slot = pool_.slot_of(page_key(static_cast<int>(key.level()), key.x(), key.y()));
+  return slot == PagePool::kNoSlot ? -1 : static_cast<std::int64_t>(slot);
+}
+
 int VtSystem::resolve_from(int from, std::int64_t u, std::int64_t v) const {
   u = std::clamp<std::int64_t>(u, 0, geo_.extent().width - 1);
   v = std::clamp<std::int64_t>(v, 0, geo_.extent().height - 1);

@@ -70,6 +70,7 @@ class VtSystem final : public IStreamingSystem {
   void emit_needs(std::vector<Need>& out) override;
   std::uint32_t throttled_needs() const override { return throttled_tiles_; }
   bool commit(TileKey key, int frame) override;
+  std::int64_t vram_slot(TileKey key) const override;
   void set_mark_sampled(bool on) override { mark_sampled_ = on; }
   bool uses_spans() const override { return true; }
   // build_wanted reads every sample under a feedback bias (levels move inside spans), and with a
