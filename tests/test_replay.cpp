@@ -187,6 +187,11 @@ TEST_CASE("impossible configs are rejected with the field's name") {
   rejects({"view.divisor=-3"}, "view.divisor");
   rejects({"throttle.policy=magic"}, "throttle.policy");
   rejects({"run.fps=abc"}, "run.fps");
+  // Out-of-range numbers are numbers: the field's own check names them.
+  rejects({"run.fps=1e-320"}, "below 0.01 Hz");  // a subnormal rate: frame 0 only
+  rejects({"run.fps=1e400"}, "finite");
+  rejects({"run.fps="}, "expected a number");
+  CHECK_NOTHROW(load_replay_config("", {"run.fps=0.01"}));
   // Sizes and rates that would make the simulation endless or overflow its nanosecond clock.
   rejects({"texture.tile_size=4"}, "texture.tile_size");
   rejects({"clipmap.clipsize=65536"}, "clipmap.clipsize");  // 512 tiles a side

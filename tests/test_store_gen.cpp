@@ -142,6 +142,12 @@ TEST_CASE("generated levels are consistent: a coarse texel is close to the mean 
 TEST_CASE("generator options are checked") {
   CHECK_THROWS_AS(parse_gen_layers("roughness:zstd", "--layers"), InputError);
   CHECK_THROWS_AS(parse_gen_layers("albedo:zstd:99", "--layers"), InputError);
+  try {
+    parse_gen_layers("albedo:zstd,albedo:lz4", "--layers");
+    FAIL("a repeated layer name");
+  } catch (const InputError& e) {
+    CHECK(std::string(e.what()) == "--layers: layer name 'albedo' is used twice");
+  }
   test::TempDir dir;
   GenOptions o = small_options();
   o.layers = parse_gen_layers("albedo:jpeg,normal:jpeg:80", "--layers");
@@ -151,6 +157,13 @@ TEST_CASE("generator options are checked") {
   o.width = 64;
   o.feature_texels = 1;
   CHECK_THROWS_AS(generate_store(o, dir.file("x.vts")), InputError);
+  o.feature_texels = 1e308;
+  try {
+    generate_store(o, dir.file("x.vts"));
+    FAIL("a feature size of 1e308");
+  } catch (const InputError& e) {
+    CHECK(std::string(e.what()).find("got 1e+308") != std::string::npos);
+  }
   CHECK_FALSE(std::filesystem::exists(dir.file("x.vts")));
 }
 

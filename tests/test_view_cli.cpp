@@ -44,6 +44,12 @@ TEST_CASE("vtsim view: bad input exits 2 with the field or file named") {
   CHECK(slurp(log).find(obj + ":4: vertex index 7 is out of range") != std::string::npos);
   CHECK(vtsim::test::run_vtsim("view --scene heightfield --agl --pos -5000,0,2 -o " + png, log) == 2);
   CHECK(vtsim::test::run_vtsim("view -o /nonexistent/dir/x.png", log) == 2);
+  // Heightfield options are checked even where the scene does not read them (generated noise
+  // has no height scale).
+  for (const char* opt : {"--height-scale nan", "--z0 inf", "--spacing 0"}) {
+    CHECK(vtsim::test::run_vtsim(std::string("view --scene heightfield ") + opt + " -o " + png, log) == 2);
+    CHECK(slurp(log).find(std::string(opt).substr(0, std::string(opt).find(' ')) + ": must be finite") != std::string::npos);
+  }
   std::remove(obj.c_str());
   std::remove(log.c_str());
 }

@@ -88,6 +88,10 @@ void run_view(const ViewOptions& o) {
   cfg.z0_m = o.z0_m;
   cfg.seed = o.seed;
   if (o.zoom < 1 || o.zoom > 64) throw InputError("--zoom", "must be in [1, 64]");
+  // Checked whether or not the scene reads them (the generated heightfield has no height scale).
+  if (!(o.spacing_m > 0.0) || !std::isfinite(o.spacing_m)) throw InputError("--spacing", "must be finite and > 0");
+  if (!std::isfinite(o.height_scale_m)) throw InputError("--height-scale", "must be finite");
+  if (!std::isfinite(o.z0_m)) throw InputError("--z0", "must be finite");
 
   int width = 0, height = 0;
   parse_view_size(o.size, width, height);

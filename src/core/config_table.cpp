@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 #include <toml++/toml.h>
@@ -87,14 +88,12 @@ std::pair<std::string, ConfigValue> parse_set_argument(const std::string& arg) {
     } catch (const std::exception&) {
     }
   }
-  // Real?
-  {
-    std::size_t pos = 0;
-    try {
-      const double d = std::stod(text, &pos);
-      if (pos == text.size()) return {key, d};
-    } catch (const std::exception&) {
-    }
+  // Real? strtod, not stod: out of range is still a number (an underflow its subnormal or zero, an
+  // overflow infinity), which the field's bounds then reject with its range.
+  if (!text.empty()) {  // (trimmed)
+    char* end = nullptr;
+    const double d = std::strtod(text.c_str(), &end);
+    if (end == text.c_str() + text.size()) return {key, d};
   }
   return {key, text};
 }

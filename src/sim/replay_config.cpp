@@ -213,6 +213,8 @@ std::uint64_t tile_disk_bytes(const ReplayConfig& c, const LayerSpec& layer) {
 // Largest clip window side in tiles: 256² tiles a level is already far beyond any engine's window
 // (RAGE-style clipmaps keep 8-32 tiles a side), and a frame tracks every tile of every window.
 constexpr int kMaxClipTiles = 256;
+// Least resampling rate: a frame every 100 s (slower, a trace would replay its first frame only).
+constexpr double kMinFps = 0.01;
 // Least bandwidth or throughput the simulated clock accepts: below it one tile's transfer time
 // leaves the 64-bit nanosecond clock's range (1 KB/s moves a 1 MB tile in 1,000 s).
 constexpr double kMinRateMBps = 1e-3;
@@ -223,6 +225,9 @@ void validate(ReplayConfig& c) {
   } catch (const std::invalid_argument& e) {
     bad("texture.layers", e.what());
   }
+  // 0 means the trace's own times; a rate that slow (a subnormal one) would replay frame 0 only.
+  if (c.fps != 0.0 && c.fps < kMinFps)
+    bad("run.fps", fmt::format("{:g} Hz is below {:g} Hz (0 replays the trace's own times)", c.fps, kMinFps));
   if (c.system == "clipmap") {
     if (c.clipsize % c.tile_size != 0)
       bad("clipmap.clipsize", fmt::format("{} is not a multiple of texture.tile_size {}", c.clipsize, c.tile_size));

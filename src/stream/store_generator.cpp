@@ -1,5 +1,7 @@
 #include "stream/store_generator.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <array>
 #include <climits>
@@ -201,7 +203,7 @@ StoreSpec spec_of(const GenOptions& o) {
 
 void check_options(const GenOptions& o) {
   if (!(o.feature_texels >= 4.0 && o.feature_texels <= 1e12))
-    throw InputError("--feature", "the feature size must be 4..1e12 texels, got " + std::to_string(o.feature_texels));
+    throw InputError("--feature", "the feature size must be 4..1e12 texels, got " + fmt::format("{:g}", o.feature_texels));
 }
 
 }  // namespace
@@ -219,6 +221,8 @@ std::vector<GenLayer> parse_gen_layers(const std::string& text, const std::strin
     else if (L.name.rfind("normal", 0) == 0) L.kind = GenKind::normal;
     else if (L.name.rfind("height", 0) == 0) L.kind = GenKind::height;
     else throw InputError(where, "layer '" + L.name + "': a generated layer is named albedo*, normal* or height*");
+    for (const GenLayer& before : layers)
+      if (before.name == L.name) throw InputError(where, "layer name '" + L.name + "' is used twice");
     L.codec = colon == std::string::npos ? CodecSpec{CodecId::zstd, default_codec_param(CodecId::zstd)}
                                          : parse_codec_spec(item.substr(colon + 1), where);
     layers.push_back(L);
