@@ -227,6 +227,12 @@ std::uint32_t PagePool::used_within(int frame, int window) const {
   return n;
 }
 
+std::optional<TileKey> PagePool::complete_page(std::uint32_t slot) const {
+  const Slot& x = slot_.at(slot);
+  if ((x.state == State::resident || x.state == State::victim) && x.mask == full_mask_) return x.page;
+  return std::nullopt;
+}
+
 std::vector<TileKey> PagePool::lru_order() const {
   std::vector<TileKey> out;
   for (std::uint32_t s = lru_tail_; s != kNoSlot; s = slot_[s].prev) out.push_back(slot_[s].page);

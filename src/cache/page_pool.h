@@ -27,6 +27,7 @@
 // ~48 bytes per slot plus two hash maps. Thread-safety: none (the frame loop).
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <vector>
 
 #include "cache/page_map.h"
@@ -110,6 +111,8 @@ class PagePool {
   std::uint32_t used_within(int frame, int window) const;
   // Unlocked pages in eviction order, least recent first (diagnostics and tests; O(slots)).
   std::vector<TileKey> lru_order() const;
+  // The page complete in `slot` (resident, or a pending victim still mapped), if any. O(1).
+  std::optional<TileKey> complete_page(std::uint32_t slot) const;
 
   // A sample resolved to this slot (for the wasted-upload metric).
   void mark_sampled(std::uint32_t slot) const { slot_[slot].sampled = true; }

@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "sim/scene.h"
 #include "sim/trace_io.h"
+#include "stream/vt_system.h"
 #include "stream/threaded_executor.h"
 
 namespace vtsim {
@@ -116,15 +117,21 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
   std::vector<std::uint32_t> layer_bytes;
   for (std::uint32_t i = 0; i < store.layer_count(); ++i) layer_bytes.push_back(store.tile_bytes(i));
   RealRun run;
-  if (cfg.system == "vt") {
-    run.arena = std::make_unique<VramArena>(VramArena::for_pool(static_cast<std::uint32_t>(cfg.vt_pool_pages), layer_bytes));
-  } else {
-    ClipmapParams cp;
-    cp.extent = scene.texture();
-    cp.tile_size = cfg.tile_size;
-    cp.clipsize = cfg.clipsize;
-    cp.layers = static_cast<int>(store.layer_count());
-    run.arena = std::make_unique<VramArena>(VramArena::for_clipmap(cp, layer_bytes));
+  const bool vt = cfg.system == "vt";
+  try {
+    if (vt) {
+      run.arena = std::make_unique<VramArena>(VramArena::for_pool(static_cast<std::uint32_t>(cfg.vt_pool_pages), layer_bytes));
+    } else {
+      ClipmapParams cp;
+      cp.extent = scene.texture();
+      cp.tile_size = cfg.tile_size;
+      cp.clipsize = cfg.clipsize;
+      cp.layers = static_cast<int>(store.layer_count());
+      run.arena = std::make_unique<VramArena>(VramArena::for_clipmap(cp, layer_bytes));
+    }
+  } catch (const std::bad_alloc&) {
+    // The arena is host memory the size of the VRAM it stands for, allocated before the first frame.
+    throw InputError("config", fmt::format("field '{}': the VRAM arena does not fit in host memory", vt ? "vt.pool_pages" : "clipmap.clipsize"));
   }
   VramArena& arena = *run.arena;
 
@@ -170,6 +177,20 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
     if (u.data) arena.upload(*u.data, slot);
     else ++no_data;
   };
+  // VT: every page complete in the pool must be in the arena at its slot, every layer.
+  std::uint64_t pool_layers_missing = 0;
+  env.on_finish = [&](const IStreamingSystem& system) {
+    const auto* vts = dynamic_cast<const VtSystem*>(&system);
+    if (!vts) return;
+    const PagePool& pool = vts->pool();
+    for (std::uint32_t s = 0; s < pool.slots(); ++s) {
+      const std::optional<TileKey> page = pool.complete_page(s);
+      if (!page) continue;
+      run.pool_pages.emplace_back(*page, s);
+      for (std::uint32_t layer = 0; layer < store.layer_count(); ++layer)
+        pool_layers_missing += arena.peek(TileKey(layer, page->level(), page->x(), page->y()), s).empty();
+    }
+  };
   run.result = run_replay(cfg, trace, scene, env);
   exec.shutdown();
 
@@ -192,6 +213,10 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
                       {"bytes", as.bytes},
                       {"overwrites", as.overwrites},
                       {"copy_ms", static_cast<double>(as.copy_ns) * 1e-6}};
+  if (arena.pool()) {
+    rc["vram_arena"]["pool_pages_complete"] = run.pool_pages.size();
+    rc["vram_arena"]["pool_layers_missing"] = pool_layers_missing;  // 0 unless the arena lost an upload
+  }
   rc["injected_faults"] = {{"io_error", inj.io_error}, {"short_read", inj.short_read}, {"checksum", inj.checksum}, {"slow", inj.slow}};
   rc["fault_examples"] = exec.fault_examples();
   return run;

@@ -37,6 +37,9 @@ struct RealClockOptions {
 struct RealRun {
   ReplayResult result;               // the summary has a "real_clock" section
   std::unique_ptr<VramArena> arena;  // what the uploads copied, for inspection
+  // Virtual texturing: the pages complete in the pool when the replay ended, with their slots
+  // (what the page table maps, so what sampling would read from the arena).
+  std::vector<std::pair<TileKey, std::uint32_t>> pool_pages;
 };
 
 // Runs the trace in the real clock: IO and decode threads (io.threads, decode.workers,

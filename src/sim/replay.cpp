@@ -399,6 +399,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
                  {"decode_error", c.fault_by_kind[static_cast<int>(Fault::decode_error)]},
                  {"bad_record", c.fault_by_kind[static_cast<int>(Fault::bad_record)]}};
   s[cfg.system] = system->stats_json();
+  if (env.on_finish) env.on_finish(*system);
   s["run"] = {{"wall_s", wall_s},
               {"render_threads", render_threads},
               {"loop_cpu_s", loop_cpu_s},

@@ -35,6 +35,8 @@ struct ReplayEnv {
   // Called after each uploaded tile with its VRAM slot (IStreamingSystem::vram_slot; real clock:
   // copy into the VRAM arena).
   std::function<void(const UploadItem&, std::int64_t slot)> on_upload;
+  // Called once after the last frame with the system as it ended (real clock: check VRAM).
+  std::function<void(const IStreamingSystem&)> on_finish;
   // Progress callback (frame, frames), called about once a second of wall time.
   std::function<void(int, int)> progress;
   std::string clock_name = "simulated";
