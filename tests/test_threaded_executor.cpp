@@ -4,6 +4,10 @@
 // every state; shutdown with work in flight.
 #include <doctest/doctest.h>
 
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <filesystem>
 #include <map>
 #include <set>
@@ -70,6 +74,40 @@ TEST_CASE("threaded executor: every tile read and decoded equals the store's, st
   }
   CHECK(ids.size() == keys.size());
   CHECK(ex.in_flight() == 0);
+}
+
+// Resident pages of [p, p + bytes) by mincore.
+static std::size_t resident_pages(const std::uint8_t* p, std::size_t bytes) {
+  const auto page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
+  const std::uintptr_t lo = reinterpret_cast<std::uintptr_t>(p) / page * page;
+  const std::size_t n = (reinterpret_cast<std::uintptr_t>(p) + bytes - lo + page - 1) / page;
+  std::vector<unsigned char> v(n);
+  REQUIRE(mincore(reinterpret_cast<void*>(lo), n * page, v.data()) == 0);
+  return static_cast<std::size_t>(std::count_if(v.begin(), v.end(), [](unsigned char c) { return (c & 1) != 0; }));
+}
+
+TEST_CASE("tile buffers: reserved ones come with their pages mapped, are handed out first and kept when released") {
+  // 33 MiB is above malloc's largest mmap threshold (32 MiB), so each buffer is a new mapping:
+  // untouched, its pages are not resident; reserved, every page is, before anything writes it.
+  constexpr std::size_t kBytes = (33u << 20) + 100;
+  constexpr std::size_t kPages = kBytes / 4096;
+  auto fresh = std::make_unique_for_overwrite<std::uint8_t[]>(kBytes);
+  CHECK(resident_pages(fresh.get(), kBytes) < kPages / 2);
+  auto pool = std::make_shared<TileBufferPool>(1);
+  pool->reserve(kBytes, 2);
+  CHECK(pool->free_buffers(kBytes) == 2);
+  std::vector<std::unique_ptr<std::uint8_t[]>> got;
+  for (int i = 0; i < 2; ++i) {
+    got.push_back(pool->acquire(kBytes));
+    CHECK(resident_pages(got.back().get(), kBytes) >= kPages);
+  }
+  CHECK(pool->free_buffers(kBytes) == 0);
+  got.push_back(std::move(fresh));  // one more than the reserve
+  for (auto& b : got) pool->release(std::move(b), kBytes);
+  CHECK(pool->free_buffers(kBytes) == 2);  // the reserve raised what is kept above max_free (1)
+  pool->release(std::make_unique_for_overwrite<std::uint8_t[]>(100), 100);
+  CHECK(pool->free_buffers(100) == 1);  // another size, its own list
+  CHECK(pool->free_buffers(kBytes) == 2);
 }
 
 TEST_CASE("threaded executor: collect(until) never hands out a result completed after `until`") {

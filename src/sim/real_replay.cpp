@@ -112,6 +112,7 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
   xc.capacity = static_cast<std::size_t>(cfg.max_in_flight);
   xc.direct = cfg.io_direct;
   xc.faults = cfg.faults;
+  xc.tile_memory_bytes = static_cast<std::uint64_t>(cfg.ram_MiB * 1048576.0);
   ThreadedExecutor exec(store, xc);
 
   std::vector<std::uint32_t> layer_bytes;

@@ -1,5 +1,6 @@
 #include "stream/threaded_executor.h"
 
+#include <algorithm>
 #include <stdexcept>
 #include <thread>
 
@@ -13,6 +14,13 @@ ThreadedExecutor::ThreadedExecutor(const TileStore& store, const ThreadedExecuto
   // record is then found after the decode queue, as the simulated clock models it.
   decode_ = std::make_unique<DecodePool>(
       store, workers, clock_, [this](DecodeResult&& r) { on_decoded(std::move(r)); }, /*verify=*/true);
+  if (cfg.tile_memory_bytes > 0) {
+    std::uint64_t page = 0;  // one tile of every layer
+    for (std::uint32_t i = 0; i < store.layer_count(); ++i) page += store.tile_bytes(i);
+    const std::uint64_t count =
+        std::min<std::uint64_t>(cfg.tile_memory_bytes / page + capacity_, store.geometry().tiles_per_layer);
+    for (std::uint32_t i = 0; i < store.layer_count(); ++i) decode_->reserve_tiles(store.tile_bytes(i), count);
+  }
   io_ = std::make_unique<IoPool>(store, IoPoolConfig{cfg.io_threads, cfg.direct, /*verify=*/false}, clock_,
                                  [this](ReadResult&& r) { on_read(std::move(r)); }, &faults_);
 }
