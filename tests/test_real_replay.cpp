@@ -41,6 +41,32 @@ Trace still_trace(double seconds) {
   return generate_trace(g);
 }
 
+// 24 m in 2 s across the small store: a texel window of 768 at level 0, many tiles in and out.
+Trace fast_walk_trace() {
+  TraceGenParams g = default_gen_params(TraceKind::walk);
+  g.start_m = {4.0, 16.0};
+  g.speed_mps = 12.0;
+  g.duration_s = 2.0;
+  g.image_width = 640;
+  g.image_height = 360;
+  return generate_trace(g);
+}
+
+// The simulated clock over the same store reads and uploads exactly what the real run did, and
+// ends with the same residency on screen; summary[section][key] agrees too.
+void check_sim_reads_the_same(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const TileStore& store,
+                              const RealRun& run, const char* section, const char* key) {
+  ReplayEnv env;
+  env.sizer = store_sizer(store);
+  const ReplayResult sim = run_replay(cfg, trace, scene, env);
+  const auto& s = run.result.summary;
+  CHECK(sim.summary["bandwidth"]["disk_read_bytes"] == s["bandwidth"]["disk_read_bytes"]);
+  CHECK(sim.summary["bandwidth"]["uploads"] == s["bandwidth"]["uploads"]);
+  CHECK(sim.summary[section][key] == s[section][key]);
+  CHECK(sim.metrics.frames().back().blurry == run.result.metrics.frames().back().blurry);
+  CHECK(sim.metrics.frames().back().deficit_sum == run.result.metrics.frames().back().deficit_sum);
+}
+
 }  // namespace
 
 TEST_CASE("bind_store_texture: the texture comes from the store, and a disagreeing config is rejected naming the field") {
@@ -149,29 +175,14 @@ TEST_CASE("real clock: a short replay completes with every needed tile resident,
     if (!arena.peek(k).empty()) want_bytes += store.locate(k).read_bytes;
   CHECK(s["bandwidth"]["disk_read_bytes"].get<std::uint64_t>() == want_bytes);
 
-  // The simulated clock over the same store needs and reads exactly the same tiles.
-  ReplayEnv env;
-  env.sizer = store_sizer(store);
-  const ReplayResult sim = run_replay(cfg, trace, *scene, env);
-  CHECK(sim.summary["bandwidth"]["disk_read_bytes"] == s["bandwidth"]["disk_read_bytes"]);
-  CHECK(sim.summary["bandwidth"]["uploads"] == s["bandwidth"]["uploads"]);
-  CHECK(sim.summary["cache"]["requests"] == s["cache"]["requests"]);
-  CHECK(sim.metrics.frames().back().blurry == frames.back().blurry);  // the same residency on screen
-  CHECK(sim.metrics.frames().back().deficit_sum == frames.back().deficit_sum);
+  check_sim_reads_the_same(cfg, trace, *scene, store, run, "cache", "requests");
 }
 
 TEST_CASE("real clock: a moving camera streams, cancels and still ends consistent") {
   const TileStore store = TileStore::open(test::small_store());
   const ReplayConfig cfg = bound_cfg(store, {"upload.tiles_per_frame=4", "io.threads=2", "decode.workers=1"});
-  TraceGenParams g = default_gen_params(TraceKind::walk);
-  g.start_m = {4.0, 16.0};
-  g.speed_mps = 12.0;  // 24 m in 2 s: a texel window of 768 at level 0, many tiles in and out
-  g.duration_s = 2.0;
-  g.image_width = 640;
-  g.image_height = 360;
-  const Trace trace = generate_trace(g);
   const auto scene = make_scene_from_config(cfg);
-  const RealRun run = run_real_replay(cfg, trace, *scene, store);
+  const RealRun run = run_real_replay(cfg, fast_walk_trace(), *scene, store);
   const auto& s = run.result.summary;
   CHECK(s["faults"]["faults"] == 0);
   CHECK(s["bandwidth"]["uploads"].get<std::uint64_t>() == run.arena->stats().uploads);
@@ -285,29 +296,14 @@ TEST_CASE("real clock, virtual texturing: pages land byte-exact in their pool sl
   CHECK(run.pool_pages.size() * 2 == uploads);  // every page uploaded is complete and in the pool
   CHECK(s["vt"]["layer_commits"].get<std::uint64_t>() == uploads);
 
-  // The simulated clock over the same store needs and reads exactly the same pages.
-  ReplayEnv env;
-  env.sizer = store_sizer(store);
-  const ReplayResult sim = run_replay(cfg, trace, *scene, env);
-  CHECK(sim.summary["bandwidth"]["disk_read_bytes"] == s["bandwidth"]["disk_read_bytes"]);
-  CHECK(sim.summary["bandwidth"]["uploads"] == s["bandwidth"]["uploads"]);
-  CHECK(sim.summary["vt"]["pages_mapped"] == s["vt"]["pages_mapped"]);
-  CHECK(sim.metrics.frames().back().blurry == frames.back().blurry);
-  CHECK(sim.metrics.frames().back().deficit_sum == frames.back().deficit_sum);
+  check_sim_reads_the_same(cfg, trace, *scene, store, run, "vt", "pages_mapped");
 }
 
 TEST_CASE("real clock, virtual texturing: an oversubscribed pool evicts and reuses slots, and VRAM stays the store's bytes") {
   const TileStore store = TileStore::open(test::small_vt_store());
   const ReplayConfig cfg = bound_cfg(store, {"run.system=vt", "vt.pool_pages=12", "upload.tiles_per_frame=4"});
-  TraceGenParams g = default_gen_params(TraceKind::walk);
-  g.start_m = {4.0, 16.0};
-  g.speed_mps = 12.0;
-  g.duration_s = 2.0;
-  g.image_width = 640;
-  g.image_height = 360;
-  const Trace trace = generate_trace(g);
   const auto scene = make_scene_from_config(cfg);
-  const RealRun run = run_real_replay(cfg, trace, *scene, store);
+  const RealRun run = run_real_replay(cfg, fast_walk_trace(), *scene, store);
   const auto& s = run.result.summary;
   CHECK(s["faults"]["faults"] == 0);
   CHECK(s["vt"]["vram_evictions"].get<std::uint64_t>() > 0);
