@@ -12,8 +12,8 @@
 #include "core/error.h"
 #include "sim/scene.h"
 #include "sim/trace_io.h"
-#include "stream/vt_system.h"
 #include "stream/threaded_executor.h"
+#include "stream/vt_system.h"
 
 namespace vtsim {
 
