@@ -316,6 +316,21 @@ TEST_CASE("real clock, virtual texturing: an oversubscribed pool evicts and reus
   CHECK(check_pool_arena(run, store, 12, false) >= 2 * run.pool_pages.size());
 }
 
+TEST_CASE("real clock, virtual texturing with injected faults: failed layers retried or given up, VRAM still exact") {
+  const TileStore store = TileStore::open(test::small_vt_store());
+  const ReplayConfig cfg = bound_cfg(store, {"run.system=vt", "vt.pool_pages=24", "io.fault_rate=0.3",
+                                             "io.fault.checksum_rate=0.1", "io.fault.short_read_rate=0.1",
+                                             "io.max_retries=1", "io.retry_backoff_frames=1"});
+  const auto scene = make_scene_from_config(cfg);
+  const RealRun run = run_real_replay(cfg, fast_walk_trace(), *scene, store);
+  const auto& f = run.result.summary["faults"];
+  CHECK(f["faults"].get<std::uint64_t>() > 0);
+  CHECK(f["retries"].get<std::uint64_t>() > 0);
+  CHECK(run.arena->stats().uploads > 0);
+  CHECK(run.pool_pages.size() > 0);
+  check_pool_arena(run, store, 24, false);  // no corrupt record reached VRAM, every mapped page whole
+}
+
 TEST_CASE("bind_store_texture, virtual texturing: pages with borders, every level down to one page, the field named") {
   const TileStore vt_store = TileStore::open(test::small_vt_store());
   // A bordered store is no clipmap texture (its windows keep neighbours adjacent).
