@@ -46,10 +46,10 @@ class TileBufferPool : public std::enable_shared_from_this<TileBufferPool> {
   explicit TileBufferPool(std::size_t max_free = 256) : max_free_(max_free) {}
   std::unique_ptr<std::uint8_t[]> acquire(std::size_t bytes);
   void release(std::unique_ptr<std::uint8_t[]> buf, std::size_t bytes);
-  // Allocates `count` buffers of `bytes` with their pages already mapped, and keeps up to that many
-  // free from then on: a decode into a fresh buffer page-faults on every 4 KiB it writes, which on
-  // this project's VM cost 13 µs a page, 0.25 ms for a 136² RGB tile against a 0.04 ms decode
-  // (docs/real-engine.md §7a). What the real clock reserves before its first frame.
+  // Allocates `count` buffers of `bytes` with their pages already mapped and written once, and keeps
+  // up to that many free from then on: a decode into a fresh buffer page-faults on every 4 KiB it
+  // writes, which on this project's VM cost 13 µs a page, 0.25 ms for a 136² RGB tile against a
+  // 0.04 ms decode (docs/real-engine.md §7a). What the real clock reserves before its first frame.
   void reserve(std::size_t bytes, std::size_t count);
   std::size_t free_buffers(std::size_t bytes) const;
 
