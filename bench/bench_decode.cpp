@@ -187,57 +187,55 @@ int main(int argc, char** argv) {
     // The real clock's RAM cache keeps every decoded tile, so without a reserve each decode writes
     // memory nothing has touched yet. Both sides keep their results (2 workers); the reference's
     // buffers are new mappings each repetition (mallopt below: freed memory is unmapped, not reused),
-    // ours come from TileBufferPool::reserve, mapped in the untimed setup.
-    {
-      std::size_t largest = 0;
-      for (const Record& rec : recs) largest = std::max(largest, rec.bytes.size());
-      auto buffers = std::make_shared<BufferPool>(largest, recs.size() + 8);
-      std::vector<DecodeTask> tasks;
-      std::vector<std::shared_ptr<const TileData>> kept;
-      std::unique_ptr<DecodePool> pool;
-      std::mutex m;
-      std::condition_variable cv;
-      std::size_t done = 0;
-      std::atomic<std::size_t> failures{0};
-      WallClock clock;
-      const auto setup = [&](bool reserve) {
-        pool.reset();
-        kept.clear();
-        kept.reserve(recs.size());
-        done = 0;
-        tasks.clear();
-        for (std::size_t i = 0; i < recs.size(); ++i) {
-          RecordBuffer b = buffers->acquire();
-          std::copy(recs[i].bytes.begin(), recs[i].bytes.end(), b.data());
-          tasks.push_back(DecodeTask{i + 1, recs[i].key, 0, std::move(b), recs[i].bytes.size()});
-        }
-        pool = std::make_unique<DecodePool>(store, 2, clock, [&](DecodeResult&& r) {
-          if (r.fault != Fault::none) failures.fetch_add(1);
-          std::lock_guard lock(m);
-          kept.push_back(std::move(r.data));
-          if (++done == recs.size()) cv.notify_one();
-        });
-        if (reserve) pool->reserve_tiles(recs[0].decoded, recs.size());
-      };
-      const auto run = [&] {
-        for (auto& t : tasks) pool->submit(t);
-        std::unique_lock lock(m);
-        cv.wait(lock, [&] { return done == recs.size(); });
-      };
-      mallopt(M_MMAP_THRESHOLD, 16 * 1024);  // fixed (no dynamic raise): every tile buffer its own mapping
-      mallopt(M_TRIM_THRESHOLD, 0);
-      h.compare({.name = codec + "_kept_w2",
-                 .metric = vb::Metric::kMBPerS,
-                 .work = decoded_bytes,
-                 .params = {{"codec", codec}, {"workers", 2}, {"tiles", recs.size()}, {"reference", "fresh buffers"},
-                            {"what", "decoded tiles kept, as the RAM cache keeps them: reserved buffers vs memory never touched"}}},
-                {"reserved", [&] { setup(true); }, run}, {"fresh_buffers", [&] { setup(false); }, run});
+    // ours come from TileBufferPool::reserve, mapped and written in the untimed setup.
+    std::size_t largest = 0;
+    for (const Record& rec : recs) largest = std::max(largest, rec.bytes.size());
+    auto buffers = std::make_shared<BufferPool>(largest, recs.size() + 8);
+    std::vector<DecodeTask> tasks;
+    std::vector<std::shared_ptr<const TileData>> kept;
+    std::unique_ptr<DecodePool> pool;
+    std::mutex m;
+    std::condition_variable cv;
+    std::size_t done = 0;
+    std::atomic<std::size_t> failures{0};
+    WallClock clock;
+    const auto setup = [&](bool reserve) {
       pool.reset();
       kept.clear();
-      if (failures.load()) {
-        std::fprintf(stderr, "bench_decode: %zu decodes failed\n", failures.load());
-        return 3;
+      kept.reserve(recs.size());
+      done = 0;
+      tasks.clear();
+      for (std::size_t i = 0; i < recs.size(); ++i) {
+        RecordBuffer b = buffers->acquire();
+        std::copy(recs[i].bytes.begin(), recs[i].bytes.end(), b.data());
+        tasks.push_back(DecodeTask{i + 1, recs[i].key, 0, std::move(b), recs[i].bytes.size()});
       }
+      pool = std::make_unique<DecodePool>(store, 2, clock, [&](DecodeResult&& r) {
+        if (r.fault != Fault::none) failures.fetch_add(1);
+        std::lock_guard lock(m);
+        kept.push_back(std::move(r.data));
+        if (++done == recs.size()) cv.notify_one();
+      });
+      if (reserve) pool->reserve_tiles(recs[0].decoded, recs.size());
+    };
+    const auto run = [&] {
+      for (auto& t : tasks) pool->submit(t);
+      std::unique_lock lock(m);
+      cv.wait(lock, [&] { return done == recs.size(); });
+    };
+    mallopt(M_MMAP_THRESHOLD, 16 * 1024);  // fixed (no dynamic raise): every tile buffer its own mapping
+    mallopt(M_TRIM_THRESHOLD, 0);
+    h.compare({.name = codec + "_kept_w2",
+               .metric = vb::Metric::kMBPerS,
+               .work = decoded_bytes,
+               .params = {{"codec", codec}, {"workers", 2}, {"tiles", recs.size()}, {"reference", "fresh buffers"},
+                          {"what", "decoded tiles kept, as the RAM cache keeps them: reserved buffers vs memory never touched"}}},
+              {"reserved", [&] { setup(true); }, run}, {"fresh_buffers", [&] { setup(false); }, run});
+    pool.reset();
+    kept.clear();
+    if (failures.load()) {
+      std::fprintf(stderr, "bench_decode: %zu decodes failed\n", failures.load());
+      return 3;
     }
   }
   return h.finish();
