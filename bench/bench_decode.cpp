@@ -58,6 +58,22 @@ void run_threads(int w, const std::vector<Record>& recs, Fn fn) {
   for (auto& x : t) x.join();
 }
 
+// A record buffer pool for `recs`, and one decode task per record copied into its buffers (what the
+// IO pool hands the decode stage); untimed set-up of the pool cases.
+std::shared_ptr<BufferPool> record_buffers(const std::vector<Record>& recs) {
+  std::size_t largest = 0;
+  for (const Record& rec : recs) largest = std::max(largest, rec.bytes.size());
+  return std::make_shared<BufferPool>(largest, recs.size() + 8);
+}
+void fill_tasks(BufferPool& buffers, const std::vector<Record>& recs, std::vector<DecodeTask>& tasks) {
+  tasks.clear();
+  for (std::size_t i = 0; i < recs.size(); ++i) {
+    RecordBuffer b = buffers.acquire();
+    std::copy(recs[i].bytes.begin(), recs[i].bytes.end(), b.data());
+    tasks.push_back(DecodeTask{i + 1, recs[i].key, 0, std::move(b), recs[i].bytes.size()});
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -130,18 +146,9 @@ int main(int argc, char** argv) {
            }});
     double one_worker = 0;
     for (int w : {1, 2, 4}) {
-      std::size_t largest = 0;
-      for (const Record& rec : recs) largest = std::max(largest, rec.bytes.size());
-      auto buffers = std::make_shared<BufferPool>(largest, recs.size() + 8);
+      auto buffers = record_buffers(recs);
       std::vector<DecodeTask> tasks;
-      auto setup = [&] {
-        tasks.clear();
-        for (std::size_t i = 0; i < recs.size(); ++i) {
-          RecordBuffer b = buffers->acquire();
-          std::copy(recs[i].bytes.begin(), recs[i].bytes.end(), b.data());
-          tasks.push_back(DecodeTask{i + 1, recs[i].key, 0, std::move(b), recs[i].bytes.size()});
-        }
-      };
+      auto setup = [&] { fill_tasks(*buffers, recs, tasks); };
       std::atomic<std::size_t> failures{0};
       auto pool_run = [&] {
         std::mutex m;
@@ -188,9 +195,7 @@ int main(int argc, char** argv) {
     // memory nothing has touched yet. Both sides keep their results (2 workers); the reference's
     // buffers are new mappings each repetition (mallopt below: freed memory is unmapped, not reused),
     // ours come from TileBufferPool::reserve, mapped and written in the untimed setup.
-    std::size_t largest = 0;
-    for (const Record& rec : recs) largest = std::max(largest, rec.bytes.size());
-    auto buffers = std::make_shared<BufferPool>(largest, recs.size() + 8);
+    auto buffers = record_buffers(recs);
     std::vector<DecodeTask> tasks;
     std::vector<std::shared_ptr<const TileData>> kept;
     std::unique_ptr<DecodePool> pool;
@@ -204,12 +209,7 @@ int main(int argc, char** argv) {
       kept.clear();
       kept.reserve(recs.size());
       done = 0;
-      tasks.clear();
-      for (std::size_t i = 0; i < recs.size(); ++i) {
-        RecordBuffer b = buffers->acquire();
-        std::copy(recs[i].bytes.begin(), recs[i].bytes.end(), b.data());
-        tasks.push_back(DecodeTask{i + 1, recs[i].key, 0, std::move(b), recs[i].bytes.size()});
-      }
+      fill_tasks(*buffers, recs, tasks);
       pool = std::make_unique<DecodePool>(store, 2, clock, [&](DecodeResult&& r) {
         if (r.fault != Fault::none) failures.fetch_add(1);
         std::lock_guard lock(m);

@@ -44,7 +44,7 @@ struct ThreadedExecutorConfig {
   std::size_t capacity = 64;   // jobs the pipeline may keep submitted (io.max_in_flight)
   bool direct = true;          // O_DIRECT (io.direct)
   FaultConfig faults;          // injected faults (io.fault_rate, io.fault.*)
-  // Decoded tiles to hold buffers for, mapped up front, bytes (ram.capacity_MiB: the RAM cache's
+  // Decoded tiles to hold buffers for, mapped and written up front, bytes (ram.capacity_MiB: the RAM cache's
   // tiles, plus `capacity` in flight); spread over the layers as a page needs them, at most the
   // store's tiles. 0: none, every buffer is allocated on first use (and page-faults then).
   std::uint64_t tile_memory_bytes = 0;
