@@ -231,17 +231,21 @@ TEST_CASE("a record corrupted on disk fails its checksum, and one that passes it
   auto bytes = test::file_bytes(test::small_store());
   const TileStore orig = TileStore::open(test::small_store());
   const TileKey flipped(0, 0, 2, 3), garbage(0, 0, 4, 1), fine(1, 0, 2, 3);
+  // The tile the executor's workers warm up on (io_pool.h, decode_pool.h): corrupt too, it must
+  // neither stop the executor from starting nor be reported by anything but its own request.
+  const TileKey warm(0, orig.geometry().levels - 1, 0, 0);
   const TileLocation lf = orig.locate(flipped), lg = orig.locate(garbage);
   REQUIRE(orig.index()[orig.geometry().slot(garbage)].codec == store::CodecId::zstd);
   bytes[lf.offset + 10] ^= 0xFF;  // a bit flip on disk
+  bytes[orig.locate(warm).offset + 10] ^= 0xFF;
   for (std::uint32_t i = 0; i < lg.stored_bytes; ++i) bytes[lg.offset + i] = static_cast<std::uint8_t>(i * 37);  // not zstd
   reseal(bytes, orig, garbage, store::checksum64(&bytes[lg.offset], lg.stored_bytes));  // ... with a valid checksum
   test::put_file(p, bytes);
   const TileStore store = TileStore::open(p);
-  const auto out = run_jobs(store, {}, {flipped, garbage, fine});
-  REQUIRE(out.size() == 3);
+  const auto out = run_jobs(store, {}, {flipped, garbage, fine, warm});
+  REQUIRE(out.size() == 4);
   for (const JobResult& r : out) {
-    if (r.key == flipped) CHECK(r.fault == Fault::checksum);
+    if (r.key == flipped || r.key == warm) CHECK(r.fault == Fault::checksum);
     if (r.key == garbage) CHECK(r.fault == Fault::decode_error);
     if (r.key == fine) CHECK(r.outcome == JobOutcome::ready);
   }

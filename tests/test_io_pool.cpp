@@ -244,4 +244,41 @@ TEST_CASE("io pool: a key outside the store is a bad_record result naming the ti
   }
 }
 
+TEST_CASE("io pool: warm workers read once each before the constructor returns, with no result and no fault drawn") {
+  const TileStore store = TileStore::open(test::small_store());
+  WallClock clock;
+  Sink sink;
+  FaultConfig fc;
+  fc.io_error_rate = 1.0;  // every read the fault layer plans fails
+  FaultLayer faults(fc);
+  IoPool pool(store, IoPoolConfig{3, true, true, /*buffers=*/5, /*warm=*/true}, clock, std::ref(sink), &faults);
+  CHECK(pool.warmed() == 3);        // the constructor waited for every worker
+  CHECK(pool.free_buffers() == 5);  // the reserve, and the warm reads gave theirs back
+  CHECK(sink.size() == 0);
+  CHECK(faults.injected().io_error == 0);
+  // The warm reads used the coarsest tile; its first real read is still attempt 0 of its plan.
+  const TileKey coarsest(0, store.geometry().levels - 1, 0, 0);
+  REQUIRE(pool.submit(ReadRequest{1, coarsest, 0}));
+  REQUIRE(eventually([&] { return sink.size() == 1; }));
+  CHECK(sink.results[0].fault == Fault::io_error);
+  CHECK(faults.injected().io_error == 1);
+  CHECK(plan_faults(fc, coarsest, 0).fault == Fault::io_error);
+
+  Sink cold_sink;
+  IoPool cold(store, IoPoolConfig{2, true}, clock, std::ref(cold_sink));
+  CHECK(cold.warmed() == 0);
+  CHECK(cold.free_buffers() == 0);
+}
+
+TEST_CASE("decode pool: warm workers decode every layer once before the constructor returns, with no result") {
+  const TileStore store = TileStore::open(test::small_store());
+  WallClock clock;
+  std::atomic<int> results{0};
+  DecodePool pool(store, 2, clock, [&](DecodeResult&&) { ++results; }, true, /*warm=*/true);
+  CHECK(pool.warmed() == 2);
+  CHECK(results.load() == 0);
+  DecodePool cold(store, 1, clock, [&](DecodeResult&&) { ++results; });
+  CHECK(cold.warmed() == 0);
+}
+
 TEST_SUITE_END();

@@ -138,6 +138,67 @@ TEST_CASE("determinism: two runs give the same summary and frames, bit for bit")
   CHECK(a.summary["faults"]["faults"].get<int>() > 0);
 }
 
+namespace {
+
+// A scene that counts its renders (a decorator: the inner scene does the work).
+class CountingScene final : public IScene {
+ public:
+  explicit CountingScene(const IScene& s) : s_(s) {}
+  TextureExtent texture() const override { return s_.texture(); }
+  void render(const Camera& c, const ViewParams& p, ViewBuffer& out) const override {
+    ++renders;
+    s_.render(c, p, out);
+  }
+  void render_spans(const Camera& c, const ViewParams& p, SpanBuffer& out) const override {
+    ++renders;
+    s_.render_spans(c, p, out);
+  }
+  void render_pixels(const SpanBuffer& sb, std::uint32_t pixel, std::uint32_t count, std::vector<ViewSample>& out) const override {
+    s_.render_pixels(sb, pixel, count, out);
+  }
+  mutable int renders = 0;  // the loop's thread only: render_threads = 0 below
+
+ private:
+  const IScene& s_;
+};
+
+}  // namespace
+
+TEST_CASE("paced (the real clock's loop): the first view is rendered once before frame 0, and nothing else changes") {
+  TraceGenParams g = default_gen_params(TraceKind::walk);
+  g.duration_s = 1.0;
+  const Trace t = generate_trace(g);
+  for (const char* system : {"clipmap", "vt"}) {
+    CAPTURE(system);
+    const ReplayConfig cfg = load_replay_config("", {std::string("run.system=") + system, "view.render_threads=0"});
+    auto inner = make_scene_from_config(cfg);
+    CountingScene scene(*inner);
+    const ReplayResult plain = run_replay(cfg, t, scene);
+    const int plain_renders = scene.renders;
+    CHECK(plain_renders == static_cast<int>(plain.metrics.frames().size()));  // a walk: every pose differs
+    scene.renders = 0;
+    ReplayEnv env;
+    int before_frame0 = -1;
+    env.pace = [&](int f, Ticks target) {
+      if (f == 0) before_frame0 = scene.renders;
+      return target;
+    };
+    ReplayResult paced = run_replay(cfg, t, scene, env);
+    CHECK(before_frame0 == 1);
+    CHECK(scene.renders == plain_renders + 1);
+    ReplayResult a = plain;
+    a.summary.erase("run");
+    paced.summary.erase("run");
+    CHECK(a.summary.dump() == paced.summary.dump());
+    REQUIRE(a.metrics.frames().size() == paced.metrics.frames().size());
+    for (std::size_t i = 0; i < a.metrics.frames().size(); ++i) {
+      CHECK(a.metrics.frames()[i].blurry == paced.metrics.frames()[i].blurry);
+      CHECK(a.metrics.frames()[i].needs == paced.metrics.frames()[i].needs);
+      CHECK(a.metrics.frames()[i].uploads == paced.metrics.frames()[i].uploads);
+    }
+  }
+}
+
 TEST_CASE("the upload budget is never exceeded in a replay") {
   TraceGenParams g = default_gen_params(TraceKind::drive);
   g.duration_s = 4.0;

@@ -15,6 +15,7 @@
 // outlive the pool.
 #include <atomic>
 #include <functional>
+#include <latch>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -87,8 +88,10 @@ class DecodePool {
   using Sink = std::function<void(DecodeResult&&)>;
 
   // verify: check each record's checksum before decoding (a mismatch is Fault::checksum); the
-  // threaded executor's IO pool leaves it to this stage.
-  DecodePool(const TileStore& store, int workers, const WallClock& clock, Sink sink, bool verify = true);
+  // threaded executor's IO pool leaves it to this stage. warm: each worker decodes a tile of every
+  // layer once before the constructor returns (warm_decode).
+  DecodePool(const TileStore& store, int workers, const WallClock& clock, Sink sink, bool verify = true,
+             bool warm = false);
   ~DecodePool();
   DecodePool(const DecodePool&) = delete;
   DecodePool& operator=(const DecodePool&) = delete;
@@ -105,15 +108,24 @@ class DecodePool {
   std::size_t queued() const { return queue_.size(); }
   int active() const { return active_.load(std::memory_order_relaxed); }
   int workers() const { return static_cast<int>(workers_.size()); }
+  int warmed() const { return warm_done_.load(std::memory_order_acquire); }  // workers that did warm_decode
   State state() const { return state_.load(std::memory_order_acquire); }
 
  private:
   void worker();
+  // A worker's first decode of a codec pays for the codec's per-thread state (zstd's ZSTD_DCtx) and
+  // the thread's first allocations: 0.4-4 ms on this project's VM against 0.04 ms warm
+  // (docs/real-engine.md §7a). Reads and decodes the coarsest tile of each layer into a pool
+  // buffer and returns it; errors are left for the real request to report.
+  void warm_decode();
 
   const TileStore& store_;
   const WallClock& clock_;
   Sink sink_;
   const bool verify_;
+  const bool warm_;
+  std::latch warmed_;  // counts the workers still warming
+  std::atomic<int> warm_done_{0};
   std::shared_ptr<TileBufferPool> tiles_ = std::make_shared<TileBufferPool>();
   WorkQueue<DecodeTask> queue_;
   std::atomic<int> active_{0};

@@ -37,6 +37,20 @@ void BufferPool::release(AlignedBuffer&& b) {
   if (free_.size() < max_free_) free_.push_back(std::move(b));
 }
 
+void BufferPool::reserve(std::size_t count) {
+  std::vector<AlignedBuffer> made;
+  made.reserve(count);
+  for (std::size_t i = 0; i < count; ++i) made.emplace_back(bytes_);
+  std::lock_guard lock(m_);
+  max_free_ = std::max(max_free_, free_.size() + count);
+  for (AlignedBuffer& b : made) free_.push_back(std::move(b));
+}
+
+std::size_t BufferPool::free_buffers() const {
+  std::lock_guard lock(m_);
+  return free_.size();
+}
+
 bool direct_io_aligned(const void* buf, std::uint64_t offset, std::size_t bytes) {
   constexpr std::uint64_t a = AlignedBuffer::kAlignment;
   return reinterpret_cast<std::uintptr_t>(buf) % a == 0 && offset % a == 0 && bytes % a == 0;
@@ -53,7 +67,8 @@ std::size_t largest_read(const TileStore& store) {
 }  // namespace
 
 IoPool::IoPool(const TileStore& store, const IoPoolConfig& cfg, const WallClock& clock, Sink sink, FaultLayer* faults)
-    : store_(store), clock_(clock), sink_(std::move(sink)), faults_(faults), verify_(cfg.verify) {
+    : store_(store), clock_(clock), sink_(std::move(sink)), faults_(faults), verify_(cfg.verify), warm_(cfg.warm),
+      warmed_(cfg.warm ? std::clamp(cfg.threads, 0, 1024) : 0) {
   if (cfg.threads < 1 || cfg.threads > 1024) throw InputError("io.threads", "must be in 1..1024, got " + std::to_string(cfg.threads));
   DirectOpen o = open_for_read(store.path(), cfg.direct);
   file_ = std::move(o.file);
@@ -62,8 +77,10 @@ IoPool::IoPool(const TileStore& store, const IoPoolConfig& cfg, const WallClock&
     throw InputError(store.path(), "the file changed since the store was opened (" + std::to_string(file_.size()) +
                                        " bytes, the header says " + std::to_string(store.header().file_bytes) + ")");
   buffers_ = std::make_shared<BufferPool>(largest_read(store), 256);
+  buffers_->reserve(cfg.buffers);
   workers_.reserve(static_cast<std::size_t>(cfg.threads));
   for (int i = 0; i < cfg.threads; ++i) workers_.emplace_back([this] { worker(); });
+  warmed_.wait();
 }
 
 IoPool::~IoPool() { stop(); }
@@ -151,7 +168,17 @@ ReadResult IoPool::read_record(const TileStore& store, const ReadFile& file, Buf
   return r;
 }
 
+void IoPool::warm_read() {
+  const TileKey k(0, store_.geometry().levels - 1, 0, 0);
+  (void)read_record(store_, file_, *buffers_, k, FaultPlan{}, clock_, /*verify=*/false);
+}
+
 void IoPool::worker() {
+  if (warm_) {
+    warm_read();
+    warm_done_.fetch_add(1, std::memory_order_release);
+    warmed_.count_down();
+  }
   while (auto item = queue_.pop_wait()) {
     active_.fetch_add(1, std::memory_order_relaxed);
     const ReadRequest& q = item->task;

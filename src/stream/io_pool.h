@@ -26,6 +26,7 @@
 // FaultLayer must outlive the pool.
 #include <atomic>
 #include <functional>
+#include <latch>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -69,11 +70,16 @@ class BufferPool : public std::enable_shared_from_this<BufferPool> {
   BufferPool(std::size_t buffer_bytes, std::size_t max_free) : bytes_(buffer_bytes), max_free_(max_free) {}
   RecordBuffer acquire();
   void release(AlignedBuffer&& b);
+  // Allocates `count` buffers (AlignedBuffer writes every page) into the free list, raising
+  // max_free to hold them: reads then land in memory already mapped (a first touch costs ~13 µs a
+  // page on a paravirtualised VM; docs/real-engine.md §7a).
+  void reserve(std::size_t count);
+  std::size_t free_buffers() const;
   std::size_t buffer_bytes() const { return bytes_; }
 
  private:
   std::size_t bytes_, max_free_;
-  std::mutex m_;
+  mutable std::mutex m_;
   std::vector<AlignedBuffer> free_;  // guarded by m_
 };
 
@@ -84,6 +90,8 @@ struct IoPoolConfig {
   int threads = 4;     // workers, = reads in flight at once (config io.threads)
   bool direct = true;  // O_DIRECT reads (config io.direct); false = through the page cache
   bool verify = true;  // check each record's checksum on the IO worker; false when the decode stage does
+  std::size_t buffers = 0;  // record buffers made before the first read: the reads in flight at most (io.max_in_flight)
+  bool warm = false;        // each worker reads a record once before the constructor returns (warm_read)
 };
 
 struct ReadRequest {
@@ -130,6 +138,8 @@ class IoPool {
   int threads() const { return static_cast<int>(workers_.size()); }
   State state() const { return state_.load(std::memory_order_acquire); }
   std::size_t max_read_bytes() const { return buffers_->buffer_bytes(); }
+  std::size_t free_buffers() const { return buffers_->free_buffers(); }
+  int warmed() const { return warm_done_.load(std::memory_order_acquire); }  // workers that did warm_read
 
   // One read as a worker performs it (also used by benchmarks and calibration): the record of
   // `key` into a buffer from `buffers`, with `plan`'s faults, checksum verified if `verify`.
@@ -139,12 +149,20 @@ class IoPool {
 
  private:
   void worker();
+  // A worker's first read pays once for what later reads do not (the thread's first touches of its
+  // stack and of the kernel's and libc's per-thread state): 0.3-2 ms on this project's VM, against
+  // ~0.1 ms warm, enough to hold a 240 Hz replay's first reads back by a frame
+  // (docs/real-engine.md §7a). Reads the coarsest tile of layer 0; no fault, no sink, no result.
+  void warm_read();
 
   const TileStore& store_;
   const WallClock& clock_;
   Sink sink_;
   FaultLayer* faults_;
   const bool verify_;
+  const bool warm_;
+  std::latch warmed_;  // counts the workers still warming
+  std::atomic<int> warm_done_{0};
   ReadFile file_;
   std::string warning_;
   std::shared_ptr<BufferPool> buffers_;

@@ -13,7 +13,7 @@ ThreadedExecutor::ThreadedExecutor(const TileStore& store, const ThreadedExecuto
   // Checksums are checked on the decode workers, not the IO workers (io_pool.h says why); a corrupt
   // record is then found after the decode queue, as the simulated clock models it.
   decode_ = std::make_unique<DecodePool>(
-      store, workers, clock_, [this](DecodeResult&& r) { on_decoded(std::move(r)); }, /*verify=*/true);
+      store, workers, clock_, [this](DecodeResult&& r) { on_decoded(std::move(r)); }, /*verify=*/true, cfg.warm);
   if (cfg.tile_memory_bytes > 0) {
     std::uint64_t page = 0;  // one tile of every layer
     for (std::uint32_t i = 0; i < store.layer_count(); ++i) page += store.tile_bytes(i);
@@ -21,7 +21,7 @@ ThreadedExecutor::ThreadedExecutor(const TileStore& store, const ThreadedExecuto
         std::min<std::uint64_t>(cfg.tile_memory_bytes / page + capacity_, store.geometry().tiles_per_layer);
     for (std::uint32_t i = 0; i < store.layer_count(); ++i) decode_->reserve_tiles(store.tile_bytes(i), count);
   }
-  io_ = std::make_unique<IoPool>(store, IoPoolConfig{cfg.io_threads, cfg.direct, /*verify=*/false}, clock_,
+  io_ = std::make_unique<IoPool>(store, IoPoolConfig{cfg.io_threads, cfg.direct, /*verify=*/false, capacity_, cfg.warm}, clock_,
                                  [this](ReadResult&& r) { on_read(std::move(r)); }, &faults_);
 }
 
