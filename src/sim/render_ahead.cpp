@@ -90,6 +90,17 @@ RenderAhead::Buffers& RenderAhead::next() {
   return s.buf;
 }
 
+void RenderAhead::wait_rendered(std::size_t n) {
+  std::unique_lock<std::mutex> lk(mu_);
+  if (taken_ != 0) throw std::logic_error("render-ahead: wait_rendered after next()");
+  n = std::min({n, jobs_, slots_.size() - 1});  // jobs 0 .. slots − 2 may render before any is taken
+  job_ready_.wait(lk, [&] {
+    for (std::size_t j = 0; j < n; ++j)
+      if (slots_[j].state != SlotState::ready || slots_[j].job != j) return false;
+    return true;
+  });
+}
+
 void RenderAhead::set_keep_samples(bool on) {
   std::lock_guard<std::mutex> lk(mu_);
   keep_samples_ = on;

@@ -52,6 +52,11 @@ class RenderAhead {
   // Throws std::logic_error past the last job.
   Buffers& next();
 
+  // Blocks until the first min(n, jobs, slots − 1) jobs are rendered (or failed), before the first
+  // next(): with n = threads each worker has most likely paid its first render's one-off set-up
+  // (the real clock's loop waits so before frame 0). Throws std::logic_error after next().
+  void wait_rendered(std::size_t n);
+
   // Whether jobs started from now on also keep their per-sample buffers (SpanBuffer::keep_samples;
   // the constructor's value until called). A hint: the buffers' results are the same either way,
   // only where the samples are shaded changes — a worker, or the consumer's materialise_samples.

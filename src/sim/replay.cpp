@@ -208,16 +208,20 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
   if (render_threads > 0 && !render_frames.empty())
     ahead = std::make_unique<RenderAhead>(scene, render_frames.size(), camera_of, vp, separate_popin ? &pp : nullptr,
                                           fb.block_shift, fb.keep_samples, render_threads);
-  // Paced (the real clock): the first view is rendered once before frame 0 starts. A renderer's
-  // first call sets itself up (the town's per-triangle scratch, ~2 MB of memory touched for the
-  // first time, page faults at ~13 µs a page on a paravirtualised VM): 8 ms of frame 0, which held
-  // back its requests by two frames at --speed 4 (docs/real-engine.md §7a). A game has done that
-  // before it streams, and the simulated clock gives frame work no time. Render-ahead workers
-  // (off by default in the real clock) set themselves up in frame 0 still.
-  if (env.pace && !ahead && !render_frames.empty()) {
-    const Camera cam = camera_of(0);
-    scene.render_spans(cam, vp, fb);
-    if (separate_popin) scene.render_spans(cam, pp, pb);
+  // Paced (the real clock): the first view is rendered before frame 0 starts. A renderer's first
+  // call sets itself up (the town's per-triangle scratch, ~2 MB of memory touched for the first
+  // time, page faults at ~13 µs a page on a paravirtualised VM): 8 ms of frame 0, which held back
+  // its requests by two frames at --speed 4 (docs/real-engine.md §7a). A game has done that before
+  // it streams, and the simulated clock gives frame work no time. Render-ahead workers (off by
+  // default in the real clock) render the first frames, one each, before frame 0.
+  if (env.pace && !render_frames.empty()) {
+    if (ahead) {
+      ahead->wait_rendered(static_cast<std::size_t>(render_threads));
+    } else {
+      const Camera cam = camera_of(0);
+      scene.render_spans(cam, vp, fb);
+      if (separate_popin) scene.render_spans(cam, pp, pb);
+    }
   }
   SpanBuffer* fbp = &fb;  // this frame's feedback and pop-in buffers
   SpanBuffer* pbp = &pb;
