@@ -30,6 +30,21 @@ ReplayResult replay(const Trace& t, std::vector<std::string> sets) {
   return run_replay(cfg, t, *scene);
 }
 
+// The same summary (but for the run's own cost, "run") and the same frames.
+void check_same_results(ReplayResult a, ReplayResult b) {
+  a.summary.erase("run");
+  b.summary.erase("run");
+  CHECK(a.summary.dump() == b.summary.dump());
+  REQUIRE(a.metrics.frames().size() == b.metrics.frames().size());
+  for (std::size_t i = 0; i < a.metrics.frames().size(); ++i) {
+    const FrameRow &x = a.metrics.frames()[i], &y = b.metrics.frames()[i];
+    CHECK(x.disk_bytes == y.disk_bytes);
+    CHECK(x.blurry == y.blurry);
+    CHECK(x.needs == y.needs);
+    CHECK(x.uploads == y.uploads);
+  }
+}
+
 // A straight walk at 1.7 m looking 30° down (so level 0 is always wanted), exact positions:
 // x = x0 + dx·f/fps (and y likewise), computed from the frame index.
 Trace straight(double x0, double y0, double dx_mps, double dy_mps, double seconds, double yaw_deg) {
@@ -127,15 +142,8 @@ TEST_CASE("determinism: two runs give the same summary and frames, bit for bit")
   g.duration_s = 5.0;
   const Trace t = generate_trace(g);
   const std::vector<std::string> sets = {"disk.preset=hdd", "io.fault_rate=0.05", "decode.throughput_MBps=300"};
-  ReplayResult a = replay(t, sets), b = replay(t, sets);
-  a.summary.erase("run");
-  b.summary.erase("run");
-  CHECK(a.summary.dump() == b.summary.dump());
-  REQUIRE(a.metrics.frames().size() == b.metrics.frames().size());
-  for (std::size_t i = 0; i < a.metrics.frames().size(); ++i) {
-    CHECK(a.metrics.frames()[i].disk_bytes == b.metrics.frames()[i].disk_bytes);
-    CHECK(a.metrics.frames()[i].blurry == b.metrics.frames()[i].blurry);
-  }
+  const ReplayResult a = replay(t, sets), b = replay(t, sets);
+  check_same_results(a, b);
   CHECK(a.summary["faults"]["faults"].get<int>() > 0);
 }
 
@@ -187,7 +195,7 @@ TEST_CASE("paced (the real clock's loop): the first views are rendered before fr
       if (f == 0) before_frame0 = scene.renders;
       return target;
     };
-    ReplayResult paced = run_replay(cfg, t, scene, env);
+    const ReplayResult paced = run_replay(cfg, t, scene, env);
     if (threads == 0) {
       CHECK(before_frame0 == 1);  // one extra render, of the first view
       CHECK(scene.renders == plain_renders + 1);
@@ -195,16 +203,7 @@ TEST_CASE("paced (the real clock's loop): the first views are rendered before fr
       CHECK(before_frame0 >= threads);  // the workers' first frames, which the loop then takes
       CHECK(scene.renders == plain_renders);
     }
-    ReplayResult a = plain;
-    a.summary.erase("run");
-    paced.summary.erase("run");
-    CHECK(a.summary.dump() == paced.summary.dump());
-    REQUIRE(a.metrics.frames().size() == paced.metrics.frames().size());
-    for (std::size_t i = 0; i < a.metrics.frames().size(); ++i) {
-      CHECK(a.metrics.frames()[i].blurry == paced.metrics.frames()[i].blurry);
-      CHECK(a.metrics.frames()[i].needs == paced.metrics.frames()[i].needs);
-      CHECK(a.metrics.frames()[i].uploads == paced.metrics.frames()[i].uploads);
-    }
+    check_same_results(plain, paced);
   }
 }
 
