@@ -12,6 +12,7 @@
 #include "sim/scene.h"
 #include "sim/trace_gen.h"
 #include "stream/i_system.h"
+#include "replay_test_util.h"
 #include "trace_test_util.h"
 
 using namespace vtsim;
@@ -28,21 +29,6 @@ ReplayResult replay(const Trace& t, std::vector<std::string> sets) {
   const ReplayConfig cfg = load_replay_config("", sets);
   auto scene = make_scene_from_config(cfg);
   return run_replay(cfg, t, *scene);
-}
-
-// The same summary (but for the run's own cost, "run") and the same frames.
-void check_same_results(ReplayResult a, ReplayResult b) {
-  a.summary.erase("run");
-  b.summary.erase("run");
-  CHECK(a.summary.dump() == b.summary.dump());
-  REQUIRE(a.metrics.frames().size() == b.metrics.frames().size());
-  for (std::size_t i = 0; i < a.metrics.frames().size(); ++i) {
-    const FrameRow &x = a.metrics.frames()[i], &y = b.metrics.frames()[i];
-    CHECK(x.disk_bytes == y.disk_bytes);
-    CHECK(x.blurry == y.blurry);
-    CHECK(x.needs == y.needs);
-    CHECK(x.uploads == y.uploads);
-  }
 }
 
 // A straight walk at 1.7 m looking 30° down (so level 0 is always wanted), exact positions:
@@ -143,7 +129,7 @@ TEST_CASE("determinism: two runs give the same summary and frames, bit for bit")
   const Trace t = generate_trace(g);
   const std::vector<std::string> sets = {"disk.preset=hdd", "io.fault_rate=0.05", "decode.throughput_MBps=300"};
   const ReplayResult a = replay(t, sets), b = replay(t, sets);
-  check_same_results(a, b);
+  test::check_same_results(a, b);
   CHECK(a.summary["faults"]["faults"].get<int>() > 0);
 }
 
@@ -203,7 +189,7 @@ TEST_CASE("paced (the real clock's loop): the first views are rendered before fr
       CHECK(before_frame0 >= threads);  // the workers' first frames, which the loop then takes
       CHECK(scene.renders == plain_renders);
     }
-    check_same_results(plain, paced);
+    test::check_same_results(plain, paced);
   }
 }
 

@@ -39,6 +39,8 @@ struct FrameRow {
   std::uint64_t ram_bytes = 0;      // RAM cache occupancy
   std::uint32_t throttled_needs = 0;  // tiles the clamp kept from being requested
   SystemCounters system{};          // system-specific counters (MetricsCollector::set_system_columns)
+
+  bool operator==(const FrameRow&) const = default;
 };
 
 struct TileLatency {
