@@ -219,6 +219,7 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace_in, const IS
       ahead->wait_rendered(static_cast<std::size_t>(render_threads));
     } else {
       const Camera cam = camera_of(0);
+      fb.keep_samples = pb.keep_samples = !system->uses_spans() || system->wants_samples();  // as frame 0 will
       scene.render_spans(cam, vp, fb);
       if (separate_popin) scene.render_spans(cam, pp, pb);
     }

@@ -117,10 +117,9 @@ DecodeResult decode_record(const TileStore& store, TileKey key, const std::uint8
 
 DecodePool::DecodePool(const TileStore& store, int workers, const WallClock& clock, Sink sink, bool verify, bool warm)
     : store_(store), clock_(clock), sink_(std::move(sink)), verify_(verify), warm_(warm),
-      warmed_(warm ? std::clamp(workers, 0, 1024) : 0) {
-  if (workers < 1 || workers > 1024) throw InputError("decode.workers", "must be in 1..1024, got " + std::to_string(workers));
-  workers_.reserve(static_cast<std::size_t>(workers));
-  for (int i = 0; i < workers; ++i) workers_.emplace_back([this] { worker(); });
+      warmed_(warm ? checked_workers(workers, "decode.workers") : 0) {
+  checked_workers(workers, "decode.workers");
+  start_workers(workers_, workers, queue_, [this] { worker(); });
   warmed_.wait();
 }
 
@@ -150,23 +149,29 @@ std::vector<RequestId> DecodePool::stop() {
   return dropped;
 }
 
-void DecodePool::warm_decode() {
-  AlignedBuffer scratch;
-  for (std::uint32_t layer = 0; layer < store_.layer_count(); ++layer) {
-    const std::size_t bytes = store_.tile_bytes(layer);
-    auto out = tiles_->acquire(bytes);
-    try {
-      store_.read_tile(TileKey(layer, store_.geometry().levels - 1, 0, 0), scratch, out.get(), bytes);
-    } catch (const std::exception&) {
+bool DecodePool::warm_decode() {
+  bool ok = true;
+  try {
+    AlignedBuffer scratch;
+    for (std::uint32_t layer = 0; layer < store_.layer_count(); ++layer) {
+      const std::size_t bytes = store_.tile_bytes(layer);
+      auto out = tiles_->acquire(bytes);
+      try {
+        store_.read_tile(TileKey(layer, store_.geometry().levels - 1, 0, 0), scratch, out.get(), bytes);
+      } catch (const std::exception&) {
+        ok = false;
+      }
+      tiles_->release(std::move(out), bytes);
     }
-    tiles_->release(std::move(out), bytes);
+  } catch (...) {  // no memory for a buffer
+    return false;
   }
+  return ok;
 }
 
 void DecodePool::worker() {
   if (warm_) {
-    warm_decode();
-    warm_done_.fetch_add(1, std::memory_order_release);
+    if (warm_decode()) warm_done_.fetch_add(1, std::memory_order_release);
     warmed_.count_down();
   }
   while (auto item = queue_.pop_wait()) {

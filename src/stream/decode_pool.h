@@ -108,16 +108,17 @@ class DecodePool {
   std::size_t queued() const { return queue_.size(); }
   int active() const { return active_.load(std::memory_order_relaxed); }
   int workers() const { return static_cast<int>(workers_.size()); }
-  int warmed() const { return warm_done_.load(std::memory_order_acquire); }  // workers that did warm_decode
+  int warmed() const { return warm_done_.load(std::memory_order_acquire); }  // workers whose warm_decode succeeded
   State state() const { return state_.load(std::memory_order_acquire); }
 
  private:
   void worker();
   // A worker's first decode of a codec pays for the codec's per-thread state (zstd's ZSTD_DCtx) and
   // the thread's first allocations: 0.4-4 ms on this project's VM against 0.04 ms warm
-  // (docs/real-engine.md §7a). Reads and decodes the coarsest tile of each layer into a pool
-  // buffer and returns it; errors are left for the real request to report.
-  void warm_decode();
+  // (docs/real-engine.md §7a). Reads (through the store's own descriptor) and decodes the coarsest
+  // tile of each layer into a pool buffer and returns it. true: every layer decoded; errors are
+  // left for the real request to report.
+  bool warm_decode();
 
   const TileStore& store_;
   const WallClock& clock_;

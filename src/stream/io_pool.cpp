@@ -68,18 +68,17 @@ std::size_t largest_read(const TileStore& store) {
 
 IoPool::IoPool(const TileStore& store, const IoPoolConfig& cfg, const WallClock& clock, Sink sink, FaultLayer* faults)
     : store_(store), clock_(clock), sink_(std::move(sink)), faults_(faults), verify_(cfg.verify), warm_(cfg.warm),
-      warmed_(cfg.warm ? std::clamp(cfg.threads, 0, 1024) : 0) {
-  if (cfg.threads < 1 || cfg.threads > 1024) throw InputError("io.threads", "must be in 1..1024, got " + std::to_string(cfg.threads));
+      warmed_(cfg.warm ? checked_workers(cfg.threads, "io.threads") : 0) {
+  checked_workers(cfg.threads, "io.threads");
   DirectOpen o = open_for_read(store.path(), cfg.direct);
   file_ = std::move(o.file);
   warning_ = std::move(o.warning);
   if (file_.size() != store.header().file_bytes)
     throw InputError(store.path(), "the file changed since the store was opened (" + std::to_string(file_.size()) +
                                        " bytes, the header says " + std::to_string(store.header().file_bytes) + ")");
-  buffers_ = std::make_shared<BufferPool>(largest_read(store), 256);
-  buffers_->reserve(cfg.buffers);
-  workers_.reserve(static_cast<std::size_t>(cfg.threads));
-  for (int i = 0; i < cfg.threads; ++i) workers_.emplace_back([this] { worker(); });
+  buffers_ = std::make_shared<BufferPool>(largest_read(store), kKeptBuffers);
+  buffers_->reserve(std::min(cfg.buffers, kKeptBuffers));
+  start_workers(workers_, cfg.threads, queue_, [this] { worker(); });
   warmed_.wait();
 }
 
@@ -168,15 +167,18 @@ ReadResult IoPool::read_record(const TileStore& store, const ReadFile& file, Buf
   return r;
 }
 
-void IoPool::warm_read() {
+bool IoPool::warm_read() {
   const TileKey k(0, store_.geometry().levels - 1, 0, 0);
-  (void)read_record(store_, file_, *buffers_, k, FaultPlan{}, clock_, /*verify=*/false);
+  try {
+    return read_record(store_, file_, *buffers_, k, FaultPlan{}, clock_, /*verify=*/false).fault == Fault::none;
+  } catch (...) {  // no memory for the error text: the real request will say
+    return false;
+  }
 }
 
 void IoPool::worker() {
   if (warm_) {
-    warm_read();
-    warm_done_.fetch_add(1, std::memory_order_release);
+    if (warm_read()) warm_done_.fetch_add(1, std::memory_order_release);
     warmed_.count_down();
   }
   while (auto item = queue_.pop_wait()) {

@@ -90,7 +90,7 @@ struct IoPoolConfig {
   int threads = 4;     // workers, = reads in flight at once (config io.threads)
   bool direct = true;  // O_DIRECT reads (config io.direct); false = through the page cache
   bool verify = true;  // check each record's checksum on the IO worker; false when the decode stage does
-  std::size_t buffers = 0;  // record buffers made before the first read: the reads in flight at most (io.max_in_flight)
+  std::size_t buffers = 0;  // record buffers made before the first read (at most IoPool::kKeptBuffers): the jobs in flight
   bool warm = false;        // each worker reads a record once before the constructor returns (warm_read)
 };
 
@@ -139,7 +139,9 @@ class IoPool {
   State state() const { return state_.load(std::memory_order_acquire); }
   std::size_t max_read_bytes() const { return buffers_->buffer_bytes(); }
   std::size_t free_buffers() const { return buffers_->free_buffers(); }
-  int warmed() const { return warm_done_.load(std::memory_order_acquire); }  // workers that did warm_read
+  int warmed() const { return warm_done_.load(std::memory_order_acquire); }  // workers whose warm_read succeeded
+  // Record buffers kept for reuse, and the most reserved up front (a record is ~50 KB at most).
+  static constexpr std::size_t kKeptBuffers = 256;
 
   // One read as a worker performs it (also used by benchmarks and calibration): the record of
   // `key` into a buffer from `buffers`, with `plan`'s faults, checksum verified if `verify`.
@@ -150,10 +152,10 @@ class IoPool {
  private:
   void worker();
   // A worker's first read pays once for what later reads do not (the thread's first touches of its
-  // stack and of the kernel's and libc's per-thread state): 0.3-2 ms on this project's VM, against
-  // ~0.1 ms warm, enough to hold a 240 Hz replay's first reads back by a frame
-  // (docs/real-engine.md §7a). Reads the coarsest tile of layer 0; no fault, no sink, no result.
-  void warm_read();
+  // stack and of the kernel's and libc's per-thread state): 0.3-1.6 ms on this project's VM against
+  // ~0.1 ms warm (docs/real-engine.md §7a). Reads the coarsest tile of layer 0; no fault, no sink,
+  // no result. With io.direct = false that one tile is then in the page cache. true: read whole.
+  bool warm_read();
 
   const TileStore& store_;
   const WallClock& clock_;

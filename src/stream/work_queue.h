@@ -16,10 +16,13 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <string>
+#include <thread>
 #include <unordered_map>
 #include <utility>
 #include <vector>
 
+#include "core/error.h"
 #include "stream/i_executor.h"
 
 namespace vtsim {
@@ -109,5 +112,26 @@ class WorkQueue {
   std::uint64_t seq_ = 0;                       // guarded by m_
   std::atomic<State> state_{State::open};       // written under m_; read anywhere
 };
+
+// A pool's worker count, checked: InputError naming `field` (the config key) outside 1..1024.
+inline int checked_workers(int n, const char* field) {
+  if (n < 1 || n > 1024) throw InputError(field, "must be in 1..1024, got " + std::to_string(n));
+  return n;
+}
+
+// Starts `n` workers running `body` into `out`. If creating one fails, closes `queue` (so the
+// started ones return from pop_wait), joins them and rethrows: no joinable thread is left behind.
+template <class Task, class Body>
+void start_workers(std::vector<std::thread>& out, int n, WorkQueue<Task>& queue, Body body) {
+  out.reserve(static_cast<std::size_t>(n));
+  try {
+    for (int i = 0; i < n; ++i) out.emplace_back(body);
+  } catch (...) {
+    queue.close();
+    for (std::thread& t : out) t.join();
+    out.clear();
+    throw;
+  }
+}
 
 }  // namespace vtsim
