@@ -5,6 +5,7 @@
 #include <atomic>
 #include <mutex>
 
+#include "core/error.h"
 #include "real_test_util.h"
 #include "stream/decode_pool.h"
 #include "stream/io_pool.h"
@@ -290,6 +291,21 @@ TEST_CASE("decode pool: warm workers decode every layer once before the construc
   DecodePool broken(bad, 2, clock, [&](DecodeResult&&) { ++results; }, true, /*warm=*/true);
   CHECK(broken.warmed() == 0);
   CHECK(results.load() == 0);
+}
+
+TEST_CASE("io and decode pools: a worker count outside 1..1024 is an InputError naming the config key, warm or not") {
+  const TileStore store = TileStore::open(test::small_store());
+  WallClock clock;
+  Sink sink;
+  for (const bool warm : {false, true})
+    for (const int n : {0, -3, 1025}) {
+      CAPTURE(warm);
+      CAPTURE(n);
+      CHECK_THROWS_WITH_AS(IoPool(store, IoPoolConfig{n, true, true, 0, warm}, clock, std::ref(sink)),
+                           doctest::Contains("io.threads: must be in 1..1024"), InputError);
+      CHECK_THROWS_WITH_AS(DecodePool(store, n, clock, [](DecodeResult&&) {}, true, warm),
+                           doctest::Contains("decode.workers: must be in 1..1024"), InputError);
+    }
 }
 
 TEST_SUITE_END();

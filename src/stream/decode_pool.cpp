@@ -117,8 +117,7 @@ DecodeResult decode_record(const TileStore& store, TileKey key, const std::uint8
 
 DecodePool::DecodePool(const TileStore& store, int workers, const WallClock& clock, Sink sink, bool verify, bool warm)
     : store_(store), clock_(clock), sink_(std::move(sink)), verify_(verify), warm_(warm),
-      warmed_(warm ? checked_workers(workers, "decode.workers") : 0) {
-  checked_workers(workers, "decode.workers");
+      warmed_(checked_workers(workers, "decode.workers") * warm) {  // the workers to wait for: none unless warm
   start_workers(workers_, workers, queue_, [this] { worker(); });
   warmed_.wait();
 }

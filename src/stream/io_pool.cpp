@@ -68,8 +68,7 @@ std::size_t largest_read(const TileStore& store) {
 
 IoPool::IoPool(const TileStore& store, const IoPoolConfig& cfg, const WallClock& clock, Sink sink, FaultLayer* faults)
     : store_(store), clock_(clock), sink_(std::move(sink)), faults_(faults), verify_(cfg.verify), warm_(cfg.warm),
-      warmed_(cfg.warm ? checked_workers(cfg.threads, "io.threads") : 0) {
-  checked_workers(cfg.threads, "io.threads");
+      warmed_(checked_workers(cfg.threads, "io.threads") * cfg.warm) {  // the workers to wait for: none unless warm
   DirectOpen o = open_for_read(store.path(), cfg.direct);
   file_ = std::move(o.file);
   warning_ = std::move(o.warning);
