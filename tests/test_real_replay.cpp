@@ -159,6 +159,8 @@ TEST_CASE("real clock: a short replay completes with every needed tile resident,
   CHECK(uploads > 50);
   CHECK(arena.stats().uploads == uploads);
   CHECK(s["real_clock"]["uploads_without_data"] == 0);
+  CHECK(s["real_clock"]["startup_s"].get<double>() > 0.0);  // set-up before frame 0, reported apart
+  CHECK(s["real_clock"]["startup_s"].get<double>() < s["run"]["wall_s"].get<double>());
   std::uint64_t held = 0;
   for (TileKey k : test::all_keys(store)) {
     const auto got = arena.peek(k);

@@ -468,10 +468,11 @@ std::string format_summary(const nlohmann::json& s) {
                        s["faults"]["retries"].get<std::uint64_t>(), s["faults"]["failed_tiles"].get<std::uint64_t>());
   if (s.contains("real_clock")) {
     const auto& rc = s["real_clock"];
-    out += fmt::format("  real clock  {} IO threads ({}), {} decode workers; {} late frames (max {:.1f} ms); "
+    out += fmt::format("  real clock  {} IO threads ({}), {} decode workers; start-up {:.2f} s; {} late frames (max {:.1f} ms); "
                        "VRAM arena: {:.1f} MB copied in {:.1f} ms\n",
                        rc["io_threads"].get<int>(), rc["o_direct"].get<bool>() ? "O_DIRECT" : "page cache",
-                       rc["decode_workers"].get<int>(), rc["late_frames"].get<std::uint64_t>(), rc["max_late_ms"].get<double>(),
+                       rc["decode_workers"].get<int>(), rc.value("startup_s", 0.0), rc["late_frames"].get<std::uint64_t>(),
+                       rc["max_late_ms"].get<double>(),
                        static_cast<double>(rc["vram_arena"]["bytes"].get<std::uint64_t>()) / 1e6,
                        rc["vram_arena"]["copy_ms"].get<double>());
   }
