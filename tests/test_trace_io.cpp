@@ -208,7 +208,8 @@ TEST_CASE("native reader: bad input names the file and line") {
 TEST_CASE("native reader: file-level limits") {
   ScratchDir dir;
   CHECK(contains(input_error([&] { load_trace(dir.file("missing.csv")); }), "cannot open"));
-  CHECK(contains(input_error([&] { load_trace(dir.path().string()); }), "not a regular file"));
+  CHECK(contains(input_error([&] { load_trace(dir.path().string()); }), "is a directory, not a file"));
+  CHECK(contains(input_error([&] { load_trace("/dev/zero"); }), "/dev/zero: not a regular file (a FIFO, socket or device)"));
   write_file(dir.file("big.csv"), kHead + kRow0 + kRow1);
   TraceReadOptions small;
   small.limits.max_file_bytes = 64;

@@ -12,6 +12,8 @@
 #include <cstring>
 #include <limits>
 
+#include "core/input_file.h"
+
 namespace vtsim::trace_text {
 
 namespace {
@@ -68,7 +70,7 @@ LineReader::LineReader(std::string path, const TraceReadLimits& limits)
   }
   if (!S_ISREG(st.st_mode)) {
     ::close(fd_);
-    throw InputError(path_, "not a regular file");
+    throw InputError(path_, not_regular_reason(st.st_mode));
   }
   if (static_cast<std::uint64_t>(st.st_size) > limits_.max_file_bytes) {
     ::close(fd_);
