@@ -343,6 +343,13 @@ TEST_CASE("compare: tolerance TOML overrides fields and inherits the rest") {
   write_file(tol, "[\"popin.*\"\nrel = 0.1\n");
   CHECK(contains(input_error([&] { load_tolerances(tol); }), tol + ":1"));
   CHECK(contains(input_error([&] { load_tolerances(dir.file("absent.toml")); }), "absent.toml"));
+  // A pattern with no field, or no pattern, is a mistake, not a rule that changes nothing.
+  write_file(tol, "[\"\"]\n");
+  CHECK(contains(input_error([&] { load_tolerances(tol); }), tol + ":1: '': a pattern with no field does nothing"));
+  write_file(tol, "[\"latency_ms.*\"]\nrel = 0.1\n[run.wall_s]\n");
+  CHECK(contains(input_error([&] { load_tolerances(tol); }), tol + ":3: 'run.wall_s': a pattern with no field"));
+  write_file(tol, "[\"\"]\nrel = 0.1\n");
+  CHECK(contains(input_error([&] { load_tolerances(tol); }), tol + ":2: '.rel': the key pattern is empty"));
 }
 
 TEST_CASE("compare: load_json_file names the file and line") {

@@ -100,13 +100,15 @@ std::pair<std::string, ConfigValue> parse_set_argument(const std::string& arg) {
 
 namespace {
 
-void flatten(const toml::table& t, const std::string& prefix, const std::string& path,
-             std::vector<TomlEntry>& out) {
+// prefix: the enclosing table's dotted key, nullptr at the root (a table may be named "").
+void flatten(const toml::table& t, const std::string* prefix, const std::string& path,
+             std::vector<TomlEntry>& out, std::vector<TomlEmptyTable>* empty_tables) {
   for (const auto& [k, node] : t) {
-    const std::string key = prefix.empty() ? std::string(k.str()) : prefix + "." + std::string(k.str());
+    const std::string key = prefix ? *prefix + "." + std::string(k.str()) : std::string(k.str());
     const long long line = static_cast<long long>(node.source().begin.line);
     if (const auto* sub = node.as_table()) {
-      flatten(*sub, key, path, out);
+      if (sub->empty() && empty_tables) empty_tables->push_back({key, line});
+      flatten(*sub, &key, path, out, empty_tables);
     } else if (const auto* i = node.as_integer()) {
       out.push_back({key, static_cast<std::int64_t>(i->get()), line});
     } else if (const auto* d = node.as_floating_point()) {
@@ -124,7 +126,7 @@ void flatten(const toml::table& t, const std::string& prefix, const std::string&
 
 }  // namespace
 
-std::vector<TomlEntry> read_toml_entries(const std::string& path) {
+std::vector<TomlEntry> read_toml_entries(const std::string& path, std::vector<TomlEmptyTable>* empty_tables) {
   require_regular_file(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot open config file");
@@ -140,7 +142,7 @@ std::vector<TomlEntry> read_toml_entries(const std::string& path) {
                      std::string("TOML syntax error: ") + std::string(e.description()));
   }
   std::vector<TomlEntry> out;
-  flatten(tbl, "", path, out);
+  flatten(tbl, nullptr, path, out, empty_tables);
   return out;
 }
 

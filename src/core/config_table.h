@@ -147,7 +147,13 @@ struct TomlEntry {
   ConfigValue value;
   long long line = 0;
 };
-std::vector<TomlEntry> read_toml_entries(const std::string& path);
+// A table with no key at all ([name] followed by nothing): no entry, so a caller for whom that
+// is a mistake asks for the list.
+struct TomlEmptyTable {
+  std::string key;
+  long long line = 0;
+};
+std::vector<TomlEntry> read_toml_entries(const std::string& path, std::vector<TomlEmptyTable>* empty_tables = nullptr);
 
 template <class Cfg>
 std::string ConfigTable<Cfg>::suggest(const std::string& key) const {

@@ -139,10 +139,17 @@ std::vector<ToleranceRule> load_tolerances(const std::string& path) {
   // dotted table path ([run.wall_s]); both flatten to the same key.
   std::vector<ToleranceRule> rules;
   std::map<std::string, std::size_t> index;
-  for (const TomlEntry& e : read_toml_entries(path)) {
+  std::vector<TomlEmptyTable> empty;
+  const std::vector<TomlEntry> entries = read_toml_entries(path, &empty);
+  // A pattern's table with no field would be a rule that changes nothing: a typo's likely sign.
+  if (!empty.empty())
+    throw InputError(at_line(path, empty.front().line), "'" + empty.front().key + "': a pattern with no field does "
+                                                         "nothing; give it abs, rel, better or ignore");
+  for (const TomlEntry& e : entries) {
     const std::string where = at_line(path, e.line);
     const auto dot = e.key.rfind('.');
-    if (dot == std::string::npos || dot == 0)
+    if (dot == 0) throw InputError(where, "'" + e.key + "': the key pattern is empty");
+    if (dot == std::string::npos)
       throw InputError(where, "'" + e.key + "': expected a table per key pattern, e.g. [\"latency_ms.*\"] rel = 0.05");
     const std::string pattern = e.key.substr(0, dot), field = e.key.substr(dot + 1);
     auto [it, fresh] = index.emplace(pattern, rules.size());
