@@ -1,10 +1,13 @@
 // vtsim compare: tolerances, directions, key matching, bad input (exit 2 naming file and key),
 // and the CLI's exit codes.
 #include <doctest/doctest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
+#include <functional>
 #include <fstream>
 #include <sstream>
 
@@ -361,6 +364,26 @@ TEST_CASE("compare: load_json_file names the file and line") {
   CHECK(contains(input_error([&] { load_json_file(dir.file("none.json")); }), "none.json: cannot open"));
   write_file(p, "");
   CHECK(contains(input_error([&] { load_json_file(p); }), p + ":1: not valid JSON"));
+}
+
+TEST_CASE("compare: inputs are checked by descriptor; a FIFO, a directory, a device or a huge file is refused unread") {
+  // load_json_file and the tolerance reader (read_toml_entries) both go through read_regular_file.
+  ScratchDir dir;
+  const std::string fifo = dir.file("fifo"), big = dir.file("big.json");
+  REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
+  // A sparse file one byte over the limit: refused from its size, before any read.
+  { std::ofstream(big).put('{'); }
+  std::filesystem::resize_file(big, (256u << 20) + 1);
+  CHECK(contains(input_error([&] { load_json_file(big); }), big + ": 268435457 bytes, larger than 256 MiB: not a vtsim"));
+  std::filesystem::resize_file(big, (16u << 20) + 1);
+  CHECK(contains(input_error([&] { load_tolerances(big); }), big + ": 16777217 bytes, larger than 16 MiB"));
+  for (const auto& load : {std::function<void(const std::string&)>([](const std::string& f) { load_json_file(f); }),
+                           std::function<void(const std::string&)>([](const std::string& f) { load_tolerances(f); })}) {
+    // A FIFO without a writer would block a plain open: O_NONBLOCK, then the descriptor's type.
+    CHECK(contains(input_error([&] { load(fifo); }), fifo + ": not a regular file (a FIFO"));
+    CHECK(contains(input_error([&] { load(dir.path().string()); }), dir.path().string() + ": is a directory, not a file"));
+    CHECK(contains(input_error([&] { load("/dev/zero"); }), "/dev/zero: not a regular file"));
+  }
 }
 
 TEST_CASE("compare: report text and JSON") {

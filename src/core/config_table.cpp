@@ -5,8 +5,6 @@
 
 #include <cmath>
 #include <cstdlib>
-#include <fstream>
-#include <sstream>
 #include <toml++/toml.h>
 
 namespace vtsim {
@@ -127,13 +125,7 @@ void flatten(const toml::table& t, const std::string* prefix, const std::string&
 }  // namespace
 
 std::vector<TomlEntry> read_toml_entries(const std::string& path, std::vector<TomlEmptyTable>* empty_tables) {
-  require_regular_file(path);
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, "cannot open config file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  const std::string text = ss.str();
-  if (text.size() > (16u << 20)) throw InputError(path, "config file is larger than 16 MiB");
+  const std::string text = read_regular_file(path, 16u << 20, "not a vtsim TOML file");
   toml::table tbl;
   try {
     tbl = toml::parse(text, path);

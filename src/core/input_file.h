@@ -1,13 +1,11 @@
 #pragma once
 // Untrusted input paths: reading a FIFO blocks until someone writes to it, /dev/zero never ends
-// and a directory reads as nothing; every reader checks its path first.
+// and a directory reads as nothing. Readers check the descriptor they read from, not the path:
+// the path cannot change between the check and the read.
 #include <sys/stat.h>
 
-#include <cerrno>
-#include <cstring>
+#include <cstdint>
 #include <string>
-
-#include "core/error.h"
 
 namespace vtsim {
 
@@ -16,14 +14,25 @@ inline const char* not_regular_reason(mode_t mode) {
   return S_ISDIR(mode) ? "is a directory, not a file" : "not a regular file (a FIFO, socket or device)";
 }
 
-// Throws InputError(path, ...) unless path names a regular file (after symlinks). stat(), not
-// open(): opening a FIFO for reading would block before any check. (A reader that opens first
-// with O_NONBLOCK and checks the descriptor, as the trace reader does, is immune to the path
-// changing in between.)
-inline void require_regular_file(const std::string& path) {
-  struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
-  if (!S_ISREG(st.st_mode)) throw InputError(path, not_regular_reason(st.st_mode));
-}
+// An open regular file: the caller owns fd (close it).
+struct RegularFile {
+  int fd = -1;
+  std::uint64_t size = 0;  // bytes, at the open
+};
+
+// Opens path read-only and close-on-exec, with O_NONBLOCK so that a FIFO without a writer
+// cannot block the open, then fstat()s the descriptor: anything but a regular file is refused
+// (not_regular_reason). The descriptor is returned in blocking mode. Throws InputError(path, ...)
+// ("cannot open: <errno text>"); closes the descriptor on every error.
+RegularFile open_regular_file(const std::string& path);
+
+// The whole of a regular file (open_regular_file) of at most max_bytes, refused before reading
+// when larger: InputError(path, "<size> bytes, larger than <limit>: <what_if_larger>").
+// Read errors throw InputError(path, "read failed: ...").
+std::string read_regular_file(const std::string& path, std::uint64_t max_bytes, const std::string& what_if_larger);
+
+// For readers that must hand a path to a library which opens it itself (the image module): a
+// stat() of the path, same messages. A window remains between this check and the library's open.
+void require_regular_file(const std::string& path);
 
 }  // namespace vtsim

@@ -6,9 +6,7 @@
 #include <array>
 #include <cctype>
 #include <cmath>
-#include <fstream>
 #include <map>
-#include <sstream>
 
 #include "core/config_table.h"
 #include "core/error.h"
@@ -250,14 +248,7 @@ Tolerance resolve_tolerance(const std::vector<ToleranceRule>& user, const std::v
 }
 
 json load_json_file(const std::string& path) {
-  require_regular_file(path);
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, "cannot open for reading");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) throw InputError(path, "read failed");
-  const std::string text = ss.str();
-  if (text.size() > (256u << 20)) throw InputError(path, "larger than 256 MiB: not a vtsim summary or benchmark JSON");
+  const std::string text = read_regular_file(path, 256u << 20, "not a vtsim summary or benchmark JSON");
   try {
     return json::parse(text);
   } catch (const json::parse_error& e) {

@@ -59,25 +59,13 @@ std::size_t utf8_sequence_length(std::string_view s, std::size_t i) {
 
 LineReader::LineReader(std::string path, const TraceReadLimits& limits)
     : path_(std::move(path)), limits_(limits) {
-  // O_NONBLOCK: opening a FIFO without a writer must not block; fstat then rejects it.
-  fd_ = ::open(path_.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
-  if (fd_ < 0) throw InputError(path_, fmt::format("cannot open: {}", std::strerror(errno)));
-  struct stat st {};
-  if (::fstat(fd_, &st) != 0) {
-    const int err = errno;
+  const RegularFile f = open_regular_file(path_);
+  fd_ = f.fd;
+  if (f.size > limits_.max_file_bytes) {
     ::close(fd_);
-    throw InputError(path_, fmt::format("cannot stat: {}", std::strerror(err)));
+    throw InputError(path_, fmt::format("file is {} bytes, more than the limit of {} bytes", f.size, limits_.max_file_bytes));
   }
-  if (!S_ISREG(st.st_mode)) {
-    ::close(fd_);
-    throw InputError(path_, not_regular_reason(st.st_mode));
-  }
-  if (static_cast<std::uint64_t>(st.st_size) > limits_.max_file_bytes) {
-    ::close(fd_);
-    throw InputError(path_, fmt::format("file is {} bytes, more than the limit of {} bytes",
-                                        st.st_size, limits_.max_file_bytes));
-  }
-  file_bytes_ = static_cast<std::uint64_t>(st.st_size);
+  file_bytes_ = f.size;
   buf_.resize(kReadChunk);
 }
 

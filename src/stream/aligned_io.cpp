@@ -77,30 +77,35 @@ std::size_t ReadFile::pread_full(void* buf, std::size_t bytes, std::uint64_t off
 }
 
 DirectOpen open_for_read(const std::string& path, bool want_direct) {
-  require_regular_file(path);
+  // One open, checked by descriptor (open_regular_file); O_DIRECT is then switched on with
+  // fcntl (Linux allows it; EINVAL where the filesystem has no direct IO, as open would say).
+  AlignedBuffer probe(want_direct ? AlignedBuffer::kAlignment : 0);  // before the open: nothing throws after it
+  const RegularFile rf = open_regular_file(path);
   DirectOpen result;
+  bool direct = false;
   if (want_direct) {
-    const int fd = ::open(path.c_str(), O_RDONLY | O_DIRECT | O_CLOEXEC);
-    if (fd >= 0) {
-      ReadFile f(fd, true, path);
-      AlignedBuffer probe(AlignedBuffer::kAlignment);
-      const ssize_t r = ::pread(fd, probe.data(), probe.size(), 0);
+    const int flags = ::fcntl(rf.fd, F_GETFL);
+    if (flags >= 0 && ::fcntl(rf.fd, F_SETFL, flags | O_DIRECT) == 0) {
+      const ssize_t r = ::pread(rf.fd, probe.data(), probe.size(), 0);
       if (r >= 0) {
-        result.file = std::move(f);
-        return result;
+        direct = true;
+      } else {
+        result.warning = path + ": the filesystem refuses O_DIRECT reads (" + std::strerror(errno) +
+                         "); reading through the page cache instead";
+        if (::fcntl(rf.fd, F_SETFL, flags) != 0) {
+          const int err = errno;
+          ::close(rf.fd);
+          throw InputError(path, std::string("cannot switch O_DIRECT off: ") + std::strerror(err));
+        }
       }
-      result.warning = path + ": the filesystem refuses O_DIRECT reads (" + std::strerror(errno) +
-                       "); reading through the page cache instead";
     } else if (errno == EINVAL) {
       result.warning = path + ": the filesystem does not support O_DIRECT; reading through the page cache instead";
-    } else if (errno != ENOENT && errno != EACCES) {
-      result.warning = path + ": O_DIRECT open failed (" + std::string(std::strerror(errno)) +
+    } else {
+      result.warning = path + ": O_DIRECT failed (" + std::string(std::strerror(errno)) +
                        "); reading through the page cache instead";
     }
   }
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) throw InputError(path, std::string("cannot open: ") + std::strerror(errno));
-  result.file = ReadFile(fd, false, path);
+  result.file = ReadFile(rf.fd, direct, path);
   return result;
 }
 
