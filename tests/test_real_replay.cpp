@@ -403,6 +403,39 @@ TEST_CASE("VRAM arena: a pool arena places by slot, a window arena by key, and a
   CHECK(windows.peek(t.key).size() == b1);
 }
 
+TEST_CASE("VRAM arena: larger than the host's memory is refused before any allocation, at the exact byte") {
+  const std::uint64_t tile = 1000 + 24;  // two layers
+  CHECK(VramArena::for_pool(3, {1000, 24}, 3 * tile).capacity_bytes() == 3 * tile);
+  try {
+    (void)VramArena::for_pool(3, {1000, 24}, 3 * tile - 1);
+    FAIL("no ArenaTooLarge");
+  } catch (const VramArena::ArenaTooLarge& e) {
+    CHECK(e.bytes == 3 * tile);
+    CHECK(e.limit == 3 * tile - 1);
+  }
+  CHECK_THROWS_AS(VramArena({{2, 2}, {1, 1}}, {1000, 24}, 5 * tile - 1), VramArena::ArenaTooLarge);
+  // A window product that would overflow 64 bits is still a clean refusal.
+  CHECK_THROWS_AS(VramArena({{std::int64_t{1} << 40, std::int64_t{1} << 40}}, {4096}), VramArena::ArenaTooLarge);
+  CHECK(VramArena::physical_memory_bytes() > (std::uint64_t{1} << 26));
+}
+
+TEST_CASE("real clock: a page pool larger than the machine's memory is refused, naming vt.pool_pages") {
+  // 2^24 pages of 72² texels in two layers: hundreds of GB, more than any test machine has. The
+  // refusal comes before the allocation (under overcommit the allocation would succeed and zeroing
+  // it would bring in the OOM killer; under ASan it would abort).
+  const TileStore store = TileStore::open(test::small_vt_store());
+  const ReplayConfig cfg = bound_cfg(store, {"run.system=vt", "vt.pool_pages=16777216"});
+  const auto scene = make_scene_from_config(cfg);
+  try {
+    run_real_replay(cfg, still_trace(0.1), *scene, store);
+    FAIL("a pool larger than host memory was allocated");
+  } catch (const InputError& e) {
+    const std::string w = e.what();
+    CHECK(w.find("field 'vt.pool_pages': the VRAM arena needs") != std::string::npos);
+    CHECK(w.find("more than this machine's") != std::string::npos);
+  }
+}
+
 TEST_CASE("real clock: the frame loop never waits for IO (every read takes 10 s, and the replay does not)") {
   const TileStore store = TileStore::open(test::small_store());
   const ReplayConfig cfg = bound_cfg(store, {"io.fault.slow_rate=1", "io.fault.slow_ms=10000"});

@@ -135,8 +135,12 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
       cp.layers = static_cast<int>(store.layer_count());
       run.arena = std::make_unique<VramArena>(VramArena::for_clipmap(cp, layer_bytes));
     }
-  } catch (const std::bad_alloc&) {
+  } catch (const VramArena::ArenaTooLarge& e) {
     // The arena is host memory the size of the VRAM it stands for, allocated before the first frame.
+    throw InputError("config", fmt::format("field '{}': the VRAM arena needs {:.1f} MiB, more than this machine's "
+                                           "{:.1f} MiB of memory", vt ? "vt.pool_pages" : "clipmap.clipsize",
+                                           static_cast<double>(e.bytes) / 1048576.0, static_cast<double>(e.limit) / 1048576.0));
+  } catch (const std::bad_alloc&) {
     throw InputError("config", fmt::format("field '{}': the VRAM arena does not fit in host memory", vt ? "vt.pool_pages" : "clipmap.clipsize"));
   }
   VramArena& arena = *run.arena;

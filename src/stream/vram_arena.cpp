@@ -1,5 +1,7 @@
 #include "stream/vram_arena.h"
 
+#include <unistd.h>
+
 #include <chrono>
 #include <cstring>
 #include <stdexcept>
@@ -11,12 +13,32 @@ namespace {
 constexpr std::uint64_t kNone = ~std::uint64_t{0};  // no tile (not a valid packed key in use)
 }
 
-VramArena::VramArena(std::vector<LevelWindow> levels, std::vector<std::uint32_t> layer_bytes)
+std::uint64_t VramArena::physical_memory_bytes() {
+  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
+  if (pages <= 0 || page <= 0) return UINT64_MAX;
+  return static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(page);
+}
+
+VramArena::ArenaTooLarge::ArenaTooLarge(std::uint64_t need, std::uint64_t lim)
+    : std::length_error("VramArena: " + std::to_string(need) + " bytes, more than the host's " + std::to_string(lim) +
+                        " bytes of memory"),
+      bytes(need),
+      limit(lim) {}
+
+VramArena::VramArena(std::vector<LevelWindow> levels, std::vector<std::uint32_t> layer_bytes, std::uint64_t host_limit)
     : levels_(std::move(levels)), layer_bytes_(std::move(layer_bytes)) {
   if (levels_.empty() || layer_bytes_.empty()) throw std::invalid_argument("VramArena: no levels or layers");
+  // Sizes first, in long double (no overflow for any window), checked before any allocation.
+  long double tile_bytes = 0.0L, need = 0.0L;
+  for (const std::uint32_t b : layer_bytes_) tile_bytes += b;
   std::uint64_t slots = 0;
   for (const auto& L : levels_) {
     if (L.wx < 1 || L.wy < 1) throw std::invalid_argument("VramArena: empty window");
+    need += static_cast<long double>(L.wx) * static_cast<long double>(L.wy) * tile_bytes;
+  }
+  if (need > static_cast<long double>(host_limit))
+    throw ArenaTooLarge(need >= 0x1p64L ? UINT64_MAX : static_cast<std::uint64_t>(need), host_limit);
+  for (const auto& L : levels_) {
     level_base_.push_back(slots);
     slots += static_cast<std::uint64_t>(L.wx * L.wy) * layer_bytes_.size();
   }
@@ -33,18 +55,18 @@ VramArena::VramArena(std::vector<LevelWindow> levels, std::vector<std::uint32_t>
   mem_ = std::make_unique<std::uint8_t[]>(bytes_);
 }
 
-VramArena VramArena::for_clipmap(const ClipmapParams& p, std::vector<std::uint32_t> layer_bytes) {
+VramArena VramArena::for_clipmap(const ClipmapParams& p, std::vector<std::uint32_t> layer_bytes, std::uint64_t host_limit) {
   const Clipmap cm(p);
   std::vector<LevelWindow> levels;
   for (int l = 0; l < cm.num_levels(); ++l) {
     const Clipmap::Window w = cm.window(l);
     levels.push_back({w.w, w.h});
   }
-  return VramArena(std::move(levels), std::move(layer_bytes));
+  return VramArena(std::move(levels), std::move(layer_bytes), host_limit);
 }
 
-VramArena VramArena::for_pool(std::uint32_t slots, std::vector<std::uint32_t> layer_bytes) {
-  VramArena a({LevelWindow{static_cast<std::int64_t>(slots), 1}}, std::move(layer_bytes));
+VramArena VramArena::for_pool(std::uint32_t slots, std::vector<std::uint32_t> layer_bytes, std::uint64_t host_limit) {
+  VramArena a({LevelWindow{static_cast<std::int64_t>(slots), 1}}, std::move(layer_bytes), host_limit);
   a.pool_ = true;
   return a;
 }

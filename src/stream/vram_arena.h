@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <stdexcept>
 #include <vector>
 
 #include "cache/clipmap.h"
@@ -25,12 +26,24 @@ class VramArena {
   struct LevelWindow {
     std::int64_t wx = 1, wy = 1;  // window size, tiles
   };
-  // `layer_bytes[i]`: decoded bytes of one tile of layer i.
-  VramArena(std::vector<LevelWindow> levels, std::vector<std::uint32_t> layer_bytes);
+  // `layer_bytes[i]`: decoded bytes of one tile of layer i. An arena larger than `host_limit`
+  // bytes (default: the machine's physical memory) throws ArenaTooLarge before anything is
+  // allocated: under overcommit the allocation itself would succeed and zeroing it would bring in
+  // the OOM killer.
+  VramArena(std::vector<LevelWindow> levels, std::vector<std::uint32_t> layer_bytes,
+            std::uint64_t host_limit = physical_memory_bytes());
   // The arena of a clipmap's stack windows and pyramid levels.
-  static VramArena for_clipmap(const ClipmapParams& p, std::vector<std::uint32_t> layer_bytes);
+  static VramArena for_clipmap(const ClipmapParams& p, std::vector<std::uint32_t> layer_bytes,
+                               std::uint64_t host_limit = physical_memory_bytes());
   // A virtual texture's physical page pool of `slots` pages.
-  static VramArena for_pool(std::uint32_t slots, std::vector<std::uint32_t> layer_bytes);
+  static VramArena for_pool(std::uint32_t slots, std::vector<std::uint32_t> layer_bytes,
+                            std::uint64_t host_limit = physical_memory_bytes());
+  // sysconf(_SC_PHYS_PAGES) · page size; UINT64_MAX when the system does not say.
+  static std::uint64_t physical_memory_bytes();
+  struct ArenaTooLarge : std::length_error {
+    ArenaTooLarge(std::uint64_t need, std::uint64_t limit);
+    std::uint64_t bytes = 0, limit = 0;
+  };
   bool pool() const { return pool_; }
 
   // Copies `tile` into its slot, replacing whatever tile held it: the slot its key addresses, or in
