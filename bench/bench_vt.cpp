@@ -27,6 +27,7 @@
 #include "sim/camera.h"
 #include "sim/replay.h"
 #include "sim/scene.h"
+#include "sim/scene_mesh.h"
 #include "sim/trace_gen.h"
 
 using namespace vtsim;
@@ -84,14 +85,36 @@ int main(int argc, char** argv) {
   ViewBuffer vb;
   std::vector<ViewSpan> ref_spans;
   std::size_t samples = 0;
+  // The renderer's own counts over the walk (the last repetition's; they do not change between
+  // repetitions): where each frame's work goes, docs/vt.md "Speed".
+  MeshScene::RenderStats walk_work;
+  std::uint64_t spans_total = 0;
+  const auto add_work = [&](const MeshScene::RenderStats& w) {
+    walk_work.chunks_in_frustum += w.chunks_in_frustum;
+    walk_work.chunks_occluded += w.chunks_occluded;
+    walk_work.triangles_visited += w.triangles_visited;
+    walk_work.back_faces_skipped += w.back_faces_skipped;
+    walk_work.triangles_occluded += w.triangles_occluded;
+    walk_work.triangles_rasterised += w.triangles_rasterised;
+    walk_work.raster_rows += w.raster_rows;
+    walk_work.depth_tests += w.depth_tests;
+    walk_work.visible_triangles += w.visible_triangles;
+    walk_work.resolve_runs += w.resolve_runs;
+    walk_work.resolve_samples += w.resolve_samples;
+    walk_work.chunks = w.chunks;
+  };
+  const bool is_mesh = dynamic_cast<const MeshScene*>(scene.get()) != nullptr;
   const bench::Result* render = h.compare(
       {.name = "render_only", .metric = bench::Metric::kOpsPerS, .work = frames, .params = {{"unit", "frames/s"}}},
       {"render_spans", {}, [&] {
          samples = 0;
+         walk_work = {};
          for (const Pose& p : walk.poses) {
            scene->render_spans(make_camera(p, walk.image_width, walk.image_height), vp, sb);
            samples += sb.spans.size();
+           if (is_mesh) add_work(MeshScene::last_render_stats());
          }
+         spans_total = samples;
          bench::do_not_optimize(samples);
        }},
       {"render+spans_from_samples", {}, [&] {
@@ -131,6 +154,33 @@ int main(int argc, char** argv) {
                "(alone: {:.0f}× real time)\n",
                us_full, us_render, 100.0 * us_render / us_full, us_full - us_render,
                us_full > us_render ? (1e6 / 60.0) / (us_full - us_render) : 0.0);
+  }
+  if (render && is_mesh) {
+    const double n = frames;
+    const auto per = [&](double v) { return v / n; };
+    fmt::print("render work per frame (walk): chunks {} in the mesh, {:.0f} in the frustum, {:.0f} occluded; triangles "
+               "{:.0f} visited, {:.0f} back faces skipped, {:.0f} occluded, {:.0f} rasterised over {:.0f} rows, {:.0f} "
+               "depth tests ({:.2f} per buffer sample), {:.1f} visible; resolve {:.0f} runs, {:.0f} samples, {:.0f} spans\n",
+               walk_work.chunks, per(walk_work.chunks_in_frustum), per(walk_work.chunks_occluded),
+               per(walk_work.triangles_visited), per(walk_work.back_faces_skipped), per(walk_work.triangles_occluded),
+               per(walk_work.triangles_rasterised), per(static_cast<double>(walk_work.raster_rows)),
+               per(static_cast<double>(walk_work.depth_tests)),
+               per(static_cast<double>(walk_work.depth_tests)) / static_cast<double>(sb.width * sb.height),
+               per(walk_work.visible_triangles), per(walk_work.resolve_runs),
+               per(static_cast<double>(walk_work.resolve_samples)), per(static_cast<double>(spans_total)));
+    h.param("render_work_per_frame",
+            nlohmann::json{{"chunks_in_frustum", per(walk_work.chunks_in_frustum)},
+                           {"chunks_occluded", per(walk_work.chunks_occluded)},
+                           {"triangles_visited", per(walk_work.triangles_visited)},
+                           {"back_faces_skipped", per(walk_work.back_faces_skipped)},
+                           {"triangles_occluded", per(walk_work.triangles_occluded)},
+                           {"triangles_rasterised", per(walk_work.triangles_rasterised)},
+                           {"raster_rows", per(static_cast<double>(walk_work.raster_rows))},
+                           {"depth_tests", per(static_cast<double>(walk_work.depth_tests))},
+                           {"visible_triangles", per(walk_work.visible_triangles)},
+                           {"resolve_runs", per(walk_work.resolve_runs)},
+                           {"resolve_samples", per(static_cast<double>(walk_work.resolve_samples))},
+                           {"spans", per(static_cast<double>(spans_total))}});
   }
   if (!full_summary.is_null())
     fmt::print("walk: {} pages mapped, {} evictions, blurry {:.2f}% mean\n", full_summary["vt"]["pages_mapped"].get<std::uint64_t>(),

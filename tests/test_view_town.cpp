@@ -247,3 +247,46 @@ TEST_CASE("town: back faces are skipped only where the solids allow it, and the 
   }
   CHECK(compared > 80);
 }
+
+TEST_CASE("town: render work counts add up, and culling is what removes the work") {
+  SceneConfig cfg;
+  cfg.kind = SceneKind::town;
+  const Mesh mesh = generate_town(cfg);
+  MeshScene culled(mesh, scene_texture(cfg)), plain(mesh, scene_texture(cfg));
+  plain.set_occlusion_culling(false);
+  const Camera cam = make_camera(pose_from_angles({cfg.origin_x_m + 30.0, cfg.origin_y_m + 8.0, 1.7}, 90.0, -5.0), 1920, 1080);
+  ViewParams vp;
+  vp.divisor = 8;
+  SpanBuffer sb;
+  sb.block_shift = 7;
+  const auto counts = [&](const MeshScene& m) {
+    m.render_spans(cam, vp, sb);
+    const MeshScene::RenderStats w = MeshScene::last_render_stats();
+    CHECK(w.chunks == (mesh.tris.size() + 15) / 16);
+    CHECK(w.chunks_occluded <= w.chunks_in_frustum);
+    CHECK(w.chunks_in_frustum <= w.chunks);
+    CHECK(w.back_faces_skipped + w.triangles_occluded + w.triangles_rasterised <= w.triangles_visited);
+    CHECK(w.raster_rows >= w.triangles_rasterised);  // a rasterised triangle spans a row at least
+    CHECK(w.resolve_samples >= sb.samples);          // runs also hold clipped and outside samples
+    CHECK(w.resolve_runs <= sb.spans.size() + w.resolve_samples);
+    CHECK(w.visible_triangles > 0);
+    return w;
+  };
+  const MeshScene::RenderStats a = counts(culled), b = counts(plain);
+  // The same buffer either way; without culling nothing is culled and every triangle of the
+  // frustum's chunks is visited and drawn.
+  CHECK(a.resolve_samples == b.resolve_samples);
+  CHECK(a.resolve_runs == b.resolve_runs);
+  CHECK(a.visible_triangles <= b.visible_triangles);  // the plain render also keeps back faces
+  CHECK(b.chunks_occluded == 0);
+  CHECK(b.back_faces_skipped == 0);
+  CHECK(b.triangles_occluded == 0);
+  CHECK(a.chunks_occluded > 0);
+  CHECK(a.back_faces_skipped > 0);
+  CHECK(a.triangles_visited * 4 < b.triangles_visited);
+  CHECK(a.depth_tests * 2 < b.depth_tests);
+  // Counted again from scratch on every render: the same camera gives the same counts.
+  const MeshScene::RenderStats a2 = counts(culled);
+  CHECK(a2.triangles_visited <= a.triangles_visited);  // the warm start may only cull more
+  CHECK(a2.resolve_samples == a.resolve_samples);
+}

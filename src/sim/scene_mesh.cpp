@@ -365,6 +365,7 @@ struct Scratch {
   std::vector<std::uint64_t> hint_stamp;   // == frame: already in `hint`
   std::vector<std::uint32_t> hint;   // triangles owning a sample in the last render (< size)
   std::uint64_t frame = 0;           // renders by this thread: stamps never repeat
+  MeshScene::RenderStats stats;      // of the render under way, then the last one
 
   double tile_least(int tx, int ty) {
     const std::size_t t = static_cast<std::size_t>(ty) * static_cast<std::size_t>(tw) + static_cast<std::size_t>(tx);
@@ -406,6 +407,12 @@ struct Scratch {
     return true;
   }
 };
+
+// The render scratch of this thread (reused: no allocation after warm-up).
+Scratch& scratch() {
+  thread_local Scratch s;
+  return s;
+}
 
 // Buffer columns whose sample position may lie in [lo, hi] (a superset; the edge test decides).
 // Called per rasterised row, so inlined, with 1/div hoisted by the caller's loop and floor/ceil
@@ -497,6 +504,10 @@ void raster_poly(const PV* v, int n, std::uint32_t tag, bool depth, int div, int
       xa = std::max(xa, x0);
       xb = std::min(xb, x1);
       const std::size_t rowi = static_cast<std::size_t>(y) * static_cast<std::size_t>(bw);
+      if (depth) {
+        ++s.stats.raster_rows;
+        s.stats.depth_tests += static_cast<std::uint64_t>(std::max(0, xb - xa + 1));
+      }
       if (!depth) {
         for (int x = xa; x <= xb; ++x) {
           const double sx = sxp[x];
@@ -638,6 +649,8 @@ bool MeshScene::skips_back_faces(const Camera& cam, const ViewParams& p) const {
   return true;
 }
 
+MeshScene::RenderStats MeshScene::last_render_stats() { return scratch().stats; }
+
 void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) const {
   detail::begin_frame(cam, p, out);
   render_impl(cam, p, &out, nullptr);
@@ -671,7 +684,9 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
   const LodRule rule = detail::lod_rule(p);
   const int div = p.divisor, bw = to_spans ? spans->width : view->width, bh = to_spans ? spans->height : view->height;
   const std::size_t npix = static_cast<std::size_t>(bw) * static_cast<std::size_t>(bh);
-  thread_local Scratch s;
+  Scratch& s = scratch();
+  s.stats = RenderStats{};
+  s.stats.chunks = static_cast<std::uint32_t>(chunks_.size());
   s.invz.assign(npix + 4, 0.0);  // + 4: shade_batch reads whole lanes
   s.id.assign(npix, kNoTri);
   s.near_cut.assign(npix, 0);
@@ -719,6 +734,7 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
       }
     }
     if (outside) continue;
+    ++s.stats.chunks_in_frustum;
     const glm::dvec3 nearest(F.x >= 0.0 ? ch.lo.x : ch.hi.x, F.y >= 0.0 ? ch.lo.y : ch.hi.y, F.z >= 0.0 ? ch.lo.z : ch.hi.z);
     order.emplace_back(glm::dot(nearest - o, F), ci);
   }
@@ -743,8 +759,12 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
   // One triangle: clip at near, project, occlusion-test, rasterise.
   const auto draw_tri = [&](std::uint32_t k) {
     const Tri& t = tris_[k];
+    ++s.stats.triangles_visited;
     const bool front = glm::dot(o - t.p[0], t.n) > 0.0;
-    if (!front && skip_back) return;
+    if (!front && skip_back) {
+      ++s.stats.back_faces_skipped;
+      return;
+    }
     bool all_near = true, any_flag = false;
     for (int c = 0; c < 3; ++c) {
       const glm::dvec3 q = t.p[c] - o;
@@ -769,13 +789,18 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
         sample_range(std::min({pv[0].X, pv[1].X, pv[2].X}), std::max({pv[0].X, pv[1].X, pv[2].X}), div, bw, x0, x1);
         sample_range(std::min({pv[0].Y, pv[1].Y, pv[2].Y}), std::max({pv[0].Y, pv[1].Y, pv[2].Y}), div, bh, y0, y1);
         const double tz = std::min({cv[0].z, cv[1].z, cv[2].z});
-        if (s.all_nearer(x0, x1, y0, y1, (1.0 / tz) * (1.0 + kOccludeMargin))) return;
+        if (s.all_nearer(x0, x1, y0, y1, (1.0 / tz) * (1.0 + kOccludeMargin))) {
+          ++s.stats.triangles_occluded;
+          return;
+        }
       }
+      ++s.stats.triangles_rasterised;
       raster_poly(pv, 3, tag, true, div, bw, bh, s);
       return;
     }
     const int na = clip_poly(cv, 3, near, true, clip_a);
     if (na >= 3) {
+      ++s.stats.triangles_rasterised;
       project(clip_a, na);
       raster_poly(pv, na, tag, true, div, bw, bh, s);
     }
@@ -805,7 +830,10 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
     }
   for (const auto& [zmin, ci] : order) {
     const Chunk& ch = chunks_[ci];
-    if (occlusion_culling_ && zmin > near && occluded(ch, zmin)) continue;
+    if (occlusion_culling_ && zmin > near && occluded(ch, zmin)) {
+      ++s.stats.chunks_occluded;
+      continue;
+    }
     for (std::uint32_t k = ch.first; k < ch.first + ch.count; ++k)
       if (s.drawn_stamp[k] != stamp) draw_tri(k);
   }
@@ -862,6 +890,8 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
       int xe = x + 1;
       while (xe < bw && s.id[row + static_cast<std::size_t>(xe)] == id) ++xe;
       const ShadeRow k = shade_row(h, py, rule, far_iz, extent_);
+      ++s.stats.resolve_runs;
+      s.stats.resolve_samples += static_cast<std::uint64_t>(xe - x);
       if (to_spans) {
         span_run(k, s.sx.data() + x, s.invz.data() + idx, xe - x, static_cast<std::uint32_t>(idx), rule.anisotropic, so);
       } else {
@@ -886,6 +916,7 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
       x = xe;
     }
   }
+  s.stats.visible_triangles = static_cast<std::uint32_t>(s.hint.size());
   if (to_spans) {
     spans->counters = c;
     spans->samples = so.n_samples;

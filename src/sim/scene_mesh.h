@@ -42,6 +42,24 @@ class MeshScene final : public IScene {
                      std::vector<ViewSample>& out) const override;
 
   std::size_t triangle_count() const { return tris_.size(); }
+  // What this thread's last render or render_spans of a mesh did: where the culling stopped each
+  // triangle and how many samples the rasteriser and the resolve touched (bench_vt prints it per
+  // frame; docs/vt.md "Speed"). Counted per chunk, triangle and row, never per sample.
+  struct RenderStats {
+    std::uint32_t chunks = 0;               // in the mesh
+    std::uint32_t chunks_in_frustum = 0;
+    std::uint32_t chunks_occluded = 0;      // in the frustum, skipped by the occlusion test
+    std::uint32_t triangles_visited = 0;    // reached by the warm start or a drawn chunk
+    std::uint32_t back_faces_skipped = 0;   // of those, back faces skipped (skips_back_faces)
+    std::uint32_t triangles_occluded = 0;   // skipped by the per-triangle occlusion test
+    std::uint32_t triangles_rasterised = 0; // depth-rasterised (near-clipped parts count once)
+    std::uint64_t raster_rows = 0;          // rows those triangles spanned
+    std::uint64_t depth_tests = 0;          // samples tested against the depth buffer
+    std::uint32_t visible_triangles = 0;    // owning a sample after the resolve
+    std::uint32_t resolve_runs = 0;         // row runs of one front face shaded
+    std::uint64_t resolve_samples = 0;      // samples in those runs
+  };
+  static RenderStats last_render_stats();
   // Occlusion culling (on by default): chunks drawn nearest first, those hidden behind what is
   // drawn skipped, and back faces skipped where the solids allow. Off: every chunk in the
   // frustum, in index order, every back face — the reference the tests compare with. Not to be
