@@ -146,7 +146,7 @@ std::vector<ToleranceRule> load_tolerances(const std::string& path) {
   for (const TomlEntry& e : entries) {
     const std::string where = at_line(path, e.line);
     const auto dot = e.key.rfind('.');
-    if (dot == 0) throw InputError(where, "'" + e.key + "': the key pattern is empty");
+    if (dot == 0) throw InputError(where, "the key pattern is empty ([\"\"] with field '" + e.key.substr(1) + "')");
     if (dot == std::string::npos)
       throw InputError(where, "'" + e.key + "': expected a table per key pattern, e.g. [\"latency_ms.*\"] rel = 0.05");
     const std::string pattern = e.key.substr(0, dot), field = e.key.substr(dot + 1);

@@ -1,15 +1,12 @@
 // Wavefront OBJ reader for the mesh scene: geometry and texture coordinates only.
 #include <charconv>
 #include <cmath>
-#include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <string_view>
-#include <system_error>
 
 #include <glm/geometric.hpp>
 
 #include "core/error.h"
+#include "core/input_file.h"
 #include "sim/trace_text.h"
 #include "sim/mesh.h"
 
@@ -159,17 +156,7 @@ Mesh parse_obj(const std::string& text, const std::string& name, ObjStats* stats
 }
 
 Mesh load_obj(const std::string& path, ObjStats* stats, const ObjLimits& limits) {
-  std::error_code ec;
-  const auto size = std::filesystem::file_size(path, ec);
-  if (ec) throw InputError(path, "cannot open: " + ec.message());
-  if (size > limits.max_bytes)
-    throw InputError(path, "file is " + std::to_string(size) + " bytes, more than the limit of " +
-                               std::to_string(limits.max_bytes));
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, "cannot open");
-  std::string text(static_cast<std::size_t>(size), '\0');
-  in.read(text.data(), static_cast<std::streamsize>(size));
-  if (static_cast<std::uint64_t>(in.gcount()) != size) throw InputError(path, "short read");
+  const std::string text = read_regular_file(path, limits.max_bytes, "more than the limit for an OBJ file");
   return parse_obj(text, path, stats, limits);
 }
 

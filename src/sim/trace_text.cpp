@@ -59,14 +59,12 @@ std::size_t utf8_sequence_length(std::string_view s, std::size_t i) {
 
 LineReader::LineReader(std::string path, const TraceReadLimits& limits)
     : path_(std::move(path)), limits_(limits) {
-  const RegularFile f = open_regular_file(path_);
-  fd_ = f.fd;
-  if (f.size > limits_.max_file_bytes) {
-    ::close(fd_);
-    throw InputError(path_, fmt::format("file is {} bytes, more than the limit of {} bytes", f.size, limits_.max_file_bytes));
-  }
-  file_bytes_ = f.size;
+  RegularFile f = open_regular_file(path_);
+  if (f.size() > limits_.max_file_bytes)
+    throw InputError(path_, fmt::format("file is {} bytes, more than the limit of {} bytes", f.size(), limits_.max_file_bytes));
+  file_bytes_ = f.size();
   buf_.resize(kReadChunk);
+  fd_ = f.release();  // nothing throws after this: the destructor closes it
 }
 
 LineReader::~LineReader() {

@@ -77,26 +77,26 @@ std::size_t ReadFile::pread_full(void* buf, std::size_t bytes, std::uint64_t off
 }
 
 DirectOpen open_for_read(const std::string& path, bool want_direct) {
-  // One open, checked by descriptor (open_regular_file); O_DIRECT is then switched on with
-  // fcntl (Linux allows it; EINVAL where the filesystem has no direct IO, as open would say).
-  AlignedBuffer probe(want_direct ? AlignedBuffer::kAlignment : 0);  // before the open: nothing throws after it
-  const RegularFile rf = open_regular_file(path);
+  // One open, checked by descriptor (open_regular_file); O_DIRECT is then switched on with fcntl
+  // on that descriptor (Linux allows it). A filesystem without direct IO says EINVAL there, or —
+  // where the switch only takes effect at the next read (overlayfs) — at the probe read.
+  RegularFile rf = open_regular_file(path);
   DirectOpen result;
   bool direct = false;
   if (want_direct) {
-    const int flags = ::fcntl(rf.fd, F_GETFL);
-    if (flags >= 0 && ::fcntl(rf.fd, F_SETFL, flags | O_DIRECT) == 0) {
-      const ssize_t r = ::pread(rf.fd, probe.data(), probe.size(), 0);
+    AlignedBuffer probe(AlignedBuffer::kAlignment);
+    const int flags = ::fcntl(rf.fd(), F_GETFL);
+    if (flags >= 0 && ::fcntl(rf.fd(), F_SETFL, flags | O_DIRECT) == 0) {
+      ssize_t r;
+      do r = ::pread(rf.fd(), probe.data(), probe.size(), 0);
+      while (r < 0 && errno == EINTR);
       if (r >= 0) {
         direct = true;
       } else {
         result.warning = path + ": the filesystem refuses O_DIRECT reads (" + std::strerror(errno) +
                          "); reading through the page cache instead";
-        if (::fcntl(rf.fd, F_SETFL, flags) != 0) {
-          const int err = errno;
-          ::close(rf.fd);
-          throw InputError(path, std::string("cannot switch O_DIRECT off: ") + std::strerror(err));
-        }
+        if (::fcntl(rf.fd(), F_SETFL, flags) != 0)
+          throw InputError(path, std::string("cannot switch O_DIRECT off: ") + std::strerror(errno));
       }
     } else if (errno == EINVAL) {
       result.warning = path + ": the filesystem does not support O_DIRECT; reading through the page cache instead";
@@ -105,7 +105,8 @@ DirectOpen open_for_read(const std::string& path, bool want_direct) {
                        "); reading through the page cache instead";
     }
   }
-  result.file = ReadFile(rf.fd, direct, path);
+  std::string owned_path = path;
+  result.file = ReadFile(rf.release(), direct, std::move(owned_path));  // nothing throws from here
   return result;
 }
 

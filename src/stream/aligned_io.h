@@ -66,10 +66,11 @@ struct DirectOpen {
   std::string warning;  // empty when O_DIRECT works; else why it fell back to buffered reads
 };
 
-// Opens `path` for reading with O_DIRECT when `want_direct` and the filesystem accepts it
-// (tmpfs and some overlay filesystems refuse with EINVAL at open or at the first read; the
-// probe reads 4096 bytes at offset 0). Otherwise opens buffered and says why in `warning`.
-// Throws InputError naming the path if the file cannot be opened at all.
+// Opens `path` once (open_regular_file: a FIFO, device or directory is refused) and, when
+// `want_direct`, switches O_DIRECT on for the descriptor with fcntl and probes 4096 bytes at
+// offset 0. Where the filesystem refuses it (EINVAL at the switch — procfs, tmpfs before 6.6 — or
+// at the probe — overlayfs), O_DIRECT is switched off again and `warning` says why. Throws
+// InputError naming the path if the file cannot be opened at all.
 DirectOpen open_for_read(const std::string& path, bool want_direct);
 
 }  // namespace vtsim

@@ -5,7 +5,7 @@
 // store's 4 KiB-rounded read sizes — so every read is legal under O_DIRECT. docs/real-engine.md.
 //
 // O_DIRECT policy: checked once, at construction (open_for_read probes one aligned read); where
-// the filesystem refuses it (EINVAL at open or at the probe), the pool reads through the page
+// the filesystem refuses it (EINVAL at the switch or at the probe), the pool reads through the page
 // cache and says why in warning(). Every read is still aligned, so nothing else changes.
 //
 // Requests wait in a priority queue (lower value first, then submission order); cancel() removes

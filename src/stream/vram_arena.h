@@ -26,10 +26,11 @@ class VramArena {
   struct LevelWindow {
     std::int64_t wx = 1, wy = 1;  // window size, tiles
   };
-  // `layer_bytes[i]`: decoded bytes of one tile of layer i. An arena larger than `host_limit`
-  // bytes (default: the machine's physical memory) throws ArenaTooLarge before anything is
-  // allocated: under overcommit the allocation itself would succeed and zeroing it would bring in
-  // the OOM killer.
+  // `layer_bytes[i]`: decoded bytes of one tile of layer i (> 0). An arena whose texels and
+  // bookkeeping (16 bytes a slot) exceed `host_limit` bytes (default: the machine's physical
+  // memory) throws ArenaTooLarge before anything is allocated: under overcommit the allocation
+  // itself would succeed and zeroing it would bring in the OOM killer. (One just below the limit
+  // can still meet it: the check is against physical memory, not what is free.)
   VramArena(std::vector<LevelWindow> levels, std::vector<std::uint32_t> layer_bytes,
             std::uint64_t host_limit = physical_memory_bytes());
   // The arena of a clipmap's stack windows and pyramid levels.
