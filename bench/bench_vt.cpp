@@ -73,7 +73,7 @@ int main(int argc, char** argv) {
                   }});
   };
   const bench::Result* full = replay_case("replay_town_walk", walk, cfg);
-  nlohmann::json full_summary = last;
+  nlohmann::json full_summary = full ? last : nlohmann::json();
   std::vector<std::string> every4_sets = sets;
   every4_sets.push_back("view.feedback_every=4");
   const ReplayConfig every4 = load_replay_config("", every4_sets, "vt");
@@ -128,7 +128,8 @@ int main(int argc, char** argv) {
          bench::do_not_optimize(samples);
        }});
   const bench::Result* stat = replay_case("replay_town_static", still, cfg);
-  nlohmann::json static_summary = last;
+  // Only this case's own summary (filtered out, `last` is still another case's).
+  const nlohmann::json static_summary = stat ? last : nlohmann::json();
   const int static_last_active = last_active_frame;
   ReplayConfig ahead_cfg = cfg;
   ahead_cfg.render_threads = -1;
