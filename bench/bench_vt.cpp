@@ -89,20 +89,6 @@ int main(int argc, char** argv) {
   // repetitions): where each frame's work goes, docs/vt.md "Speed".
   MeshScene::RenderStats walk_work;
   std::uint64_t spans_total = 0;
-  const auto add_work = [&](const MeshScene::RenderStats& w) {
-    walk_work.chunks_in_frustum += w.chunks_in_frustum;
-    walk_work.chunks_occluded += w.chunks_occluded;
-    walk_work.triangles_visited += w.triangles_visited;
-    walk_work.back_faces_skipped += w.back_faces_skipped;
-    walk_work.triangles_occluded += w.triangles_occluded;
-    walk_work.triangles_rasterised += w.triangles_rasterised;
-    walk_work.raster_rows += w.raster_rows;
-    walk_work.depth_tests += w.depth_tests;
-    walk_work.visible_triangles += w.visible_triangles;
-    walk_work.resolve_runs += w.resolve_runs;
-    walk_work.resolve_samples += w.resolve_samples;
-    walk_work.chunks = w.chunks;
-  };
   const bool is_mesh = dynamic_cast<const MeshScene*>(scene.get()) != nullptr;
   const bench::Result* render = h.compare(
       {.name = "render_only", .metric = bench::Metric::kOpsPerS, .work = frames, .params = {{"unit", "frames/s"}}},
@@ -112,7 +98,7 @@ int main(int argc, char** argv) {
          for (const Pose& p : walk.poses) {
            scene->render_spans(make_camera(p, walk.image_width, walk.image_height), vp, sb);
            samples += sb.spans.size();
-           if (is_mesh) add_work(MeshScene::last_render_stats());
+           if (is_mesh) walk_work += MeshScene::last_render_stats();
          }
          spans_total = samples;
          bench::do_not_optimize(samples);

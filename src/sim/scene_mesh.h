@@ -58,6 +58,22 @@ class MeshScene final : public IScene {
     std::uint32_t visible_triangles = 0;    // owning a sample after the resolve
     std::uint32_t resolve_runs = 0;         // row runs of one front face shaded
     std::uint64_t resolve_samples = 0;      // samples in those runs
+    // Sums the counts of several renders (chunks, the mesh's, stays the larger).
+    RenderStats& operator+=(const RenderStats& o) {
+      chunks = chunks > o.chunks ? chunks : o.chunks;
+      chunks_in_frustum += o.chunks_in_frustum;
+      chunks_occluded += o.chunks_occluded;
+      triangles_visited += o.triangles_visited;
+      back_faces_skipped += o.back_faces_skipped;
+      triangles_occluded += o.triangles_occluded;
+      triangles_rasterised += o.triangles_rasterised;
+      raster_rows += o.raster_rows;
+      depth_tests += o.depth_tests;
+      visible_triangles += o.visible_triangles;
+      resolve_runs += o.resolve_runs;
+      resolve_samples += o.resolve_samples;
+      return *this;
+    }
   };
   static RenderStats last_render_stats();
   // Occlusion culling (on by default): chunks drawn nearest first, those hidden behind what is
