@@ -351,6 +351,8 @@ TEST_CASE("compare: tolerance TOML overrides fields and inherits the rest") {
   CHECK(contains(input_error([&] { load_tolerances(tol); }), tol + ":1: '': a pattern with no field does nothing"));
   write_file(tol, "[\"latency_ms.*\"]\nrel = 0.1\n[run.wall_s]\n");
   CHECK(contains(input_error([&] { load_tolerances(tol); }), tol + ":3: 'run.wall_s': a pattern with no field"));
+  write_file(tol, "[\"zeta.*\"]\n[\"alpha.*\"]\n");  // the first in the file is named, not the first by name
+  CHECK(contains(input_error([&] { load_tolerances(tol); }), tol + ":1: 'zeta.*': a pattern with no field"));
   write_file(tol, "[\"\"]\nrel = 0.1\n");
   CHECK(contains(input_error([&] { load_tolerances(tol); }), tol + ":2: the key pattern is empty ([\"\"] with field 'rel')"));
 }

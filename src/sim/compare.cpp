@@ -140,9 +140,11 @@ std::vector<ToleranceRule> load_tolerances(const std::string& path) {
   std::vector<TomlEmptyTable> empty;
   const std::vector<TomlEntry> entries = read_toml_entries(path, &empty);
   // A pattern's table with no field would be a rule that changes nothing: a typo's likely sign.
-  if (!empty.empty())
-    throw InputError(at_line(path, empty.front().line), "'" + empty.front().key + "': a pattern with no field does "
-                                                         "nothing; give it abs, rel, better or ignore");
+  if (!empty.empty()) {  // the first in the file (the TOML tables come sorted by name)
+    const auto& t = *std::min_element(empty.begin(), empty.end(), [](const auto& a, const auto& b) { return a.line < b.line; });
+    throw InputError(at_line(path, t.line), "'" + t.key + "': a pattern with no field does nothing; give it abs, rel, "
+                                            "better or ignore");
+  }
   for (const TomlEntry& e : entries) {
     const std::string where = at_line(path, e.line);
     const auto dot = e.key.rfind('.');
