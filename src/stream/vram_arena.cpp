@@ -28,32 +28,27 @@ VramArena::ArenaTooLarge::ArenaTooLarge(std::uint64_t need, std::uint64_t lim)
 VramArena::VramArena(std::vector<LevelWindow> levels, std::vector<std::uint32_t> layer_bytes, std::uint64_t host_limit)
     : levels_(std::move(levels)), layer_bytes_(std::move(layer_bytes)) {
   if (levels_.empty() || layer_bytes_.empty()) throw std::invalid_argument("VramArena: no levels or layers");
-  // Sizes first, in long double (exact below 2^64; no overflow for any window), checked before any
-  // allocation: the texels plus the 16 bytes of bookkeeping per slot (offset and owner).
-  long double tile_bytes = 0.0L, need = 0.0L;
+  // Sizes first, checked before any allocation: tile counts overflow-checked, the bytes (texels
+  // plus 16 bytes of bookkeeping a slot: offset and owner) in long double, exact below 2^64.
+  long double page_bytes = 0.0L;  // one tile of every layer
   for (const std::uint32_t b : layer_bytes_) {
     if (b == 0) throw std::invalid_argument("VramArena: a layer of 0 bytes a tile");
-    tile_bytes += b;
+    page_bytes += b + static_cast<long double>(sizeof(std::uint64_t) + sizeof(TileKey));
   }
-  const long double per_slot_bookkeeping = sizeof(std::uint64_t) + sizeof(TileKey);
-  for (const auto& L : levels_) {
-    if (L.wx < 1 || L.wy < 1) throw std::invalid_argument("VramArena: empty window");
-    need += static_cast<long double>(L.wx) * static_cast<long double>(L.wy) *
-            (tile_bytes + per_slot_bookkeeping * static_cast<long double>(layer_bytes_.size()));
-  }
-  if (need > static_cast<long double>(host_limit))
-    throw ArenaTooLarge(need >= 0x1p64L ? UINT64_MAX : static_cast<std::uint64_t>(need), host_limit);
   std::uint64_t slots = 0;
   for (const auto& L : levels_) {
+    if (L.wx < 1 || L.wy < 1) throw std::invalid_argument("VramArena: empty window");
     level_base_.push_back(slots);
     std::int64_t tiles = 0;
     std::uint64_t level_slots = 0;
-    // Below any real host limit these cannot overflow; a limit near 2^64 must not make them.
     if (__builtin_mul_overflow(L.wx, L.wy, &tiles) ||
         __builtin_mul_overflow(static_cast<std::uint64_t>(tiles), layer_bytes_.size(), &level_slots) ||
         __builtin_add_overflow(slots, level_slots, &slots))
       throw ArenaTooLarge(UINT64_MAX, host_limit);
   }
+  const long double need = static_cast<long double>(slots / layer_bytes_.size()) * page_bytes;
+  if (need > static_cast<long double>(host_limit))
+    throw ArenaTooLarge(need >= 0x1p64L ? UINT64_MAX : static_cast<std::uint64_t>(need), host_limit);
   slot_offset_.resize(slots);
   std::uint64_t off = 0;
   for (std::uint64_t s = 0; s < slots; ++s) {
