@@ -263,9 +263,10 @@ json load_json_file(const std::string& path) {
 
 DocKind detect_kind(const json& doc, const std::string& path) {
   if (!doc.is_object()) throw InputError(path, "not a vtsim summary or benchmark JSON (the top level is not an object)");
-  if (const auto it = doc.find("schema"); it != doc.end()) {
-    if (!it->is_string() || it->get<std::string>() != "vtsim-bench/1")
-      throw InputError(path, "key 'schema': " + it->dump() + " is not a schema vtsim compare knows (\"vtsim-bench/1\")");
+  if (doc.contains("schema")) {
+    const json& schema = doc.at("schema");
+    if (!schema.is_string() || schema.get<std::string>() != "vtsim-bench/1")
+      throw InputError(path, "key 'schema': " + schema.dump() + " is not a schema vtsim compare knows (\"vtsim-bench/1\")");
     for (const char* k : {"benchmark", "results"})
       if (!doc.contains(k)) throw InputError(path, std::string("key '") + k + "' is missing (required by vtsim-bench/1)");
     if (!doc["benchmark"].is_string()) throw InputError(path, "key 'benchmark' must be a string");

@@ -23,8 +23,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string u(std::uint64_t v) { return std::to_string(v); }
-
 std::string errno_text() { return std::strerror(errno); }
 
 void write_all(int fd, const std::uint8_t* p, std::size_t n, std::uint64_t offset, const std::string& path) {
@@ -43,36 +41,36 @@ void write_all(int fd, const std::uint8_t* p, std::size_t n, std::uint64_t offse
 constexpr std::uint64_t kMaxWriterTiles = std::uint64_t{1} << 27;
 
 void validate_spec(const StoreSpec& s) {
-  if (s.tile < 1 || s.tile > kMaxTileSize) throw InputError("--tile", u(s.tile) + " is out of range 1.." + u(kMaxTileSize));
+  if (s.tile < 1 || s.tile > kMaxTileSize) throw InputError("--tile", dec(s.tile) + " is out of range 1.." + dec(kMaxTileSize));
   if (s.border > kMaxBorder || s.tile + 2 * s.border > kMaxStoredSide)
-    throw InputError("--border", u(s.border) + " is out of range (border <= " + u(kMaxBorder) + ", tile + 2*border <= " +
-                                     u(kMaxStoredSide) + ")");
+    throw InputError("--border", dec(s.border) + " is out of range (border <= " + dec(kMaxBorder) + ", tile + 2*border <= " +
+                                     dec(kMaxStoredSide) + ")");
   const std::uint64_t max_extent = static_cast<std::uint64_t>(TileKey::kMaxCoord + 1) * s.tile;
   if (s.width < 1 || s.height < 1 || s.width > max_extent || s.height > max_extent)
-    throw InputError("--size", u(s.width) + "x" + u(s.height) + " is out of range (1.." + u(max_extent) + " a side at tile " +
-                                   u(s.tile) + ")");
+    throw InputError("--size", dec(s.width) + "x" + dec(s.height) + " is out of range (1.." + dec(max_extent) + " a side at tile " +
+                                   dec(s.tile) + ")");
   const std::uint32_t full = full_level_count(s.width, s.height);
   if (s.levels > full)
-    throw InputError("--levels", u(s.levels) + " is more than the " + u(full) + " levels down to 1x1 of " + u(s.width) + "x" + u(s.height));
+    throw InputError("--levels", dec(s.levels) + " is more than the " + dec(full) + " levels down to 1x1 of " + dec(s.width) + "x" + dec(s.height));
   if (s.layers.empty() || s.layers.size() > kMaxLayers)
-    throw InputError("--layers", u(s.layers.size()) + " layers; a store has 1.." + u(kMaxLayers));
+    throw InputError("--layers", dec(s.layers.size()) + " layers; a store has 1.." + dec(kMaxLayers));
   // The writer holds the whole index in memory (32 B a tile): 2^27 tiles = 4 GiB. The default
   // 2^20² texture at tile 128 has 89 M tiles (~2.9 GB of index, 6.6 TB of data).
   const std::uint64_t tiles = Geometry::make(s.width, s.height, s.tile, s.border, s.levels ? s.levels : full,
                                              static_cast<std::uint32_t>(s.layers.size()))
                                   .tile_count();
   if (tiles > kMaxWriterTiles)
-    throw InputError("--size", u(s.width) + "x" + u(s.height) + " at tile " + u(s.tile) + " is " + u(tiles) +
-                                   " tiles; a store has at most " + u(kMaxWriterTiles) + " (use larger tiles or a smaller texture)");
+    throw InputError("--size", dec(s.width) + "x" + dec(s.height) + " at tile " + dec(s.tile) + " is " + dec(tiles) +
+                                   " tiles; a store has at most " + dec(kMaxWriterTiles) + " (use larger tiles or a smaller texture)");
   for (std::size_t i = 0; i < s.layers.size(); ++i) {
     const StoreLayerSpec& L = s.layers[i];
-    const std::string where = "layer " + u(i) + " ('" + L.name + "')";
+    const std::string where = "layer " + dec(i) + " ('" + L.name + "')";
     if (L.name.size() >= kLayerNameBytes || L.name.find('\0') != std::string::npos)
-      throw InputError("--layer-names", where + ": a name is at most " + u(kLayerNameBytes - 1) + " bytes without NUL");
+      throw InputError("--layer-names", where + ": a name is at most " + dec(kLayerNameBytes - 1) + " bytes without NUL");
     if (L.channels < 1 || L.channels > kMaxChannels)
-      throw InputError(where, u(L.channels) + " channels; a layer has 1.." + u(kMaxChannels));
+      throw InputError(where, dec(L.channels) + " channels; a layer has 1.." + dec(kMaxChannels));
     if (!decoder_for(L.codec.id).supports_channels(static_cast<int>(L.channels)))
-      throw InputError("--codec", where + ": " + std::string(codec_name(L.codec.id)) + " cannot store " + u(L.channels) + " channels");
+      throw InputError("--codec", where + ": " + std::string(codec_name(L.codec.id)) + " cannot store " + dec(L.channels) + " channels");
     for (std::size_t j = 0; j < i; ++j)
       if (s.layers[j].name == L.name) throw InputError("--layer-names", "layer name '" + L.name + "' is used twice");
   }
@@ -152,7 +150,7 @@ void StoreWriter::append(const EncodedTile& t) {
   if (written_[slot]) throw InputError(out_path_ + ": " + describe(t.key), "written twice");
   const std::uint32_t want = tile_bytes(t.key.layer());
   if (t.payload.empty() || t.payload.size() > want || (t.codec == CodecId::raw && t.payload.size() != want))
-    throw InputError(out_path_ + ": " + describe(t.key), "payload of " + u(t.payload.size()) + " bytes is out of range");
+    throw InputError(out_path_ + ": " + describe(t.key), "payload of " + dec(t.payload.size()) + " bytes is out of range");
   IndexEntry& e = index_[slot];
   e.offset = end_;
   e.stored_bytes = static_cast<std::uint32_t>(t.payload.size());
@@ -181,7 +179,7 @@ void StoreWriter::commit() {
   if (tiles_written_ != n) {
     for (std::uint64_t s = 0; s < n; ++s)
       if (!written_[s])
-        throw InputError(out_path_, u(n - tiles_written_) + " tiles were never written, first " + describe(header_.geom.key_of_slot(s)));
+        throw InputError(out_path_, dec(n - tiles_written_) + " tiles were never written, first " + describe(header_.geom.key_of_slot(s)));
   }
   flush_buffer();
   std::vector<std::uint8_t> idx(static_cast<std::size_t>(header_.index_bytes));
@@ -442,15 +440,15 @@ void extract_tile(const Image8& level, std::uint32_t tile, std::uint32_t border,
 BuildResult build_store(const std::vector<std::string>& images, const BuildOptions& o, const std::string& out_path,
                         const ProgressFn& progress) {
   if (images.empty()) throw InputError("IMAGE", "at least one image (one per layer) is needed");
-  if (images.size() > kMaxLayers) throw InputError("IMAGE", u(images.size()) + " images; a store has at most " + u(kMaxLayers) + " layers");
+  if (images.size() > kMaxLayers) throw InputError("IMAGE", dec(images.size()) + " images; a store has at most " + dec(kMaxLayers) + " layers");
   auto per_layer = [&](std::size_t given, const char* opt) {
     if (given != 0 && given != 1 && given != images.size())
-      throw InputError(opt, u(given) + " values for " + u(images.size()) + " images (give one, or one per image)");
+      throw InputError(opt, dec(given) + " values for " + dec(images.size()) + " images (give one, or one per image)");
   };
   per_layer(o.codecs.size(), "--codec");
   per_layer(o.transfers.size(), "--transfer");
   if (!o.layer_names.empty() && o.layer_names.size() != images.size())
-    throw InputError("--layer-names", u(o.layer_names.size()) + " names for " + u(images.size()) + " images");
+    throw InputError("--layer-names", dec(o.layer_names.size()) + " names for " + dec(images.size()) + " images");
 
   StoreSpec spec;
   spec.tile = o.tile;
@@ -466,8 +464,8 @@ BuildResult build_store(const std::vector<std::string>& images, const BuildOptio
     level0.push_back(read_image8(images[i], L.transfer));
     L.channels = level0.back().channels;
     if (i > 0 && (level0[i].width != level0[0].width || level0[i].height != level0[0].height))
-      throw InputError(images[i], u(level0[i].width) + "x" + u(level0[i].height) + " differs from " + images[0] + " (" +
-                                      u(level0[0].width) + "x" + u(level0[0].height) + "): every layer has the same size");
+      throw InputError(images[i], dec(level0[i].width) + "x" + dec(level0[i].height) + " differs from " + images[0] + " (" +
+                                      dec(level0[0].width) + "x" + dec(level0[0].height) + "): every layer has the same size");
     spec.layers.push_back(L);
   }
   spec.width = level0[0].width;

@@ -21,6 +21,9 @@
 
 namespace vtsim::store {
 
+// Decimal text of a count, for the store's error messages (reader and writer).
+inline std::string dec(std::uint64_t v) { return std::to_string(v); }
+
 // ---- layout constants (docs/store-format.md §2) ------------------------------------------------
 inline constexpr std::array<std::uint8_t, 8> kMagic = {'V', 'T', 'S', 'T', 'O', 'R', 'E', 0};
 inline constexpr std::uint32_t kVersionMajor = 1;  // incompatible layout changes bump this

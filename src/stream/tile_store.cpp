@@ -17,33 +17,31 @@ namespace {
 
 std::string field(const std::string& path, const char* name) { return path + ": header field '" + name + "'"; }
 
-std::string u(std::uint64_t v) { return std::to_string(v); }
-
 }  // namespace
 
 StoreHeader parse_store_header(const std::string& path, const std::uint8_t* b, std::size_t size,
                                std::uint64_t file_size) {
   if (size < kFixedHeaderBytes)
-    throw InputError(path + ": header", "truncated: the file has " + u(size) + " bytes, a store header needs " +
-                                            u(kFixedHeaderBytes));
+    throw InputError(path + ": header", "truncated: the file has " + dec(size) + " bytes, a store header needs " +
+                                            dec(kFixedHeaderBytes));
   if (std::memcmp(b + hdr::magic, kMagic.data(), kMagic.size()) != 0)
     throw InputError(field(path, "magic"), "not a vtsim tile store (bad magic; expected \"VTSTORE\\0\")");
   StoreHeader h;
   h.version_major = load_u32(b + hdr::version_major);
   h.version_minor = load_u32(b + hdr::version_minor);
   if (h.version_major != kVersionMajor)
-    throw InputError(field(path, "version_major"), "format version " + u(h.version_major) + "." + u(h.version_minor) +
-                                                       " is not supported (this reader reads " + u(kVersionMajor) + ".x)");
+    throw InputError(field(path, "version_major"), "format version " + dec(h.version_major) + "." + dec(h.version_minor) +
+                                                       " is not supported (this reader reads " + dec(kVersionMajor) + ".x)");
   const std::uint32_t layer_count = load_u32(b + hdr::layer_count);
   if (layer_count < 1 || layer_count > kMaxLayers)
-    throw InputError(field(path, "layer_count"), u(layer_count) + " is out of range 1.." + u(kMaxLayers));
+    throw InputError(field(path, "layer_count"), dec(layer_count) + " is out of range 1.." + dec(kMaxLayers));
   const std::uint32_t header_bytes = load_u32(b + hdr::header_bytes);
   const std::size_t need = kFixedHeaderBytes + kLayerDescBytes * layer_count;
   if (header_bytes < need || header_bytes > kHeaderBlockBytes)
-    throw InputError(field(path, "header_bytes"), u(header_bytes) + " is out of range " + u(need) + ".." +
-                                                      u(kHeaderBlockBytes) + " for " + u(layer_count) + " layers");
+    throw InputError(field(path, "header_bytes"), dec(header_bytes) + " is out of range " + dec(need) + ".." +
+                                                      dec(kHeaderBlockBytes) + " for " + dec(layer_count) + " layers");
   if (size < header_bytes)
-    throw InputError(path + ": header", "truncated: the file has " + u(size) + " bytes, the header needs " + u(header_bytes));
+    throw InputError(path + ": header", "truncated: the file has " + dec(size) + " bytes, the header needs " + dec(header_bytes));
   {
     std::vector<std::uint8_t> copy(b, b + header_bytes);
     std::memset(copy.data() + hdr::header_checksum, 0, 8);
@@ -54,76 +52,76 @@ StoreHeader parse_store_header(const std::string& path, const std::uint8_t* b, s
   if (load_u32(b + hdr::flags) != 0)
     throw InputError(field(path, "flags"), fmt::format("unknown flags {:#x}", load_u32(b + hdr::flags)) + " (none are defined in 1.x)");
   if (load_u32(b + hdr::alignment) != kAlign)
-    throw InputError(field(path, "alignment"), u(load_u32(b + hdr::alignment)) + " (version 1 requires " + u(kAlign) + ")");
+    throw InputError(field(path, "alignment"), dec(load_u32(b + hdr::alignment)) + " (version 1 requires " + dec(kAlign) + ")");
 
   const std::uint64_t width = load_u64(b + hdr::width), height = load_u64(b + hdr::height);
   const std::uint32_t tile = load_u32(b + hdr::tile_size), border = load_u32(b + hdr::border);
   const std::uint32_t levels = load_u32(b + hdr::level_count);
   if (tile < 1 || tile > kMaxTileSize)
-    throw InputError(field(path, "tile_size"), u(tile) + " is out of range 1.." + u(kMaxTileSize));
+    throw InputError(field(path, "tile_size"), dec(tile) + " is out of range 1.." + dec(kMaxTileSize));
   if (border > kMaxBorder || tile + 2 * border > kMaxStoredSide)
-    throw InputError(field(path, "border"), u(border) + " is out of range (border <= " + u(kMaxBorder) +
-                                                ", tile + 2*border <= " + u(kMaxStoredSide) + ")");
+    throw InputError(field(path, "border"), dec(border) + " is out of range (border <= " + dec(kMaxBorder) +
+                                                ", tile + 2*border <= " + dec(kMaxStoredSide) + ")");
   const std::uint64_t max_extent = static_cast<std::uint64_t>(TileKey::kMaxCoord + 1) * tile;
   if (width < 1 || width > max_extent)
-    throw InputError(field(path, "width"), u(width) + " is out of range 1.." + u(max_extent));
+    throw InputError(field(path, "width"), dec(width) + " is out of range 1.." + dec(max_extent));
   if (height < 1 || height > max_extent)
-    throw InputError(field(path, "height"), u(height) + " is out of range 1.." + u(max_extent));
+    throw InputError(field(path, "height"), dec(height) + " is out of range 1.." + dec(max_extent));
   const std::uint32_t full = full_level_count(width, height);
   if (levels < 1 || levels > full || levels > TileKey::kMaxLevels)
-    throw InputError(field(path, "level_count"), u(levels) + " is out of range 1.." + u(std::min(full, TileKey::kMaxLevels)));
+    throw InputError(field(path, "level_count"), dec(levels) + " is out of range 1.." + dec(std::min(full, TileKey::kMaxLevels)));
   h.geom = Geometry::make(width, height, tile, border, levels, layer_count);
 
   for (std::uint32_t i = 0; i < layer_count; ++i) {
     const std::uint8_t* d = b + kFixedHeaderBytes + i * kLayerDescBytes;
-    const std::string where = path + ": layer " + u(i) + " field ";
+    const std::string where = path + ": layer " + dec(i) + " field ";
     LayerInfo L;
     const void* nul = std::memchr(d + lay::name, 0, kLayerNameBytes);
     if (!nul) throw InputError(where + "'name'", "is not NUL-terminated within 32 bytes");
     L.name.assign(reinterpret_cast<const char*>(d + lay::name), static_cast<const std::uint8_t*>(nul) - (d + lay::name));
     L.channels = load_u32(d + lay::channels);
     if (L.channels < 1 || L.channels > kMaxChannels)
-      throw InputError(where + "'channels'", u(L.channels) + " is out of range 1.." + u(kMaxChannels));
+      throw InputError(where + "'channels'", dec(L.channels) + " is out of range 1.." + dec(kMaxChannels));
     L.bits = load_u32(d + lay::bits);
-    if (L.bits != 8) throw InputError(where + "'bits'", u(L.bits) + " (version 1 stores 8 bits per channel)");
+    if (L.bits != 8) throw InputError(where + "'bits'", dec(L.bits) + " (version 1 stores 8 bits per channel)");
     const std::uint32_t codec = load_u32(d + lay::codec);
-    if (codec >= kCodecCount) throw InputError(where + "'codec'", "unknown codec id " + u(codec));
+    if (codec >= kCodecCount) throw InputError(where + "'codec'", "unknown codec id " + dec(codec));
     L.codec = static_cast<CodecId>(codec);
     if (!decoder_for(L.codec).supports_channels(static_cast<int>(L.channels)))
-      throw InputError(where + "'codec'", std::string(codec_name(L.codec)) + " cannot store " + u(L.channels) + " channels");
+      throw InputError(where + "'codec'", std::string(codec_name(L.codec)) + " cannot store " + dec(L.channels) + " channels");
     L.codec_param = static_cast<std::int32_t>(load_u32(d + lay::codec_param));
     const std::uint32_t transfer = load_u32(d + lay::transfer);
-    if (transfer > 1) throw InputError(where + "'transfer'", u(transfer) + " is not 0 (linear) or 1 (sRGB)");
+    if (transfer > 1) throw InputError(where + "'transfer'", dec(transfer) + " is not 0 (linear) or 1 (sRGB)");
     L.transfer = static_cast<Transfer>(transfer);
     h.layers.push_back(std::move(L));
   }
 
   const std::uint64_t tile_count = load_u64(b + hdr::tile_count);
   if (tile_count != h.geom.tile_count())
-    throw InputError(field(path, "tile_count"), u(tile_count) + " disagrees with the geometry (" + u(h.geom.tile_count()) + " tiles)");
+    throw InputError(field(path, "tile_count"), dec(tile_count) + " disagrees with the geometry (" + dec(h.geom.tile_count()) + " tiles)");
   h.file_bytes = load_u64(b + hdr::file_bytes);
   if (h.file_bytes % kAlign != 0)
-    throw InputError(field(path, "file_bytes"), u(h.file_bytes) + " is not a multiple of " + u(kAlign));
+    throw InputError(field(path, "file_bytes"), dec(h.file_bytes) + " is not a multiple of " + dec(kAlign));
   if (file_size < h.file_bytes)
-    throw InputError(path, "truncated: the file has " + u(file_size) + " bytes, its header (field 'file_bytes') says " + u(h.file_bytes));
+    throw InputError(path, "truncated: the file has " + dec(file_size) + " bytes, its header (field 'file_bytes') says " + dec(h.file_bytes));
   if (file_size > h.file_bytes)
-    throw InputError(field(path, "file_bytes"), "the file has " + u(file_size - h.file_bytes) + " bytes past the " +
-                                                    u(h.file_bytes) + " its header records");
+    throw InputError(field(path, "file_bytes"), "the file has " + dec(file_size - h.file_bytes) + " bytes past the " +
+                                                    dec(h.file_bytes) + " its header records");
   h.index_offset = load_u64(b + hdr::index_offset);
   h.index_bytes = load_u64(b + hdr::index_bytes);
   h.index_checksum = load_u64(b + hdr::index_checksum);
   h.data_offset = load_u64(b + hdr::data_offset);
   if (h.index_offset % kAlign != 0 || h.index_offset < kHeaderBlockBytes)
-    throw InputError(field(path, "index_offset"), u(h.index_offset) + " is not a multiple of " + u(kAlign) + " at or after the header block");
+    throw InputError(field(path, "index_offset"), dec(h.index_offset) + " is not a multiple of " + dec(kAlign) + " at or after the header block");
   if (h.index_offset >= h.file_bytes)
-    throw InputError(field(path, "index_offset"), u(h.index_offset) + " is past the end of the file (" + u(h.file_bytes) + " bytes)");
+    throw InputError(field(path, "index_offset"), dec(h.index_offset) + " is past the end of the file (" + dec(h.file_bytes) + " bytes)");
   if (tile_count > h.file_bytes / kIndexEntryBytes || h.index_bytes != tile_count * kIndexEntryBytes)
-    throw InputError(field(path, "index_bytes"), u(h.index_bytes) + " does not hold " + u(tile_count) + " entries of " + u(kIndexEntryBytes) + " bytes");
+    throw InputError(field(path, "index_bytes"), dec(h.index_bytes) + " does not hold " + dec(tile_count) + " entries of " + dec(kIndexEntryBytes) + " bytes");
   if (h.index_bytes > h.file_bytes - h.index_offset)
-    throw InputError(field(path, "index_bytes"), "the index [" + u(h.index_offset) + ", " + u(h.index_offset + h.index_bytes) +
-                                                     ") runs past the end of the file (" + u(h.file_bytes) + " bytes)");
+    throw InputError(field(path, "index_bytes"), "the index [" + dec(h.index_offset) + ", " + dec(h.index_offset + h.index_bytes) +
+                                                     ") runs past the end of the file (" + dec(h.file_bytes) + " bytes)");
   if (h.data_offset % kAlign != 0 || h.data_offset < h.index_offset + h.index_bytes || h.data_offset > h.file_bytes)
-    throw InputError(field(path, "data_offset"), u(h.data_offset) + " is not a multiple of " + u(kAlign) +
+    throw InputError(field(path, "data_offset"), dec(h.data_offset) + " is not a multiple of " + dec(kAlign) +
                                                      " between the end of the index and the end of the file");
   return h;
 }
@@ -169,33 +167,33 @@ TileStore TileStore::open(const std::string& path) {
     e.checksum = load_u64(p + ent::checksum);
     const std::uint32_t codec = load_u32(p + ent::codec);
     const TileKey k = g.key_of_slot(i);
-    const std::string where = path + ": index entry " + u(i) + " (" + describe(k) + ") field ";
+    const std::string where = path + ": index entry " + dec(i) + " (" + describe(k) + ") field ";
     const std::uint32_t want = h.tile_bytes(k.layer());
     if (e.decoded_bytes != want)
-      throw InputError(where + "'decoded_bytes'", u(e.decoded_bytes) + ", the tile holds " + u(want) + " bytes");
+      throw InputError(where + "'decoded_bytes'", dec(e.decoded_bytes) + ", the tile holds " + dec(want) + " bytes");
     if (e.stored_bytes < 1 || e.stored_bytes > want)
-      throw InputError(where + "'stored_bytes'", u(e.stored_bytes) + " is out of range 1.." + u(want));
+      throw InputError(where + "'stored_bytes'", dec(e.stored_bytes) + " is out of range 1.." + dec(want));
     const CodecId layer_codec = h.layers[k.layer()].codec;
     if (codec != static_cast<std::uint32_t>(layer_codec) && codec != static_cast<std::uint32_t>(CodecId::raw))
-      throw InputError(where + "'codec'", u(codec) + " is neither the layer's codec (" + std::string(codec_name(layer_codec)) + ") nor raw");
+      throw InputError(where + "'codec'", dec(codec) + " is neither the layer's codec (" + std::string(codec_name(layer_codec)) + ") nor raw");
     e.codec = static_cast<CodecId>(codec);
     if (e.codec == CodecId::raw && e.stored_bytes != want)
-      throw InputError(where + "'stored_bytes'", u(e.stored_bytes) + " for a raw tile of " + u(want) + " bytes");
+      throw InputError(where + "'stored_bytes'", dec(e.stored_bytes) + " for a raw tile of " + dec(want) + " bytes");
     if (e.offset % kAlign != 0)
-      throw InputError(where + "'offset'", u(e.offset) + " is not a multiple of " + u(kAlign));
+      throw InputError(where + "'offset'", dec(e.offset) + " is not a multiple of " + dec(kAlign));
     const std::uint64_t end = e.offset + round_up(e.stored_bytes, kAlign);
     if (e.offset < h.data_offset || e.offset > h.file_bytes || end > h.file_bytes)
-      throw InputError(where + "'offset'", "record [" + u(e.offset) + ", " + u(end) + ") is outside the data region [" +
-                                               u(h.data_offset) + ", " + u(h.file_bytes) + ")");
+      throw InputError(where + "'offset'", "record [" + dec(e.offset) + ", " + dec(end) + ") is outside the data region [" +
+                                               dec(h.data_offset) + ", " + dec(h.file_bytes) + ")");
     s.index_[i] = e;
     spans[i] = {e.offset, end, i};
   }
   std::sort(spans.begin(), spans.end(), [](const Span& a, const Span& b) { return a.begin < b.begin; });
   for (std::size_t i = 1; i < spans.size(); ++i)
     if (spans[i].begin < spans[i - 1].end)
-      throw InputError(path + ": index entry " + u(spans[i].slot) + " (" + describe(g.key_of_slot(spans[i].slot)) + ") field 'offset'",
-                       "record at " + u(spans[i].begin) + " overlaps the record of " + describe(g.key_of_slot(spans[i - 1].slot)) +
-                           " [" + u(spans[i - 1].begin) + ", " + u(spans[i - 1].end) + ")");
+      throw InputError(path + ": index entry " + dec(spans[i].slot) + " (" + describe(g.key_of_slot(spans[i].slot)) + ") field 'offset'",
+                       "record at " + dec(spans[i].begin) + " overlaps the record of " + describe(g.key_of_slot(spans[i - 1].slot)) +
+                           " [" + dec(spans[i - 1].begin) + ", " + dec(spans[i - 1].end) + ")");
   return s;
 }
 
@@ -211,9 +209,9 @@ void TileStore::verify_and_decode(TileKey k, const std::uint8_t* record, std::si
   const IndexEntry& e = index_[header_.geom.slot(k)];
   const std::string where = path_ + ": " + describe(k);
   if (size < e.stored_bytes)
-    throw InputError(where, "record has " + u(size) + " bytes, the index says " + u(e.stored_bytes));
+    throw InputError(where, "record has " + dec(size) + " bytes, the index says " + dec(e.stored_bytes));
   if (out_size < e.decoded_bytes)
-    throw InputError(where, "output buffer of " + u(out_size) + " bytes is smaller than the tile (" + u(e.decoded_bytes) + ")");
+    throw InputError(where, "output buffer of " + dec(out_size) + " bytes is smaller than the tile (" + dec(e.decoded_bytes) + ")");
   if (checksum64(record, e.stored_bytes) != e.checksum) throw InputError(where, "checksum mismatch: the record is corrupt");
   const int side = static_cast<int>(header_.geom.stored_side());
   try {
@@ -233,7 +231,7 @@ void TileStore::read_tile(TileKey k, AlignedBuffer& scratch, std::uint8_t* out, 
     throw InputError(path_ + ": " + describe(k), e.what());
   }
   if (got < loc.stored_bytes)
-    throw InputError(path_ + ": " + describe(k), "short read: " + u(got) + " of " + u(loc.stored_bytes) + " bytes (file truncated?)");
+    throw InputError(path_ + ": " + describe(k), "short read: " + dec(got) + " of " + dec(loc.stored_bytes) + " bytes (file truncated?)");
   verify_and_decode(k, scratch.data(), got, out, out_size);
 }
 
