@@ -7,11 +7,13 @@
 #include <map>
 
 #include "real_test_util.h"
+#include "core/host_memory.h"
 #include "sim/real_replay.h"
 #include "sim/scene.h"
 #include "sim/trace_gen.h"
 #include "stream/calibrate.h"
 #include "stream/store_generator.h"
+#include "stream/threaded_executor.h"
 
 // Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
 TEST_SUITE_BEGIN("threads");
@@ -416,7 +418,8 @@ TEST_CASE("VRAM arena: larger than the host's memory is refused before any alloc
   CHECK_THROWS_AS(VramArena({{2, 2}, {1, 1}}, {1000, 24}, 5 * tile - 1), VramArena::ArenaTooLarge);
   // A window product that would overflow 64 bits is still a clean refusal.
   CHECK_THROWS_AS(VramArena({{std::int64_t{1} << 40, std::int64_t{1} << 40}}, {4096}), VramArena::ArenaTooLarge);
-  CHECK(VramArena::physical_memory_bytes() > (std::uint64_t{1} << 26));
+  CHECK(physical_memory_bytes() > (std::uint64_t{1} << 26));
+  CHECK(usable_memory_bytes() <= physical_memory_bytes());
   CHECK_THROWS_AS(VramArena::for_pool(3, {1000, 0}), std::invalid_argument);  // a layer of no bytes
 }
 
@@ -426,8 +429,8 @@ TEST_CASE("real clock: a page pool larger than the machine's memory is refused, 
   // it would bring in the OOM killer; under ASan it would abort).
   const TileStore store = TileStore::open(test::small_vt_store());
   const std::uint64_t need = (std::uint64_t{1} << 24) * (store.tile_bytes(0) + store.tile_bytes(1));
-  if (VramArena::physical_memory_bytes() >= need) {
-    MESSAGE("skipped: this machine has " << VramArena::physical_memory_bytes() << " bytes, enough for the arena");
+  if (usable_memory_bytes() >= need) {
+    MESSAGE("skipped: this process may use " << usable_memory_bytes() << " bytes, enough for the arena");
     return;
   }
   const ReplayConfig cfg = bound_cfg(store, {"run.system=vt", "vt.pool_pages=16777216"});
@@ -438,8 +441,39 @@ TEST_CASE("real clock: a page pool larger than the machine's memory is refused, 
   } catch (const InputError& e) {
     const std::string w = e.what();
     CHECK(w.find("field 'vt.pool_pages': the VRAM arena needs") != std::string::npos);
-    CHECK(w.find("more than this machine's") != std::string::npos);
+    CHECK(w.find("memory this process may use") != std::string::npos);
   }
+}
+
+TEST_CASE("real clock: the RAM cache's buffers and the VRAM arena must fit in memory together, at the exact byte") {
+  const TileStore store = TileStore::open(test::small_vt_store());
+  const ReplayConfig cfg = bound_cfg(store, {"run.system=vt", "vt.pool_pages=64", "ram.capacity_MiB=1"});
+  const auto scene = make_scene_from_config(cfg);
+  const std::uint64_t page = store.tile_bytes(0) + store.tile_bytes(1);
+  // What start-up reserves: the RAM cache's pages plus io.max_in_flight, and the pool's slots with
+  // 16 bytes of bookkeeping a slot per layer.
+  const std::uint64_t reserve = (std::uint64_t{1} << 20) / page * page + static_cast<std::uint64_t>(cfg.max_in_flight) * page;
+  ThreadedExecutorConfig xc;
+  xc.capacity = static_cast<std::size_t>(cfg.max_in_flight);
+  xc.tile_memory_bytes = std::uint64_t{1} << 20;
+  CHECK(ThreadedExecutor::reserved_pages(store, xc) * ThreadedExecutor::page_bytes(store) == reserve);
+  const std::uint64_t arena = 64 * (page + 2 * 16);
+  const auto error_at = [&](std::uint64_t limit) {
+    RealClockOptions o;
+    o.memory_limit_bytes = limit;
+    try {
+      run_real_replay(cfg, still_trace(0.05), *scene, store, o);
+      return std::string();
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+  };
+  const std::string ram = error_at(reserve - 1);
+  CHECK(ram.find("field 'ram.capacity_MiB': the RAM cache's buffers need") != std::string::npos);
+  const std::string pool = error_at(reserve + arena - 1);
+  CHECK(pool.find("field 'vt.pool_pages': the VRAM arena needs") != std::string::npos);
+  CHECK(pool.find("less the RAM cache's buffers") != std::string::npos);
+  CHECK(error_at(reserve + arena).empty());
 }
 
 TEST_CASE("real clock: the frame loop never waits for IO (every read takes 10 s, and the replay does not)") {

@@ -11,6 +11,7 @@
 
 #include "cache/page_table.h"
 #include "core/error.h"
+#include "core/host_memory.h"
 #include "sim/scene.h"
 #include "sim/trace_io.h"
 #include "stream/threaded_executor.h"
@@ -118,32 +119,44 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
   xc.direct = cfg.io_direct;
   xc.faults = cfg.faults;
   xc.tile_memory_bytes = static_cast<std::uint64_t>(cfg.ram_MiB * 1048576.0);
-  ThreadedExecutor exec(store, xc);
 
+  // Host memory the size of the RAM cache and of the VRAM the arena stands for, allocated before
+  // the first frame: both must fit together in what this process may use, checked before either
+  // is allocated (core/host_memory.h says why).
+  const std::uint64_t usable = options.memory_limit_bytes > 0 ? options.memory_limit_bytes : usable_memory_bytes();
+  const auto mib = [](std::uint64_t b) { return static_cast<double>(b) / 1048576.0; };
+  const std::uint64_t reserve = ThreadedExecutor::reserved_pages(store, xc) * ThreadedExecutor::page_bytes(store);
+  if (reserve > usable)
+    throw InputError("config", fmt::format("field 'ram.capacity_MiB': the RAM cache's buffers need {:.1f} MiB, more than "
+                                           "the {:.1f} MiB of memory this process may use",
+                                           mib(reserve), mib(usable)));
   std::vector<std::uint32_t> layer_bytes;
   for (std::uint32_t i = 0; i < store.layer_count(); ++i) layer_bytes.push_back(store.tile_bytes(i));
   RealRun run;
   const bool vt = cfg.system == "vt";
   try {
     if (vt) {
-      run.arena = std::make_unique<VramArena>(VramArena::for_pool(static_cast<std::uint32_t>(cfg.vt_pool_pages), layer_bytes));
+      run.arena = std::make_unique<VramArena>(
+          VramArena::for_pool(static_cast<std::uint32_t>(cfg.vt_pool_pages), layer_bytes, usable - reserve));
     } else {
       ClipmapParams cp;
       cp.extent = scene.texture();
       cp.tile_size = cfg.tile_size;
       cp.clipsize = cfg.clipsize;
       cp.layers = static_cast<int>(store.layer_count());
-      run.arena = std::make_unique<VramArena>(VramArena::for_clipmap(cp, layer_bytes));
+      run.arena = std::make_unique<VramArena>(VramArena::for_clipmap(cp, layer_bytes, usable - reserve));
     }
   } catch (const VramArena::ArenaTooLarge& e) {
-    // The arena is host memory the size of the VRAM it stands for, allocated before the first frame.
-    throw InputError("config", fmt::format("field '{}': the VRAM arena needs {:.1f} MiB, more than this machine's "
-                                           "{:.1f} MiB of memory", vt ? "vt.pool_pages" : "clipmap.clipsize",
-                                           static_cast<double>(e.bytes) / 1048576.0, static_cast<double>(e.limit) / 1048576.0));
+    throw InputError("config", fmt::format("field '{}': the VRAM arena needs {:.1f} MiB, more than the {:.1f} MiB of "
+                                           "memory this process may use ({:.1f} MiB) less the RAM cache's buffers "
+                                           "({:.1f} MiB, ram.capacity_MiB)",
+                                           vt ? "vt.pool_pages" : "clipmap.clipsize", mib(e.bytes), mib(e.limit),
+                                           mib(usable), mib(reserve)));
   } catch (const std::bad_alloc&) {
     throw InputError("config", fmt::format("field '{}': the VRAM arena does not fit in host memory", vt ? "vt.pool_pages" : "clipmap.clipsize"));
   }
   VramArena& arena = *run.arena;
+  ThreadedExecutor exec(store, xc);
 
   // Frame pacing: frame f starts at its trace time on the wall clock, or as soon as the previous
   // frame is done when the loop runs late (the lateness is measured, not hidden).

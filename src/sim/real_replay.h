@@ -32,6 +32,9 @@ void apply_speed(ReplayConfig& cfg, Trace& trace, double speed);
 
 struct RealClockOptions {
   std::function<void(int, int)> progress;  // as ReplayEnv::progress
+  // Bytes of host memory the RAM cache's buffers and the VRAM arena may take together; 0: what
+  // this process may use (usable_memory_bytes). Tests set a small one.
+  std::uint64_t memory_limit_bytes = 0;
 };
 
 struct RealRun {

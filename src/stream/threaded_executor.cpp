@@ -14,18 +14,24 @@ ThreadedExecutor::ThreadedExecutor(const TileStore& store, const ThreadedExecuto
   // record is then found after the decode queue, as the simulated clock models it.
   decode_ = std::make_unique<DecodePool>(
       store, workers, clock_, [this](DecodeResult&& r) { on_decoded(std::move(r)); }, /*verify=*/true, cfg.warm);
-  if (cfg.tile_memory_bytes > 0) {
-    std::uint64_t page = 0;  // one tile of every layer
-    for (std::uint32_t i = 0; i < store.layer_count(); ++i) page += store.tile_bytes(i);
-    const std::uint64_t count =
-        std::min<std::uint64_t>(cfg.tile_memory_bytes / page + capacity_, store.geometry().tiles_per_layer);
+  if (const std::uint64_t count = reserved_pages(store, cfg); count > 0)
     for (std::uint32_t i = 0; i < store.layer_count(); ++i) decode_->reserve_tiles(store.tile_bytes(i), count);
-  }
   io_ = std::make_unique<IoPool>(store, IoPoolConfig{cfg.io_threads, cfg.direct, /*verify=*/false, capacity_, cfg.warm}, clock_,
                                  [this](ReadResult&& r) { on_read(std::move(r)); }, &faults_);
 }
 
 ThreadedExecutor::~ThreadedExecutor() { shutdown(); }
+
+std::uint64_t ThreadedExecutor::page_bytes(const TileStore& store) {
+  std::uint64_t page = 0;
+  for (std::uint32_t i = 0; i < store.layer_count(); ++i) page += store.tile_bytes(i);
+  return page;
+}
+
+std::uint64_t ThreadedExecutor::reserved_pages(const TileStore& store, const ThreadedExecutorConfig& cfg) {
+  if (cfg.tile_memory_bytes == 0) return 0;
+  return std::min<std::uint64_t>(cfg.tile_memory_bytes / page_bytes(store) + cfg.capacity, store.geometry().tiles_per_layer);
+}
 
 std::size_t ThreadedExecutor::in_flight() const {
   std::lock_guard lock(m_);

@@ -61,6 +61,11 @@ class ThreadedExecutor final : public IExecutor {
 
   ThreadedExecutor(const TileStore& store, const ThreadedExecutorConfig& cfg);
   ~ThreadedExecutor() override;
+  // Decoded bytes of one tile of every layer of `store`.
+  static std::uint64_t page_bytes(const TileStore& store);
+  // How many tiles of each layer the constructor reserves buffers for (tile_memory_bytes): the
+  // reserve is reserved_pages · page_bytes bytes, mapped and written before it returns.
+  static std::uint64_t reserved_pages(const TileStore& store, const ThreadedExecutorConfig& cfg);
   ThreadedExecutor(const ThreadedExecutor&) = delete;
   ThreadedExecutor& operator=(const ThreadedExecutor&) = delete;
 

@@ -1,7 +1,5 @@
 #include "stream/vram_arena.h"
 
-#include <unistd.h>
-
 #include <chrono>
 #include <cstring>
 #include <stdexcept>
@@ -13,15 +11,9 @@ namespace {
 constexpr std::uint64_t kNone = ~std::uint64_t{0};  // no tile (not a valid packed key in use)
 }
 
-std::uint64_t VramArena::physical_memory_bytes() {
-  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
-  if (pages <= 0 || page <= 0) return UINT64_MAX;
-  return static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(page);
-}
-
 VramArena::ArenaTooLarge::ArenaTooLarge(std::uint64_t need, std::uint64_t lim)
-    : std::length_error("VramArena: " + std::to_string(need) + " bytes, more than the host's " + std::to_string(lim) +
-                        " bytes of memory"),
+    : std::length_error("VramArena: " + std::to_string(need) + " bytes, more than the " + std::to_string(lim) +
+                        " bytes of memory this process may use"),
       bytes(need),
       limit(lim) {}
 

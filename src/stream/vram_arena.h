@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "cache/clipmap.h"
+#include "core/host_memory.h"
 #include "stream/tile_data.h"
 
 namespace vtsim {
@@ -27,20 +28,19 @@ class VramArena {
     std::int64_t wx = 1, wy = 1;  // window size, tiles
   };
   // `layer_bytes[i]`: decoded bytes of one tile of layer i (> 0). An arena whose texels and
-  // bookkeeping (16 bytes a slot) exceed `host_limit` bytes (default: the machine's physical
-  // memory) throws ArenaTooLarge before anything is allocated: under overcommit the allocation
-  // itself would succeed and zeroing it would bring in the OOM killer. (One just below the limit
-  // can still meet it: the check is against physical memory, not what is free.)
+  // bookkeeping (16 bytes a slot) exceed `host_limit` bytes (default: usable_memory_bytes(), the
+  // machine's physical memory or its cgroup's limit) throws ArenaTooLarge before anything is
+  // allocated: under overcommit the allocation itself would succeed and zeroing it would bring in
+  // the OOM killer. (One just below the limit can still meet it: the check is against the limit,
+  // not what is free.)
   VramArena(std::vector<LevelWindow> levels, std::vector<std::uint32_t> layer_bytes,
-            std::uint64_t host_limit = physical_memory_bytes());
+            std::uint64_t host_limit = usable_memory_bytes());
   // The arena of a clipmap's stack windows and pyramid levels.
   static VramArena for_clipmap(const ClipmapParams& p, std::vector<std::uint32_t> layer_bytes,
-                               std::uint64_t host_limit = physical_memory_bytes());
+                               std::uint64_t host_limit = usable_memory_bytes());
   // A virtual texture's physical page pool of `slots` pages.
   static VramArena for_pool(std::uint32_t slots, std::vector<std::uint32_t> layer_bytes,
-                            std::uint64_t host_limit = physical_memory_bytes());
-  // sysconf(_SC_PHYS_PAGES) · page size; UINT64_MAX when the system does not say.
-  static std::uint64_t physical_memory_bytes();
+                            std::uint64_t host_limit = usable_memory_bytes());
   struct ArenaTooLarge : std::length_error {
     ArenaTooLarge(std::uint64_t need, std::uint64_t limit);
     std::uint64_t bytes = 0, limit = 0;
