@@ -368,6 +368,41 @@ TEST_CASE("compare: load_json_file names the file and line") {
   CHECK(contains(input_error([&] { load_json_file(p); }), p + ":1: not valid JSON"));
 }
 
+TEST_CASE("compare: a document's shape is bounded — depth, key path, values — and numbers beyond double are bad input") {
+  ScratchDir dir;
+  const std::string p = dir.file("shape.json");
+  // 16 levels are accepted, 17 refused (the walk recurses once per level).
+  const auto nested = [](int depth) {
+    std::string s = "{\"vtsim_version\":\"0\",\"trace\":{},\"x\":";
+    for (int i = 1; i < depth; ++i) s += "[";
+    s += "1";
+    for (int i = 1; i < depth; ++i) s += "]";
+    return s + "}";
+  };
+  write_file(p, nested(16));
+  CHECK_NOTHROW(load_json_file(p));
+  write_file(p, nested(17));
+  CHECK(contains(input_error([&] { load_json_file(p); }), p + ": nested deeper than 16 levels"));
+  write_file(p, nested(3000));  // overflowed the stack (ASan) before the bound
+  CHECK(contains(input_error([&] { load_json_file(p); }), "nested deeper than 16 levels"));
+  // Keys along a path: 1,024 characters in all.
+  write_file(p, "{\"" + std::string(1023, 'k') + "\": 1}");
+  CHECK_NOTHROW(load_json_file(p));
+  write_file(p, "{\"" + std::string(600, 'k') + "\": {\"" + std::string(500, 'k') + "\": 1}}");
+  CHECK(contains(input_error([&] { load_json_file(p); }), "a key path longer than 1024 characters"));
+  // 200,000 values.
+  std::string many = "[0";
+  for (int i = 1; i < 200000; ++i) many += ",0";
+  write_file(p, many + "]");
+  CHECK_NOTHROW(load_json_file(p));
+  write_file(p, many + ",0]");
+  CHECK(contains(input_error([&] { load_json_file(p); }), "more than 200000 values"));
+  // nlohmann reports 1e400 as out_of_range, not a parse error: still bad input, not an internal error.
+  write_file(p, "{\"vtsim_version\":\"0\",\"trace\":{},\"x\":1e400}");
+  CHECK(contains(input_error([&] { load_json_file(p); }), p + ": not valid JSON (") );
+  CHECK(contains(input_error([&] { load_json_file(p); }), "number overflow"));
+}
+
 TEST_CASE("compare: inputs are checked by descriptor; a FIFO, a directory, a device or a huge file is refused unread") {
   // load_json_file and the tolerance reader (read_toml_entries) both go through read_regular_file.
   ScratchDir dir;

@@ -222,6 +222,47 @@ TEST_CASE("the throttle engages when the camera outruns the disk and relaxes whe
   CHECK(r.metrics.frames().back().clamp == 0);
 }
 
+TEST_CASE("config files: nesting, long keys and NUL characters are refused at their line, quickly") {
+  const std::string path = std::string(VTSIM_TEST_DATA) + "/../../build-test-config-limits.toml";
+  const auto error_of = [&](const std::string& text) {
+    test::write_file(path, text);
+    try {
+      load_replay_config(path, {});
+      return std::string();
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+  };
+  // Each dot opens a table one level deeper; 5,000 overflowed the stack (flatten, toml++'s
+  // destructor). 16 dots are the limit: in keys, table headers and inline tables alike.
+  const auto dots = [](int n) {
+    std::string k = "a";
+    for (int i = 0; i < n; ++i) k += ".a";
+    return k;
+  };
+  CHECK(test::contains(error_of(dots(16) + " = 1\n"), "unknown config key"));
+  CHECK(test::contains(error_of("# comment\n" + dots(17) + " = 1\n"), ":2: a key or table name nested more than 16 levels"));
+  CHECK(test::contains(error_of(dots(5000) + " = 1\n"), ":1: a key or table name nested more than 16 levels"));
+  CHECK(test::contains(error_of("[" + dots(20) + "]\nx = 1\n"), ":1: a key or table name nested"));
+  CHECK(test::contains(error_of("x = { " + dots(20) + " = 1 }\n"), ":1: a key or table name nested"));
+  CHECK(test::contains(error_of("x = [1, { y = { " + dots(20) + " = 2 } }]\n"), ":1: a key or table name nested"));
+  // Dots in values, strings, comments and quoted keys are not nesting.
+  const std::string many = "1.2.3.4.5.6.7.8.9.10.11.12.13.14.15.16.17.18";
+  CHECK(test::contains(error_of("[run]\nnote = \"" + many + "\"\n"), "unknown config key 'run.note'"));
+  CHECK(test::contains(error_of("[run]\nnote = \"\"\"\n" + many + "\n\"\"\"\n"), "unknown config key 'run.note'"));
+  CHECK(test::contains(error_of("[run]\nnote = '''\n" + many + "'''\n"), "unknown config key 'run.note'"));
+  CHECK(test::contains(error_of("\"" + many + "\" = 1\n"), "unknown config key"));
+  CHECK(error_of("[run]\nfps = 60.5 # " + many + "\n").empty());
+  // A megabyte key: refused at once (no edit distance over it), quoted by its first 100 characters.
+  const std::string e = error_of(std::string(1 << 20, 'k') + " = 1\n");
+  CHECK(test::contains(e, ":1: unknown config key 'kkkk"));
+  CHECK(test::contains(e, "…' (1048576 characters)"));
+  CHECK(e.size() < 300);
+  // A NUL inside a string would cut a path short.
+  CHECK(test::contains(error_of("[scene]\nfile = \"a.obj\\u0000.txt\"\n"), ":2: field 'scene.file': a string with a NUL"));
+  std::remove(path.c_str());
+}
+
 TEST_CASE("impossible configs are rejected with the field's name") {
   auto rejects = [](std::vector<std::string> sets, const std::string& field) {
     try {

@@ -214,6 +214,16 @@ TEST_CASE("corrupt stores are rejected at open with the field named") {
   fix_header_checksum(b);
   expect(b, "layer 0 field 'channels'");
 
+  // A layer name is printed by `store info` and written into its JSON: UTF-8, no control bytes.
+  b = orig;
+  b[kFixedHeaderBytes + lay::name] = 0xFF;
+  fix_header_checksum(b);
+  expect(b, "layer 0 field 'name': byte 0 of the name is not UTF-8");
+  b = orig;
+  b[kFixedHeaderBytes + lay::name + 1] = 0x1B;  // ESC: a terminal escape
+  fix_header_checksum(b);
+  expect(b, "layer 0 field 'name': byte 1 of the name is a control character");
+
   b = orig;
   b.resize(b.size() + 4096, 0);  // trailing bytes
   expect(b, "field 'file_bytes'");

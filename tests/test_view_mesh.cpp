@@ -309,6 +309,27 @@ TEST_CASE("mesh: camera inside a closed box sees only back faces / near plane cu
   CHECK(vb.counters.untextured > 1000);
 }
 
+TEST_CASE("mesh: texture coordinates far outside the texture are outside-texture samples (no integer overflow)") {
+  // A ground quad whose every corner maps to u = −7e9 or +9.3e9 texels (uv × 2^20): each sample
+  // is outside the texture. The texel index of such a lane once overflowed in the batch resolve
+  // (UBSan: signed integer overflow), though the value was never used.
+  for (const double u : {-7e9 / 1048576.0, 9.3e9 / 1048576.0}) {
+    Mesh m;
+    add_quad(m, {0, 0, 0}, {100, 0, 0}, {100, 100, 0}, {0, 100, 0}, {u, 0}, {u, 0.25});
+    const MeshScene scene(m, kTex);
+    ViewParams vp;
+    vp.divisor = 4;
+    ViewBuffer vb;
+    scene.render(make_camera(pose_from_angles({30, 30, 10}, 0, -89), 320, 240), vp, vb);
+    CHECK(vb.samples.empty());
+    CHECK(vb.counters.outside_texture == 80u * 60u);
+    SpanBuffer sb;
+    scene.render_spans(make_camera(pose_from_angles({30, 30, 10}, 0, -89), 320, 240), vp, sb);
+    CHECK(sb.spans.empty());
+    CHECK(sb.counters.outside_texture == 80u * 60u);
+  }
+}
+
 TEST_CASE("mesh: construction rejects bad meshes") {
   Mesh m;
   CHECK_THROWS_AS(MeshScene(m, kTex), InputError);

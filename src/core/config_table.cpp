@@ -98,6 +98,65 @@ std::pair<std::string, ConfigValue> parse_set_argument(const std::string& arg) {
 
 namespace {
 
+// Each dot of a dotted key or table name opens a table one level deeper. toml++ builds them
+// iteratively but destroys them recursively, and flatten() recurses, so a key of a million dots
+// (a 16 MiB file allows eight) overflows the stack. Keys are counted in the text before it is
+// parsed: the dots of one key outside quoted strings, table names and keys inside inline tables
+// included; values (numbers, strings, arrays) are skipped. vtsim's keys have at most two dots.
+constexpr int kMaxKeyDots = 16;
+
+void check_key_nesting(const std::string& text, const std::string& path) {
+  enum class Mode { key, value };
+  Mode mode = Mode::key;
+  std::vector<char> open;  // '{' inline tables, '[' arrays (not table headers)
+  int dots = 0;
+  long long line = 1;
+  const std::size_t n = text.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const char c = text[i];
+    if (c == '\n') {
+      ++line;
+      if (open.empty()) mode = Mode::key, dots = 0;
+    } else if (c == '#') {
+      while (i + 1 < n && text[i + 1] != '\n') ++i;
+    } else if (c == '"' || c == '\'') {
+      // A string: basic ("..." with escapes) or literal ('...'), single- or multi-line (tripled).
+      const bool triple = i + 2 < n && text[i + 1] == c && text[i + 2] == c;
+      i += triple ? 3 : 1;
+      for (; i < n; ++i) {
+        if (text[i] == '\n') ++line;
+        if (c == '"' && text[i] == '\\') {
+          if (i + 1 < n && text[i + 1] == '\n') ++line;
+          ++i;
+        } else if (text[i] == c && (!triple || (i + 2 < n && text[i + 1] == c && text[i + 2] == c))) {
+          if (triple) {
+            i += 2;
+            while (i + 1 < n && text[i + 1] == c) ++i;  // up to two quotes may end the content
+          }
+          break;
+        } else if (!triple && text[i] == '\n') {
+          break;  // unterminated: the parser reports it
+        }
+      }
+    } else if (mode == Mode::key) {
+      if (c == '.' && ++dots > kMaxKeyDots)
+        throw InputError(at_line(path, line), "a key or table name nested more than " + std::to_string(kMaxKeyDots) +
+                                                  " levels deep (dotted keys)");
+      if (c == '=') mode = Mode::value, dots = 0;
+      if (c == ']' && open.empty()) dots = 0;  // the end of a table header
+    } else if (c == '{') {
+      open.push_back('{');
+      mode = Mode::key, dots = 0;
+    } else if (c == '[') {
+      open.push_back('[');
+    } else if ((c == '}' || c == ']') && !open.empty()) {
+      open.pop_back();
+    } else if (c == ',' && !open.empty() && open.back() == '{') {
+      mode = Mode::key, dots = 0;
+    }
+  }
+}
+
 // prefix: the enclosing table's dotted key, nullptr at the root (a table may be named "").
 void flatten(const toml::table& t, const std::string* prefix, const std::string& path,
              std::vector<TomlEntry>& out, std::vector<TomlEmptyTable>* empty_tables) {
@@ -114,6 +173,9 @@ void flatten(const toml::table& t, const std::string* prefix, const std::string&
     } else if (const auto* b = node.as_boolean()) {
       out.push_back({key, b->get(), line});
     } else if (const auto* s = node.as_string()) {
+      // A path with a NUL would open the file named by its first part.
+      if (s->get().find('\0') != std::string::npos)
+        throw InputError(at_line(path, line), "field '" + key + "': a string with a NUL character");
       out.push_back({key, s->get(), line});
     } else {
       throw InputError(at_line(path, line), "field '" + key + "': unsupported value type (expected a number, "
@@ -126,6 +188,7 @@ void flatten(const toml::table& t, const std::string* prefix, const std::string&
 
 std::vector<TomlEntry> read_toml_entries(const std::string& path, std::vector<TomlEmptyTable>* empty_tables) {
   const std::string text = read_regular_file(path, 16u << 20, "not a vtsim TOML file");
+  check_key_nesting(text, path);
   toml::table tbl;
   try {
     tbl = toml::parse(text, path);

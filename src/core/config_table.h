@@ -49,7 +49,14 @@ class ConfigTable {
   // Sets one field; `where` names the source for messages ("cfg.toml", "--set").
   void set(Cfg& cfg, const std::string& key, const ConfigValue& v, const std::string& where) const {
     const auto* f = find(key);
-    if (!f) throw InputError(where, "unknown config key '" + key + "'" + suggest(key));
+    if (!f) {
+      // A key may be a megabyte of junk: quote its start only.
+      std::string msg = "unknown config key '";
+      msg.append(key, 0, 100);
+      if (key.size() > 100) msg.append("…' (").append(std::to_string(key.size())).append(" characters)");
+      else msg.append("'");
+      throw InputError(where, msg + suggest(key));
+    }
     try {
       f->set(cfg, v);
     } catch (const std::invalid_argument& e) {
@@ -172,6 +179,9 @@ std::string ConfigTable<Cfg>::suggest(const std::string& key) const {
   std::size_t best = 4;
   std::string best_key;
   for (const auto& f : fields_) {
+    // The distance is at least the difference in length: a long key costs nothing here.
+    const std::size_t diff = key.size() > f.key.size() ? key.size() - f.key.size() : f.key.size() - key.size();
+    if (diff >= best) continue;
     const std::size_t d = dist(key, f.key);
     if (d < best) best = d, best_key = f.key;
   }

@@ -249,15 +249,46 @@ Tolerance resolve_tolerance(const std::vector<ToleranceRule>& user, const std::v
   return t;
 }
 
+// The shape a compared document may have (load_json_file says why): 16 levels, key paths of 1,024
+// characters (the keys along the path), 200,000 leaf values.
+constexpr int kMaxJsonDepth = 16;
+constexpr std::size_t kMaxJsonKeyPath = 1024;
+constexpr std::size_t kMaxJsonValues = 200000;
+
 json load_json_file(const std::string& path) {
   const std::string text = read_regular_file(path, 256u << 20, "not a vtsim summary or benchmark JSON");
+  // Bounds on the document's shape, checked while it is parsed: the walk below recurses once per
+  // level and keeps a row (with its dotted key) per leaf, so unbounded depth overflows the stack
+  // and a huge array or a long key path at every leaf exhausts memory. vtsim's own documents nest
+  // 4 deep, with keys of ~30 characters and a few thousand leaves.
+  std::vector<std::size_t> key_len;  // per depth, the length of the current key
+  std::size_t values = 0;
+  const auto bound = [&](int depth, json::parse_event_t event, json& parsed) {
+    using E = json::parse_event_t;
+    if ((event == E::object_start || event == E::array_start) && depth >= kMaxJsonDepth)
+      throw InputError(path, fmt::format("nested deeper than {} levels: not a vtsim summary or benchmark JSON", kMaxJsonDepth));
+    if (event == E::key) {
+      key_len.resize(static_cast<std::size_t>(depth) + 1);
+      key_len.back() = parsed.get_ref<const std::string&>().size() + 1;
+      std::size_t sum = 0;
+      for (const std::size_t n : key_len) sum += n;
+      if (sum > kMaxJsonKeyPath)
+        throw InputError(path, fmt::format("a key path longer than {} characters: not a vtsim summary or benchmark JSON",
+                                           kMaxJsonKeyPath));
+    }
+    if (event == E::value && ++values > kMaxJsonValues)
+      throw InputError(path, fmt::format("more than {} values: not a vtsim summary or benchmark JSON", kMaxJsonValues));
+    return true;
+  };
   try {
-    return json::parse(text);
+    return json::parse(text, bound);
   } catch (const json::parse_error& e) {
     // e.byte is the 1-based offset of the error; turn it into a line number.
     const std::size_t at = std::min<std::size_t>(e.byte > 0 ? e.byte - 1 : 0, text.size());
     const auto line = 1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(at), '\n');
     throw InputError(at_line(path, static_cast<long long>(line)), "not valid JSON (" + std::string(e.what()) + ")");
+  } catch (const json::exception& e) {  // e.g. a number beyond double's range (out_of_range.406)
+    throw InputError(path, "not valid JSON (" + std::string(e.what()) + ")");
   }
 }
 

@@ -208,8 +208,11 @@ template <bool kAniso>
     const v4d lod = 0.5 * lg + k.bias;
     const v4f lodf = __builtin_convertvector(lod, v4f);
     v4i u, v;
-    floor_index(tu, u);
-    floor_index(tv, v);
+    // Only a sample's coordinates are used, but every lane is converted: a lane outside the
+    // texture (negative, beyond 2^52 or NaN) converts 0 instead, or the integer subtraction
+    // overflows (UBSan: a uv of −7e9 on a 2^20 texture).
+    floor_index(in_u ? tu : v4d{}, u);
+    floor_index(in_v ? tv : v4d{}, v);
     __builtin_memcpy(b.cls + j, &cls, sizeof cls);
     __builtin_memcpy(b.u + j, &u, sizeof u);
     __builtin_memcpy(b.v + j, &v, sizeof v);

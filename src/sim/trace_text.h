@@ -100,7 +100,4 @@ std::string quote(std::string_view tok);
 // with '?'.
 std::string sanitize_line(std::string_view s);
 
-// Index of the first byte that starts an invalid UTF-8 sequence, or npos.
-std::size_t find_invalid_utf8(std::string_view s);
-
 }  // namespace vtsim::trace_text

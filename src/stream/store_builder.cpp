@@ -65,8 +65,7 @@ void validate_spec(const StoreSpec& s) {
   for (std::size_t i = 0; i < s.layers.size(); ++i) {
     const StoreLayerSpec& L = s.layers[i];
     const std::string where = "layer " + dec(i) + " ('" + L.name + "')";
-    if (L.name.size() >= kLayerNameBytes || L.name.find('\0') != std::string::npos)
-      throw InputError("--layer-names", where + ": a name is at most " + dec(kLayerNameBytes - 1) + " bytes without NUL");
+    if (const std::string why = layer_name_problem(L.name); !why.empty()) throw InputError("--layer-names", where + ": " + why);
     if (L.channels < 1 || L.channels > kMaxChannels)
       throw InputError(where, dec(L.channels) + " channels; a layer has 1.." + dec(kMaxChannels));
     if (!decoder_for(L.codec.id).supports_channels(static_cast<int>(L.channels)))

@@ -5,12 +5,25 @@
 
 #include <algorithm>
 
+#include "core/utf8.h"
+
 namespace vtsim::store {
 
 // XXH64 rather than CRC32C: a 64-bit check (collisions 2^-64, not 2^-32, over millions of tiles),
 // ~10 GB/s per core in portable C with no CPU-specific path, and a published spec and a Debian
 // library (libxxhash) so a second implementation can check a store bit for bit.
 std::uint64_t checksum64(const void* data, std::size_t bytes) { return XXH64(data, bytes, 0); }
+
+std::string layer_name_problem(std::string_view name) {
+  if (name.size() >= kLayerNameBytes || name.find('\0') != std::string_view::npos)
+    return "a name is at most " + dec(kLayerNameBytes - 1) + " bytes without NUL";
+  if (const std::size_t bad = find_invalid_utf8(name); bad != std::string_view::npos)
+    return "byte " + dec(bad) + " of the name is not UTF-8";
+  for (std::size_t i = 0; i < name.size(); ++i)
+    if (static_cast<unsigned char>(name[i]) < 0x20 || name[i] == 0x7F)
+      return "byte " + dec(i) + " of the name is a control character";
+  return {};
+}
 
 std::string describe(TileKey k) {
   return "layer " + std::to_string(k.layer()) + " level " + std::to_string(k.level()) + " tile (" +

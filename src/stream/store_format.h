@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <cstring>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "core/tile_key.h"
@@ -23,6 +24,10 @@ namespace vtsim::store {
 
 // Decimal text of a count, for the store's error messages (reader and writer).
 inline std::string dec(std::uint64_t v) { return std::to_string(v); }
+
+// Why `name` cannot be a layer name (empty when it can): at most kLayerNameBytes − 1 bytes of
+// UTF-8 without control characters, as it is printed by `store info` and written into JSON.
+std::string layer_name_problem(std::string_view name);
 
 // ---- layout constants (docs/store-format.md §2) ------------------------------------------------
 inline constexpr std::array<std::uint8_t, 8> kMagic = {'V', 'T', 'S', 'T', 'O', 'R', 'E', 0};

@@ -79,6 +79,7 @@ StoreHeader parse_store_header(const std::string& path, const std::uint8_t* b, s
     const void* nul = std::memchr(d + lay::name, 0, kLayerNameBytes);
     if (!nul) throw InputError(where + "'name'", "is not NUL-terminated within 32 bytes");
     L.name.assign(reinterpret_cast<const char*>(d + lay::name), static_cast<const std::uint8_t*>(nul) - (d + lay::name));
+    if (const std::string why = layer_name_problem(L.name); !why.empty()) throw InputError(where + "'name'", why);
     L.channels = load_u32(d + lay::channels);
     if (L.channels < 1 || L.channels > kMaxChannels)
       throw InputError(where + "'channels'", dec(L.channels) + " is out of range 1.." + dec(kMaxChannels));
