@@ -246,6 +246,11 @@ TEST_CASE("config files: nesting, long keys and NUL characters are refused at th
   CHECK(test::contains(error_of("[" + dots(20) + "]\nx = 1\n"), ":1: a key or table name nested"));
   CHECK(test::contains(error_of("x = { " + dots(20) + " = 1 }\n"), ":1: a key or table name nested"));
   CHECK(test::contains(error_of("x = [1, { y = { " + dots(20) + " = 2 } }]\n"), ":1: a key or table name nested"));
+  CHECK(test::contains(error_of("x = " + std::string(17, '[') + std::string(17, ']') + "\n"), ":1: a key or table name nested"));
+  CHECK(test::contains(error_of("a.b = { c.d = { e = { f = [ [ [ [ [ [ [ [ [ [ [ [1] ] ] ] ] ] ] ] ] ] ] ] } } }\n"),
+                       ":1: a key or table name nested"));
+  // Levels close again: an empty inline table, then arrays on later lines.
+  CHECK(test::contains(error_of("x = {}\ny = [[1], [2]]\n" + dots(16) + " = 1\n"), "unsupported value type"));
   // Dots in values, strings, comments and quoted keys are not nesting.
   const std::string many = "1.2.3.4.5.6.7.8.9.10.11.12.13.14.15.16.17.18";
   CHECK(test::contains(error_of("[run]\nnote = \"" + many + "\"\n"), "unknown config key 'run.note'"));

@@ -98,19 +98,27 @@ std::pair<std::string, ConfigValue> parse_set_argument(const std::string& arg) {
 
 namespace {
 
-// Each dot of a dotted key or table name opens a table one level deeper. toml++ builds them
-// iteratively but destroys them recursively, and flatten() recurses, so a key of a million dots
-// (a 16 MiB file allows eight) overflows the stack. Keys are counted in the text before it is
-// parsed: the dots of one key outside quoted strings, table names and keys inside inline tables
-// included; values (numbers, strings, arrays) are skipped. vtsim's keys have at most two dots.
-constexpr int kMaxKeyDots = 16;
+// Each dot of a dotted key or table name opens a table one level deeper, and so does each inline
+// table or array. toml++ builds dotted tables iteratively but destroys them recursively, and
+// flatten() recurses, so a key of a million dots (a 16 MiB file allows eight) overflows the stack.
+// The nesting is counted in the text before it is parsed: the dots of a key outside quoted strings
+// plus the levels of the inline tables and arrays around it (with their keys' dots); a table
+// header counts alone. Values and comments are skipped. vtsim's keys have at most two dots.
+constexpr int kMaxNesting = 16;
 
 void check_key_nesting(const std::string& text, const std::string& path) {
   enum class Mode { key, value };
   Mode mode = Mode::key;
-  std::vector<char> open;  // '{' inline tables, '[' arrays (not table headers)
-  int dots = 0;
+  std::vector<char> open;   // '{' inline tables, '[' arrays (not table headers)
+  std::vector<int> saved;   // `outer` before each of them opened
+  int outer = 0;            // levels around the current key or value
+  int dots = 0;             // dots of the current key
+  int key_dots = 0;         // dots of the key whose value is being read
   long long line = 1;
+  const auto too_deep = [&] {
+    throw InputError(at_line(path, line), "a key or table name nested more than " + std::to_string(kMaxNesting) +
+                                              " levels deep (dotted keys, inline tables, arrays)");
+  };
   const std::size_t n = text.size();
   for (std::size_t i = 0; i < n; ++i) {
     const char c = text[i];
@@ -138,21 +146,25 @@ void check_key_nesting(const std::string& text, const std::string& path) {
           break;  // unterminated: the parser reports it
         }
       }
+    } else if (!open.empty() && ((c == '}' && open.back() == '{') || (c == ']' && open.back() == '[' && mode == Mode::value))) {
+      open.pop_back();  // also an empty inline table, closed in key mode
+      outer = saved.back();
+      saved.pop_back();
+      mode = Mode::value;
     } else if (mode == Mode::key) {
-      if (c == '.' && ++dots > kMaxKeyDots)
-        throw InputError(at_line(path, line), "a key or table name nested more than " + std::to_string(kMaxKeyDots) +
-                                                  " levels deep (dotted keys)");
-      if (c == '=') mode = Mode::value, dots = 0;
+      if (c == '.' && outer + ++dots > kMaxNesting) too_deep();
+      if (c == '=') mode = Mode::value, key_dots = dots, dots = 0;
       if (c == ']' && open.empty()) dots = 0;  // the end of a table header
-    } else if (c == '{') {
-      open.push_back('{');
-      mode = Mode::key, dots = 0;
-    } else if (c == '[') {
-      open.push_back('[');
-    } else if ((c == '}' || c == ']') && !open.empty()) {
-      open.pop_back();
-    } else if (c == ',' && !open.empty() && open.back() == '{') {
-      mode = Mode::key, dots = 0;
+    } else if (c == '{' || c == '[') {
+      saved.push_back(outer);
+      outer += 1 + key_dots;
+      key_dots = 0;
+      if (outer > kMaxNesting) too_deep();
+      open.push_back(c);
+      if (c == '{') mode = Mode::key, dots = 0;
+    } else if (c == ',' && !open.empty()) {
+      key_dots = 0;
+      if (open.back() == '{') mode = Mode::key, dots = 0;
     }
   }
 }
