@@ -62,6 +62,13 @@ TEST_CASE("host memory: mount roots, escaped mount points and unparsable files")
   const char* mounts = "40 30 0:31 /docker/abc /sys/fs/cgroup/memory ro - cgroup cgroup rw,memory\n";
   CHECK(cgroup_memory_limit("4:memory:/docker/abc\n", mounts,
                             files({{"/sys/fs/cgroup/memory/memory.limit_in_bytes", "268435456\n"}})) == 268435456u);
+  // Of two v2 mounts, the one holding the process's cgroup; none holding it: no limit.
+  const char* two = "30 22 0:26 /sub /mnt/sub rw - cgroup2 cgroup2 rw\n"
+                    "31 22 0:26 / /sys/fs/cgroup rw - cgroup2 cgroup2 rw\n";
+  const auto tree = files({{"/mnt/sub/memory.max", "1\n"}, {"/sys/fs/cgroup/ci/memory.max", "2048\n"}});
+  CHECK(cgroup_memory_limit("0::/ci/job\n", two, tree) == 2048u);
+  CHECK(cgroup_memory_limit("0::/sub/x\n", two, files({{"/mnt/sub/memory.max", "1024\n"}})) == 1024u);
+  CHECK(cgroup_memory_limit("0::/ci/job\n", "30 22 0:26 /sub /mnt/sub rw - cgroup2 cgroup2 rw\n", tree) == UINT64_MAX);
   // A mount point with a space (mountinfo writes \040).
   const char* spaced = "30 22 0:26 / /mnt/cg\\040two rw - cgroup2 cgroup2 rw\n";
   CHECK(cgroup_memory_limit("0::/a\n", spaced, files({{"/mnt/cg two/a/memory.max", "1234\n"}})) == 1234u);

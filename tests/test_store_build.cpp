@@ -242,6 +242,27 @@ TEST_CASE("bad builder inputs are errors naming the file or option") {
   CHECK_FALSE(std::filesystem::exists(out));
 }
 
+TEST_CASE("a default layer name is the image's stem cut at a character boundary; an unusable stem names the image") {
+  test::TempDir dir;
+  // 30 bytes of 'a' and a 2-byte 'é': byte 31 would split the 'é', so the name stops before it.
+  const std::string stem = std::string(30, 'a') + "\xC3\xA9";
+  write_image8(dir.file(stem + ".png"), test::make_image(32, 32, 3));
+  const std::string out = dir.file("o.vts");
+  BuildOptions o;
+  o.tile = 32;
+  build_store({dir.file(stem + ".png")}, o, out);
+  CHECK(TileStore::open(out).layer(0).name == std::string(30, 'a'));
+  const std::string ctl = dir.file("a\x01" "b.png");
+  write_image8(ctl, test::make_image(32, 32, 3));
+  try {
+    build_store({ctl}, o, out);
+    FAIL("a control character in a layer name was accepted");
+  } catch (const InputError& e) {
+    CHECK(e.where() == ctl);
+    CHECK(std::string(e.what()).find("name the layers with --layer-names") != std::string::npos);
+  }
+}
+
 TEST_CASE("the builder's output does not depend on the thread count") {
   test::TempDir dir;
   write_image8(dir.file("in.png"), test::make_image(200, 120, 3));

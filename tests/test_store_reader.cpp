@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 
 #include "core/error.h"
@@ -223,6 +224,17 @@ TEST_CASE("corrupt stores are rejected at open with the field named") {
   b[kFixedHeaderBytes + lay::name + 1] = 0x1B;  // ESC: a terminal escape
   fix_header_checksum(b);
   expect(b, "layer 0 field 'name': byte 1 of the name is a control character");
+  // A character cut short at the end, as builders before the check cut a default name at byte 31,
+  // is dropped: such stores still open.
+  b = orig;
+  {
+    const std::uint8_t name[] = {'a', 'b', 0xE3, 0x81, 0};
+    std::memcpy(&b[kFixedHeaderBytes + lay::name], name, sizeof name);
+  }
+  fix_header_checksum(b);
+  test::write_bytes(bad, b);
+  CHECK(open_error(bad).empty());
+  CHECK(TileStore::open(bad).layer(0).name == "ab");
 
   b = orig;
   b.resize(b.size() + 4096, 0);  // trailing bytes

@@ -310,10 +310,11 @@ TEST_CASE("mesh: camera inside a closed box sees only back faces / near plane cu
 }
 
 TEST_CASE("mesh: texture coordinates far outside the texture are outside-texture samples (no integer overflow)") {
-  // A ground quad whose every corner maps to u = −7e9 or +9.3e9 texels (uv × 2^20): each sample
-  // is outside the texture. The texel index of such a lane once overflowed in the batch resolve
-  // (UBSan: signed integer overflow), though the value was never used.
-  for (const double u : {-7e9 / 1048576.0, 9.3e9 / 1048576.0}) {
+  // A ground quad whose every corner has u = −7e9 or +9.3e9 (×2^20 texels: beyond ±2^52), as an
+  // OBJ's `vt -7e9 0` gives: each sample is outside the texture. Below −2^52 texels the texel
+  // index of such a lane overflowed in the batch resolve (UBSan: signed integer overflow),
+  // though the value was never used.
+  for (const double u : {-7e9, 9.3e9}) {
     Mesh m;
     add_quad(m, {0, 0, 0}, {100, 0, 0}, {100, 100, 0}, {0, 100, 0}, {u, 0}, {u, 0.25});
     const MeshScene scene(m, kTex);

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "core/utf8.h"
 
 namespace vtsim {
 
@@ -52,7 +53,7 @@ class ConfigTable {
     if (!f) {
       // A key may be a megabyte of junk: quote its start only.
       std::string msg = "unknown config key '";
-      msg.append(key, 0, 100);
+      msg.append(utf8_prefix(key, 100));
       if (key.size() > 100) msg.append("…' (").append(std::to_string(key.size())).append(" characters)");
       else msg.append("'");
       throw InputError(where, msg + suggest(key));

@@ -50,8 +50,15 @@ struct Mount {
   std::string root, point;  // the cgroup directory mounted, and where
 };
 
-// The mount of the cgroup v2 tree (v1 == false) or of the v1 memory controller.
-std::optional<Mount> find_mount(std::string_view mountinfo, bool v1) {
+// Whether cgroup `path` lies at or below the mounted directory `root`.
+bool covers(const std::string& root, const std::string& path) {
+  return root == "/" || (path.compare(0, root.size(), root) == 0 && (path.size() == root.size() || path[root.size()] == '/'));
+}
+
+// The mount of the cgroup v2 tree (v1 == false) or of the v1 memory controller that holds cgroup
+// `path`: of several, the one whose mounted directory is the deepest above it.
+std::optional<Mount> find_mount(std::string_view mountinfo, bool v1, const std::string& path) {
+  std::optional<Mount> best;
   for (std::string_view line : split(mountinfo, '\n')) {
     const std::vector<std::string_view> f = split(line, ' ');
     const auto dash = std::find(f.begin(), f.end(), "-");
@@ -64,18 +71,16 @@ std::optional<Mount> find_mount(std::string_view mountinfo, bool v1) {
     } else if (fstype != "cgroup2") {
       continue;
     }
-    return Mount{unescape(f[3]), unescape(f[4])};
+    Mount m{unescape(f[3]), unescape(f[4])};
+    if (covers(m.root, path) && (!best || m.root.size() > best->root.size())) best = std::move(m);
   }
-  return std::nullopt;
+  return best;
 }
 
 // The least limit in `file` from the cgroup `path`'s directory up to the mount's.
 std::uint64_t least_limit(const Mount& m, std::string path, const char* file, const ReadTextFile& read) {
-  // The part of the path below the mounted directory (a namespace's paths start there already).
-  if (m.root != "/" && path.compare(0, m.root.size(), m.root) == 0 &&
-      (path.size() == m.root.size() || path[m.root.size()] == '/'))
-    path.erase(0, m.root.size());
-  if (path.empty() || path[0] != '/') path.insert(path.begin(), '/');
+  if (m.root != "/") path.erase(0, m.root.size());  // the part below the mounted directory
+  if (path.empty()) path = "/";
   std::uint64_t least = UINT64_MAX;
   for (;;) {
     const std::string dir = m.point + (path == "/" ? std::string() : path);
@@ -103,12 +108,12 @@ std::uint64_t cgroup_memory_limit(std::string_view self_cgroup, std::string_view
     const std::string path(line.substr(b + 1));
     if (path.empty() || path[0] != '/') continue;
     if (id == "0" && controllers.empty()) {
-      if (const auto m = find_mount(mountinfo, false)) least = std::min(least, least_limit(*m, path, "memory.max", read));
+      if (const auto m = find_mount(mountinfo, false, path)) least = std::min(least, least_limit(*m, path, "memory.max", read));
       continue;
     }
     const std::vector<std::string_view> c = split(controllers, ',');
     if (std::find(c.begin(), c.end(), "memory") == c.end()) continue;
-    if (const auto m = find_mount(mountinfo, true))
+    if (const auto m = find_mount(mountinfo, true, path))
       least = std::min(least, least_limit(*m, path, "memory.limit_in_bytes", read));
   }
   return least;

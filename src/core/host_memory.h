@@ -22,7 +22,8 @@ using ReadTextFile = std::function<std::optional<std::string>(const std::string&
 // The least memory limit on the cgroup `self_cgroup` names (the text of /proc/self/cgroup) and its
 // ancestors, found through the cgroup mounts of `mountinfo` (the text of /proc/self/mountinfo):
 // cgroup v2 `memory.max` ("max": none), cgroup v1 `memory.limit_in_bytes` of the memory
-// controller's hierarchy. UINT64_MAX when there is none, or nothing can be read or parsed: the
+// controller's hierarchy, through the mount whose directory holds the cgroup. UINT64_MAX when there
+// is none, no mount holds the cgroup, or nothing can be read or parsed: the
 // limit only ever lowers the physical one, so an unreadable cgroup tree falls back to that.
 std::uint64_t cgroup_memory_limit(std::string_view self_cgroup, std::string_view mountinfo, const ReadTextFile& read);
 

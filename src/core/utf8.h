@@ -44,4 +44,24 @@ inline std::size_t find_invalid_utf8(std::string_view s) {
   return std::string_view::npos;
 }
 
+// The longest prefix of valid UTF-8 `s` of at most `max` bytes that does not split a character.
+inline std::string_view utf8_prefix(std::string_view s, std::size_t max) {
+  if (s.size() <= max) return s;
+  std::size_t k = max;
+  while (k > 0 && (static_cast<unsigned char>(s[k]) & 0xC0) == 0x80) --k;  // s[k] continues a character
+  return s.substr(0, k);
+}
+
+// The length of `s` without a character cut short at its very end (a lead byte followed by fewer
+// continuation bytes than it announces), as a byte-limited cut of valid UTF-8 leaves it.
+inline std::size_t utf8_without_cut_end(std::string_view s) {
+  for (std::size_t back = 1; back <= 3 && back <= s.size(); ++back) {
+    const auto c = static_cast<unsigned char>(s[s.size() - back]);
+    if ((c & 0xC0) == 0x80) continue;  // a continuation byte: look further back
+    const std::size_t need = c >= 0xF0 && c <= 0xF4 ? 4 : c >= 0xE0 && c <= 0xEF ? 3 : c >= 0xC2 && c <= 0xDF ? 2 : 1;
+    return back < need ? s.size() - back : s.size();
+  }
+  return s.size();
+}
+
 }  // namespace vtsim

@@ -15,6 +15,7 @@
 
 #include "core/error.h"
 #include "core/image_io.h"
+#include "core/utf8.h"
 
 namespace vtsim {
 
@@ -456,7 +457,13 @@ BuildResult build_store(const std::vector<std::string>& images, const BuildOptio
   std::vector<Image8> level0;
   for (std::size_t i = 0; i < images.size(); ++i) {
     StoreLayerSpec L;
-    L.name = o.layer_names.empty() ? fs::path(images[i]).stem().string().substr(0, kLayerNameBytes - 1) : o.layer_names[i];
+    if (o.layer_names.empty()) {
+      L.name = utf8_prefix(fs::path(images[i]).stem().string(), kLayerNameBytes - 1);
+      if (const std::string why = layer_name_problem(L.name); !why.empty())
+        throw InputError(images[i], "its file name cannot name the layer (" + why + "): name the layers with --layer-names");
+    } else {
+      L.name = o.layer_names[i];
+    }
     L.codec = o.codecs.empty() ? CodecSpec{CodecId::zstd, default_codec_param(CodecId::zstd)}
                                : o.codecs[o.codecs.size() == 1 ? 0 : i];
     L.transfer = o.transfers.empty() ? Transfer::srgb : o.transfers[o.transfers.size() == 1 ? 0 : i];

@@ -7,6 +7,7 @@
 #include <system_error>
 
 #include "core/error.h"
+#include "core/utf8.h"
 #include "stream/i_codec.h"
 
 namespace vtsim {
@@ -79,6 +80,8 @@ StoreHeader parse_store_header(const std::string& path, const std::uint8_t* b, s
     const void* nul = std::memchr(d + lay::name, 0, kLayerNameBytes);
     if (!nul) throw InputError(where + "'name'", "is not NUL-terminated within 32 bytes");
     L.name.assign(reinterpret_cast<const char*>(d + lay::name), static_cast<const std::uint8_t*>(nul) - (d + lay::name));
+    // Builders before names were checked cut a default name at byte 31, maybe inside a character.
+    L.name.resize(utf8_without_cut_end(L.name));
     if (const std::string why = layer_name_problem(L.name); !why.empty()) throw InputError(where + "'name'", why);
     L.channels = load_u32(d + lay::channels);
     if (L.channels < 1 || L.channels > kMaxChannels)
