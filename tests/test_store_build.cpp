@@ -242,6 +242,31 @@ TEST_CASE("bad builder inputs are errors naming the file or option") {
   CHECK_FALSE(std::filesystem::exists(out));
 }
 
+TEST_CASE("an image whose header claims more pixels than the memory limit is refused before it is read") {
+  test::TempDir dir;
+  // 52 bytes of PBM that OpenImageIO reads as 2^31 − 1 × 2 pixels: 4 GiB of 8-bit texels (fuzz
+  // finding, tests/fuzz/corpus/image/oom_pbm_width_int_max.pnm).
+  const std::string huge = dir.file("huge.pnm");
+  std::ofstream(huge, std::ios::binary) << "P4444444444444444444444444444 2 3\n4 5 6 7\n8 0 10 15\n";
+  BuildOptions o;
+  o.memory_limit_bytes = std::uint64_t{64} << 20;
+  try {
+    build_store({huge}, o, dir.file("o.vts"));
+    FAIL("built a store from a 4 GiB image in 64 MiB");
+  } catch (const InputError& e) {
+    CHECK(e.where() == huge);
+    CHECK(std::string(e.what()).find("more than the 64.0 MiB") != std::string::npos);
+  }
+  // The limit counts every layer's level-0 texels: two 64 × 64 RGBA images (16 KiB each) fit in
+  // 32 KiB, not in 24 KiB.
+  write_image8(dir.file("a.png"), test::make_image(64, 64, 4));
+  write_image8(dir.file("b.png"), test::make_image(64, 64, 4));
+  o.memory_limit_bytes = 32 << 10;
+  CHECK_NOTHROW(build_store({dir.file("a.png"), dir.file("b.png")}, o, dir.file("ab.vts")));
+  o.memory_limit_bytes = 24 << 10;
+  CHECK_THROWS_AS(build_store({dir.file("a.png"), dir.file("b.png")}, o, dir.file("ab2.vts")), InputError);
+}
+
 TEST_CASE("a default layer name is the image's stem cut at a character boundary; an unusable stem names the image") {
   test::TempDir dir;
   // 30 bytes of 'a' and a 2-byte 'é': byte 31 would split the 'é', so the name stops before it.

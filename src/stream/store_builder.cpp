@@ -13,7 +13,10 @@
 #include <filesystem>
 #include <thread>
 
+#include <fmt/format.h>
+
 #include "core/error.h"
+#include "core/host_memory.h"
 #include "core/image_io.h"
 #include "core/utf8.h"
 
@@ -367,7 +370,7 @@ class MipWalker {
 
 }  // namespace
 
-Image8 read_image8(const std::string& path, Transfer transfer) {
+Image8 read_image8(const std::string& path, Transfer transfer, std::uint64_t max_bytes) {
   using image_io::PixelType;
   auto in = image_io::ImageReader::open_file(path, /*unassociated_alpha=*/true);  // texels as stored
   if (!in) {
@@ -378,6 +381,14 @@ Image8 read_image8(const std::string& path, Transfer transfer) {
   if (s.width < 1 || s.height < 1 || s.depth != 1 || s.channels < 1)
     throw InputError(path, "is not a 2D image (" + std::to_string(s.width) + "x" + std::to_string(s.height) + "x" +
                                std::to_string(s.depth) + ", " + std::to_string(s.channels) + " channels)");
+  // In double: up to 2^31 · 2^31 · 4 · 5 does not fit 64 bits. Checked before any allocation.
+  const double need = static_cast<double>(s.width) * static_cast<double>(s.height) *
+                      static_cast<double>(std::min(s.channels, 4)) * (s.is_uint8 ? 1.0 : 5.0);
+  if (need > static_cast<double>(max_bytes))
+    throw InputError(path, fmt::format("{}x{} pixels x {} channel(s) need {:.1f} MiB to read, more than the {:.1f} MiB "
+                                       "this process may use",
+                                       s.width, s.height, std::min(s.channels, 4), need / 1048576.0,
+                                       static_cast<double>(max_bytes) / 1048576.0));
   Image8 img;
   img.width = static_cast<std::uint64_t>(s.width);
   img.height = static_cast<std::uint64_t>(s.height);
@@ -455,6 +466,8 @@ BuildResult build_store(const std::vector<std::string>& images, const BuildOptio
   spec.border = o.border;
   spec.levels = o.levels;
   std::vector<Image8> level0;
+  const std::uint64_t memory = o.memory_limit_bytes != 0 ? o.memory_limit_bytes : usable_memory_bytes();
+  std::uint64_t used = 0;  // by the level-0 images read so far (at most `memory`)
   for (std::size_t i = 0; i < images.size(); ++i) {
     StoreLayerSpec L;
     if (o.layer_names.empty()) {
@@ -467,7 +480,8 @@ BuildResult build_store(const std::vector<std::string>& images, const BuildOptio
     L.codec = o.codecs.empty() ? CodecSpec{CodecId::zstd, default_codec_param(CodecId::zstd)}
                                : o.codecs[o.codecs.size() == 1 ? 0 : i];
     L.transfer = o.transfers.empty() ? Transfer::srgb : o.transfers[o.transfers.size() == 1 ? 0 : i];
-    level0.push_back(read_image8(images[i], L.transfer));
+    level0.push_back(read_image8(images[i], L.transfer, memory - used));
+    used += level0.back().texels.size();
     L.channels = level0.back().channels;
     if (i > 0 && (level0[i].width != level0[0].width || level0[i].height != level0[0].height))
       throw InputError(images[i], dec(level0[i].width) + "x" + dec(level0[i].height) + " differs from " + images[0] + " (" +

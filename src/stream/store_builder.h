@@ -4,6 +4,7 @@
 // tiled store. The procedural generator is in store_generator.h. Spec: docs/store-format.md.
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -102,8 +103,11 @@ struct Image8 {
 // Reads any image OpenImageIO reads (first subimage, first 4 channels) as 8 bits per channel.
 // 8-bit sources are taken as they are; float and half sources (linear light) are encoded with the
 // sRGB curve when `transfer` is srgb, else clamped to [0, 1]; 16-bit sources are rescaled.
-// Throws InputError naming the file.
-Image8 read_image8(const std::string& path, store::Transfer transfer);
+// Throws InputError naming the file, also before allocating anything when the image needs more than
+// max_bytes to read (its 8-bit texels, plus a float copy for other sources): a header alone can
+// claim 2^31 × 2^31 pixels.
+Image8 read_image8(const std::string& path, store::Transfer transfer,
+                   std::uint64_t max_bytes = std::numeric_limits<std::uint64_t>::max());
 
 // Writes an 8-bit image with OpenImageIO (format from the extension). Throws InputError.
 void write_image8(const std::string& path, const Image8& image);
@@ -132,6 +136,8 @@ struct BuildOptions {
   std::vector<CodecSpec> codecs;                     // one for all layers, or one per layer
   std::vector<store::Transfer> transfers;            // empty: srgb; one for all, or one per layer
   unsigned threads = 0;                              // encode workers; 0 = hardware threads
+  std::uint64_t memory_limit_bytes = 0;              // the level-0 images together (read_image8's
+                                                     // max_bytes); 0 = usable_memory_bytes()
 };
 
 struct BuildResult {
