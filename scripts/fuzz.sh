@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Fuzzing (docs/robustness.md, "Fuzzing"). Builds the libFuzzer targets of tests/fuzz with clang,
+# ASan and UBSan in build-fuzz/, then runs each for SECONDS (default 60) starting from the
+# checked-in corpus tests/fuzz/corpus/<target>/ (read only: new inputs go to fuzz-out/<target>/
+# corpus/). Findings (crash-*, leak-*, timeout-*, oom-*) land in fuzz-out/<target>/; a finding
+# makes the exit status 1. To keep one as a regression input, copy it into the corpus directory:
+# ctest fuzz_corpus then replays it in every build. Installs clang and libFuzzer if missing.
+#   scripts/fuzz.sh [SECONDS] [TARGET...]      targets: trace_native trace_import config compare store store_replay obj image
+#   scripts/fuzz.sh 600 obj                  (one target for ten minutes)
+set -euo pipefail
+here=$(cd "$(dirname "$0")/.." && pwd)
+cd "$here"
+secs=${1:-60}
+shift || true
+targets=("$@")
+((${#targets[@]})) || targets=(trace_native trace_import config compare store store_replay obj image)
+
+missing=()
+for p in clang libclang-rt-14-dev; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "fuzz: installing ${missing[*]}" >&2
+  if [ "$(id -u)" -eq 0 ]; then SUDO=(); else SUDO=(sudo); fi
+  "${SUDO[@]}" env DEBIAN_FRONTEND=noninteractive apt-get update -qq
+  "${SUDO[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+# The other build dependencies, and the compiler choice only on the first configure.
+CC=clang CXX=clang++ bash scripts/setup.sh build-fuzz -DVTSIM_SANITIZE=fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" -DVTSIM_BUILD_TESTS=OFF -DVTSIM_BUILD_BENCH=OFF -DVTSIM_WERROR=OFF
+
+export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+status=0
+for t in "${targets[@]}"; do
+  exe=build-fuzz/fuzz/fuzz_$t
+  [ -x "$exe" ] || { echo "fuzz: no target '$t'" >&2; exit 2; }
+  out=fuzz-out/$t
+  mkdir -p "$out/corpus"
+  echo "== fuzz $t: ${secs}s"
+  # -max_len: the store seeds are whole 4 KiB-aligned files (40 KiB); -timeout: one input taking
+  # 10 s is a hang; -rss_limit_mb: the loaders' own limits must hold far below 2 GiB.
+  if ! "$exe" -max_total_time="$secs" -timeout=10 -rss_limit_mb=2048 -max_len=65536 \
+      -print_final_stats=1 \
+      -artifact_prefix="$out/" "$out/corpus" "tests/fuzz/corpus/$t" > "$out/log.txt" 2>&1; then
+    status=1
+  fi
+  grep -E "^(stat::number_of_executed_units|stat::peak_rss_mb)" "$out/log.txt" | tr '\n' ' ' || true
+  echo
+  found=$(find "$out" -maxdepth 1 -type f \( -name 'crash-*' -o -name 'leak-*' -o -name 'timeout-*' -o -name 'oom-*' \) | wc -l)
+  if [ "$found" -gt 0 ]; then
+    status=1
+    echo "fuzz $t: $found finding(s) in $out/ (log: $out/log.txt)"
+  fi
+done
+exit $status

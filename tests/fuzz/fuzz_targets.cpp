@@ -1,0 +1,20 @@
+#include "fuzz_targets.h"
+
+namespace vtsim::fuzz {
+
+const std::vector<Target>& targets() {
+  static const std::vector<Target> all = {
+      {"trace_native", trace_native}, {"trace_import", trace_import}, {"config", config},
+      {"compare", compare},           {"store", store},               {"obj", obj},
+      {"store_replay", store_replay}, {"image", image},
+  };
+  return all;
+}
+
+const Target* find_target(std::string_view name) {
+  for (const Target& t : targets())
+    if (name == t.name) return &t;
+  return nullptr;
+}
+
+}  // namespace vtsim::fuzz
