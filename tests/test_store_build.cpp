@@ -257,13 +257,15 @@ TEST_CASE("an image whose header claims more pixels than the memory limit is ref
     CHECK(e.where() == huge);
     CHECK(std::string(e.what()).find("more than the 64.0 MiB") != std::string::npos);
   }
-  // The limit counts every layer's level-0 texels: two 64 × 64 RGBA images (16 KiB each) fit in
-  // 32 KiB, not in 24 KiB.
+  // The limit counts every layer's level-0 texels, and the image being read also needs
+  // OpenImageIO's strip buffer (image_io::read_scratch_bytes: 64 MiB + 64 rows of 64 RGBA8 pixels
+  // here). Two 64 × 64 RGBA images (16 KiB each): the second needs 16 KiB + 64 MiB + 16 KiB after
+  // the first's 16 KiB, so 64 MiB + 48 KiB fits and 64 MiB + 40 KiB does not.
   write_image8(dir.file("a.png"), test::make_image(64, 64, 4));
   write_image8(dir.file("b.png"), test::make_image(64, 64, 4));
-  o.memory_limit_bytes = 32 << 10;
+  o.memory_limit_bytes = (std::uint64_t{64} << 20) + (48 << 10);
   CHECK_NOTHROW(build_store({dir.file("a.png"), dir.file("b.png")}, o, dir.file("ab.vts")));
-  o.memory_limit_bytes = 24 << 10;
+  o.memory_limit_bytes = (std::uint64_t{64} << 20) + (40 << 10);
   CHECK_THROWS_AS(build_store({dir.file("a.png"), dir.file("b.png")}, o, dir.file("ab2.vts")), InputError);
 }
 

@@ -13,6 +13,7 @@
 //
 // Thread-safety: the module is loaded once (thread-safe); the functions may be called from many
 // threads at once, each on its own ImageReader.
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -30,6 +31,18 @@ struct ImageSpec {
   bool is_uint8 = false;  // the file stores 8-bit unsigned pixels
   bool is_float = false;  // ... floating-point pixels (half, float, double)
 };
+
+// Bytes OpenImageIO itself may allocate while read() converts a scanline image to the requested
+// type (ImageInput::read_scanlines, OpenImageIO 2.4): a strip of ~64 MiB rounded up to whole
+// chunks of at least 64 rows (256 with a larger oiio:read_chunk) of every channel in the file's own
+// format, however few rows the image has — a 52-byte PBM claiming 44,444,444 × 2 pixels made it
+// allocate 11 GB (fuzz finding). An upper bound, in double (it can pass 2^64); tiled files, whose
+// buffers follow the tile size in their header, are not covered.
+inline double read_scratch_bytes(const ImageSpec& s) {
+  const double value_bytes = s.is_uint8 ? 1.0 : s.is_float ? 8.0 : 4.0;
+  const double row = static_cast<double>(s.width) * static_cast<double>(s.channels) * value_bytes;
+  return std::max(static_cast<double>(1 << 26) + 64.0 * row, 256.0 * row);
+}
 
 enum class ReadStatus {
   ok,

@@ -381,12 +381,14 @@ Image8 read_image8(const std::string& path, Transfer transfer, std::uint64_t max
   if (s.width < 1 || s.height < 1 || s.depth != 1 || s.channels < 1)
     throw InputError(path, "is not a 2D image (" + std::to_string(s.width) + "x" + std::to_string(s.height) + "x" +
                                std::to_string(s.depth) + ", " + std::to_string(s.channels) + " channels)");
-  // In double: up to 2^31 · 2^31 · 4 · 5 does not fit 64 bits. Checked before any allocation.
+  // The texels, a float copy for non-8-bit sources, and OpenImageIO's own strip buffer; in double
+  // (2^31 · 2^31 · 4 · 5 does not fit 64 bits). Checked before any allocation.
   const double need = static_cast<double>(s.width) * static_cast<double>(s.height) *
-                      static_cast<double>(std::min(s.channels, 4)) * (s.is_uint8 ? 1.0 : 5.0);
+                          static_cast<double>(std::min(s.channels, 4)) * (s.is_uint8 ? 1.0 : 5.0) +
+                      image_io::read_scratch_bytes(s);
   if (need > static_cast<double>(max_bytes))
     throw InputError(path, fmt::format("{}x{} pixels x {} channel(s) need {:.1f} MiB to read, more than the {:.1f} MiB "
-                                       "this process may use",
+                                       "available for it",
                                        s.width, s.height, std::min(s.channels, 4), need / 1048576.0,
                                        static_cast<double>(max_bytes) / 1048576.0));
   Image8 img;

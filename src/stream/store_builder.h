@@ -136,8 +136,10 @@ struct BuildOptions {
   std::vector<CodecSpec> codecs;                     // one for all layers, or one per layer
   std::vector<store::Transfer> transfers;            // empty: srgb; one for all, or one per layer
   unsigned threads = 0;                              // encode workers; 0 = hardware threads
-  std::uint64_t memory_limit_bytes = 0;              // the level-0 images together (read_image8's
-                                                     // max_bytes); 0 = usable_memory_bytes()
+  std::uint64_t memory_limit_bytes = 0;              // the level-0 images together, each with its
+                                                     // read buffers (read_image8's max_bytes is
+                                                     // what earlier layers left); 0 =
+                                                     // usable_memory_bytes()
 };
 
 struct BuildResult {
