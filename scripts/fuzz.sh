@@ -1,22 +1,26 @@
 #!/usr/bin/env bash
-# Fuzzing (docs/robustness.md, "Fuzzing"). Builds the libFuzzer targets of tests/fuzz with clang,
+# Fuzzing (docs/robustness.md, "Fuzz targets"). Builds the libFuzzer targets of tests/fuzz with clang,
 # ASan and UBSan in build-fuzz/, then runs each for SECONDS (default 60) starting from the
 # checked-in corpus tests/fuzz/corpus/<target>/ (read only: new inputs go to fuzz-out/<target>/
-# corpus/). Findings (crash-*, leak-*, timeout-*, oom-*) land in fuzz-out/<target>/; a finding
-# makes the exit status 1. To keep one as a regression input, copy it into the corpus directory:
+# corpus/). Findings (crash-*, leak-*, timeout-*, oom-*) land in fuzz-out/<target>/; a finding of
+# this run makes the exit status 1. To keep one as a regression input, copy it into the corpus directory:
 # ctest fuzz_corpus then replays it in every build. Installs clang and libFuzzer if missing.
-#   scripts/fuzz.sh [SECONDS] [TARGET...]      targets: trace_native trace_import config compare store store_replay obj image
+#   scripts/fuzz.sh [SECONDS] [TARGET...]      targets: the directories of tests/fuzz/corpus
 #   scripts/fuzz.sh 600 obj                  (one target for ten minutes)
+# The build is RelWithDebInfo at -O1 -g1 without -DNDEBUG: assertions stay on while fuzzing.
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 cd "$here"
+usage() { echo "usage: scripts/fuzz.sh [SECONDS] [TARGET...] (targets: $(ls tests/fuzz/corpus | tr '\n' ' '))" >&2; exit 2; }
 secs=${1:-60}
+[[ $secs =~ ^[0-9]+$ ]] || usage
 shift || true
 targets=("$@")
-((${#targets[@]})) || targets=(trace_native trace_import config compare store store_replay obj image)
+((${#targets[@]})) || mapfile -t targets < <(ls tests/fuzz/corpus)
+for t in "${targets[@]}"; do [ -d "tests/fuzz/corpus/$t" ] || usage; done
 
 missing=()
-for p in clang libclang-rt-14-dev; do
+for p in clang libclang-rt-dev; do  # libFuzzer and the sanitizer runtimes of Debian's clang
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
 if ((${#missing[@]})); then
@@ -31,6 +35,8 @@ CC=clang CXX=clang++ bash scripts/setup.sh build-fuzz -DVTSIM_SANITIZE=fuzz -DCM
 
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 status=0
+stamp=$(mktemp)  # findings newer than this are this run's
+trap 'rm -f "$stamp"' EXIT
 for t in "${targets[@]}"; do
   exe=build-fuzz/fuzz/fuzz_$t
   [ -x "$exe" ] || { echo "fuzz: no target '$t'" >&2; exit 2; }
@@ -46,7 +52,7 @@ for t in "${targets[@]}"; do
   fi
   grep -E "^(stat::number_of_executed_units|stat::peak_rss_mb)" "$out/log.txt" | tr '\n' ' ' || true
   echo
-  found=$(find "$out" -maxdepth 1 -type f \( -name 'crash-*' -o -name 'leak-*' -o -name 'timeout-*' -o -name 'oom-*' \) | wc -l)
+  found=$(find "$out" -maxdepth 1 -type f -newer "$stamp" \( -name 'crash-*' -o -name 'leak-*' -o -name 'timeout-*' -o -name 'oom-*' \) | wc -l)
   if [ "$found" -gt 0 ]; then
     status=1
     echo "fuzz $t: $found finding(s) in $out/ (log: $out/log.txt)"

@@ -30,8 +30,11 @@ for v in $variants; do
   export TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1
   if [ "$v" = tsan ]; then
     # TSan checks the threaded code: the doctest suite "threads" (IO and decode pools, threaded
-    # executor, faults, real clock, store builder and generator). Release and ASan run everything.
+    # executor, faults, real clock, store builder and generator) and the fuzz corpus of the
+    # threaded targets. Release and ASan run everything.
     (cd "$dir/tests" && ./vtsim_tests --test-suite=threads --no-intro=true)
+    # The fuzz corpus of the targets that run threads (docs/robustness.md).
+    "$dir/tests/fuzz/vtsim_fuzz_corpus" tests/fuzz/corpus config store_replay
   else
     ctest --test-dir "$dir" --output-on-failure -j"$jobs" --timeout 600
   fi

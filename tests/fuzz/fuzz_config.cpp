@@ -2,6 +2,7 @@
 // the part after a 0xFF byte), loaded as `vtsim replay --config F --set ...` loads them. An
 // accepted config then builds its scene and system and replays four frames of a small static
 // trace in the simulated clock: validation at load must refuse whatever the replay cannot run.
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -24,10 +25,15 @@ void config(const std::uint8_t* data, std::size_t size) {
     sets.emplace_back(set_text.substr(a, b - a));
     a = b + 1;
   }
+  ReplayConfig cfg;
+  std::unique_ptr<IScene> scene;
   expect_accept_or_reject("config", [&] {
     const std::string path = input_file(reinterpret_cast<const std::uint8_t*>(toml.data()), toml.size(), "toml");
-    const ReplayConfig cfg = load_replay_config(path, sets);
-    const auto scene = make_scene_from_config(cfg);
+    cfg = load_replay_config(path, sets);
+    scene = make_scene_from_config(cfg);  // may refuse: files, texture size against the scene
+  });
+  if (!scene) return;
+  must_succeed("config", "the replay of a validated config", [&] {
     Trace t;
     t.image_width = 64;
     t.image_height = 36;

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <optional>
 #include <string>
 
 #include "fuzz_targets.h"
@@ -64,13 +65,18 @@ void check_frame(const MeshScene& scene, const Camera& cam, const ViewParams& p,
 }  // namespace
 
 void obj(const std::uint8_t* data, std::size_t size) {
+  Mesh mesh;
+  std::optional<MeshScene> scene;
   expect_accept_or_reject("obj", [&] {
     const std::string text(reinterpret_cast<const char*>(data), size);
     ObjLimits limits;
     limits.max_triangles = 4096;  // keeps a run fast; the limit itself is tested (InputError)
     limits.max_vertices = 16384;
-    const Mesh mesh = parse_obj(text, "fuzz.obj", nullptr, limits);
-    const MeshScene scene(mesh, TextureExtent{1 << 20, 1 << 20});
+    mesh = parse_obj(text, "fuzz.obj", nullptr, limits);
+    scene.emplace(mesh, TextureExtent{1 << 20, 1 << 20});
+  });
+  if (!scene) return;
+  must_succeed("obj", "rendering an accepted mesh", [&] {
     glm::dvec3 lo = mesh.positions.empty() ? glm::dvec3(0.0) : mesh.positions[0], hi = lo;
     for (const auto& q : mesh.positions) {
       lo = glm::min(lo, q);
@@ -96,7 +102,7 @@ void obj(const std::uint8_t* data, std::size_t size) {
         ViewParams p;
         p.divisor = 1;
         p.anisotropic = aniso;
-        check_frame(scene, cam, p, std::string(v.name) + (aniso ? " (anisotropic)" : ""));
+        check_frame(*scene, cam, p, std::string(v.name) + (aniso ? " (anisotropic)" : ""));
       }
     }
   });

@@ -23,7 +23,8 @@ struct Target {
   void (*run)(const std::uint8_t* data, std::size_t size);
 };
 
-// Every target (fuzz_targets.cpp): adding one is a file and a line there.
+// Every target (fuzz_targets.cpp). Adding one: its file, its declaration below, a line in
+// fuzz_targets.cpp and in CMakeLists.txt, and tests/fuzz/corpus/<name>/ with a seed.
 const std::vector<Target>& targets();
 const Target* find_target(std::string_view name);
 
@@ -31,13 +32,17 @@ const Target* find_target(std::string_view name);
 // the target's name and the message.
 void expect_accept_or_reject(const char* target, const std::function<void()>& fn);
 
+// Runs fn, a step that must succeed on an input already accepted (a round trip, a replay of a
+// validated config): any exception, an InputError too, aborts with `what` and the message.
+void must_succeed(const char* target, const char* what, const std::function<void()>& fn);
+
 // The InputError messages of the refusals since the last call (oldest first), so that the corpus
 // runner can show which seeds are accepted (a refused seed explores nothing past the refusal).
 std::vector<std::string> take_refusals();
 
-// The bytes written to a file of this process's scratch directory (removed at exit), named with
-// `ext` ("csv", "toml"...) because some readers look at the extension. The same path every call
-// for a given ext: a target reads its input before the next one is written.
+// The bytes written to a file of this process's scratch directory (removed at exit), named
+// "input.<ext>" (some readers look at the extension). The same path every call for a given ext:
+// a target reads its input before the next one is written.
 std::string input_file(const std::uint8_t* data, std::size_t size, const std::string& ext);
 
 // Splits the input at the first byte 0xFF (absent: everything is `first`): targets that need two

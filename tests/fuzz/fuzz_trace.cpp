@@ -1,7 +1,7 @@
 // Trace readers: the native CSV (trace_native) and the TUM / EuRoC / KITTI importers
 // (trace_import). An accepted trace must also satisfy what the rest of vtsim assumes of it:
-// validate_trace, a native round trip that keeps every pose bit for bit, statistics, resampling
-// and a transform (each again accept-or-InputError).
+// validate_trace, a native round trip that keeps every pose bit for bit, statistics and resampling
+// (which must succeed), and a transform (which may refuse).
 #include <nlohmann/json.hpp>
 
 #include <cstdio>
@@ -33,22 +33,25 @@ bool same_pose(const Pose& a, const Pose& b) {
   std::abort();
 }
 
-// What every accepted trace goes through. Throws only InputError for documented refusals.
+// What every accepted trace goes through: validation, a strict native round trip, statistics and
+// resampling must succeed; only the transform (which may move the trace out of range) may refuse.
 void check_trace(const char* target, Trace& t) {
-  validate_trace(t, "fuzz");  // an accepted trace is valid (an InputError here is still a bug)
-  const std::string text = format_trace(t);
-  const std::string again_path = input_file(reinterpret_cast<const std::uint8_t*>(text.data()), text.size(), "rt.csv");
-  const Trace again = load_trace(again_path, TraceReadOptions{{}, true});
-  if (again.poses.size() != t.poses.size() || again.image_width != t.image_width || again.image_height != t.image_height)
-    fail(target, "native round trip changed the trace's size");
-  for (std::size_t k = 0; k < t.poses.size(); ++k)
-    if (!same_pose(again.poses[k], t.poses[k])) fail(target, "native round trip changed pose " + std::to_string(k));
-  (void)to_json(trace_stats(t));
-  // At most ~1,000 output frames, whatever the duration.
-  const double dur = t.poses.back().t_s - t.poses.front().t_s;
-  ResampleOptions ro;
-  ro.fps = dur > 0.0 ? std::min(60.0, 1000.0 / dur) : 60.0;
-  if (ro.fps > 0.0) (void)resample(t, ro);
+  must_succeed(target, "validate, round trip, stats, resample", [&] {
+    validate_trace(t, "fuzz");
+    const std::string text = format_trace(t);
+    const std::string again_path = input_file(reinterpret_cast<const std::uint8_t*>(text.data()), text.size(), "rt.csv");
+    const Trace again = load_trace(again_path, TraceReadOptions{{}, true});
+    if (again.poses.size() != t.poses.size() || again.image_width != t.image_width || again.image_height != t.image_height)
+      fail(target, "native round trip changed the trace's size");
+    for (std::size_t k = 0; k < t.poses.size(); ++k)
+      if (!same_pose(again.poses[k], t.poses[k])) fail(target, "native round trip changed pose " + std::to_string(k));
+    (void)to_json(trace_stats(t));
+    // At most ~1,000 output frames, whatever the duration.
+    const double dur = t.poses.back().t_s - t.poses.front().t_s;
+    ResampleOptions ro;
+    ro.fps = dur > 0.0 ? std::min(60.0, 1000.0 / dur) : 60.0;
+    if (ro.fps > 0.0) (void)resample(t, ro);
+  });
   TraceTransform tf;
   tf.scale = 1000.0;
   tf.yaw_deg = 30.0;
@@ -86,6 +89,13 @@ void trace_import(const std::uint8_t* data, std::size_t size) {
       TraceLoadReport report;
       Trace t = import_trace(path, o, &report);
       check_trace("trace_import", t);
+    });
+    expect_accept_or_reject("trace_import", [&] {  // strict: every repair is an error
+      ImportOptions o;
+      if (f >= 0) o.format = static_cast<TraceFormat>(f);
+      o.kitti_rate_hz = 10.0;
+      o.read.strict = true;
+      (void)import_trace(path, o);
     });
   }
 }

@@ -1,35 +1,16 @@
-#include <unistd.h>
-
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <stdexcept>
 #include <utility>
 
 #include "core/error.h"
 #include "fuzz_targets.h"
+#include "store_test_util.h"
 
 namespace vtsim::fuzz {
 
 namespace {
-
-// The process's scratch directory: mkdtemp under TMPDIR, removed at exit.
-struct ScratchDir {
-  std::filesystem::path path;
-  ScratchDir() {
-    std::string templ = (std::filesystem::temp_directory_path() / "vtsim-fuzz-XXXXXX").string();
-    if (::mkdtemp(templ.data()) == nullptr) {
-      std::perror("vtsim fuzz: mkdtemp");
-      std::abort();
-    }
-    path = templ;
-  }
-  ~ScratchDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path, ec);
-  }
-};
 
 std::vector<std::string>& refusals() {
   static std::vector<std::string> r;
@@ -52,8 +33,17 @@ void expect_accept_or_reject(const char* target, const std::function<void()>& fn
   }
 }
 
+void must_succeed(const char* target, const char* what, const std::function<void()>& fn) {
+  try {
+    fn();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "vtsim fuzz %s: %s failed on an accepted input: %s\n", target, what, e.what());
+    std::abort();
+  }
+}
+
 std::string input_file(const std::uint8_t* data, std::size_t size, const std::string& ext) {
-  static ScratchDir dir;
+  static const test::TempDir dir;  // removed at exit
   const std::filesystem::path p = dir.path / ("input." + ext);
   std::ofstream f(p, std::ios::binary | std::ios::trunc);
   f.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
