@@ -171,23 +171,24 @@ TileStore TileStore::open(const std::string& path) {
     e.checksum = load_u64(p + ent::checksum);
     const std::uint32_t codec = load_u32(p + ent::codec);
     const TileKey k = g.key_of_slot(i);
-    const std::string where = path + ": index entry " + dec(i) + " (" + describe(k) + ") field ";
+    // Built only for an error: open() checks millions of entries in a large store.
+    const auto where = [&] { return path + ": index entry " + dec(i) + " (" + describe(k) + ") field "; };
     const std::uint32_t want = h.tile_bytes(k.layer());
     if (e.decoded_bytes != want)
-      throw InputError(where + "'decoded_bytes'", dec(e.decoded_bytes) + ", the tile holds " + dec(want) + " bytes");
+      throw InputError(where() + "'decoded_bytes'", dec(e.decoded_bytes) + ", the tile holds " + dec(want) + " bytes");
     if (e.stored_bytes < 1 || e.stored_bytes > want)
-      throw InputError(where + "'stored_bytes'", dec(e.stored_bytes) + " is out of range 1.." + dec(want));
+      throw InputError(where() + "'stored_bytes'", dec(e.stored_bytes) + " is out of range 1.." + dec(want));
     const CodecId layer_codec = h.layers[k.layer()].codec;
     if (codec != static_cast<std::uint32_t>(layer_codec) && codec != static_cast<std::uint32_t>(CodecId::raw))
-      throw InputError(where + "'codec'", dec(codec) + " is neither the layer's codec (" + std::string(codec_name(layer_codec)) + ") nor raw");
+      throw InputError(where() + "'codec'", dec(codec) + " is neither the layer's codec (" + std::string(codec_name(layer_codec)) + ") nor raw");
     e.codec = static_cast<CodecId>(codec);
     if (e.codec == CodecId::raw && e.stored_bytes != want)
-      throw InputError(where + "'stored_bytes'", dec(e.stored_bytes) + " for a raw tile of " + dec(want) + " bytes");
+      throw InputError(where() + "'stored_bytes'", dec(e.stored_bytes) + " for a raw tile of " + dec(want) + " bytes");
     if (e.offset % kAlign != 0)
-      throw InputError(where + "'offset'", dec(e.offset) + " is not a multiple of " + dec(kAlign));
+      throw InputError(where() + "'offset'", dec(e.offset) + " is not a multiple of " + dec(kAlign));
     const std::uint64_t end = e.offset + round_up(e.stored_bytes, kAlign);
     if (e.offset < h.data_offset || e.offset > h.file_bytes || end > h.file_bytes)
-      throw InputError(where + "'offset'", "record [" + dec(e.offset) + ", " + dec(end) + ") is outside the data region [" +
+      throw InputError(where() + "'offset'", "record [" + dec(e.offset) + ", " + dec(end) + ") is outside the data region [" +
                                                dec(h.data_offset) + ", " + dec(h.file_bytes) + ")");
     s.index_[i] = e;
     spans[i] = {e.offset, end, i};
@@ -211,17 +212,17 @@ void TileStore::verify_and_decode(TileKey k, const std::uint8_t* record, std::si
                                   std::size_t out_size) const {
   if (!contains(k)) throw InputError(path_ + ": " + describe(k), "is outside the store");
   const IndexEntry& e = index_[header_.geom.slot(k)];
-  const std::string where = path_ + ": " + describe(k);
+  const auto where = [&] { return path_ + ": " + describe(k); };  // only for an error: every read passes here
   if (size < e.stored_bytes)
-    throw InputError(where, "record has " + dec(size) + " bytes, the index says " + dec(e.stored_bytes));
+    throw InputError(where(), "record has " + dec(size) + " bytes, the index says " + dec(e.stored_bytes));
   if (out_size < e.decoded_bytes)
-    throw InputError(where, "output buffer of " + dec(out_size) + " bytes is smaller than the tile (" + dec(e.decoded_bytes) + ")");
-  if (checksum64(record, e.stored_bytes) != e.checksum) throw InputError(where, "checksum mismatch: the record is corrupt");
+    throw InputError(where(), "output buffer of " + dec(out_size) + " bytes is smaller than the tile (" + dec(e.decoded_bytes) + ")");
+  if (checksum64(record, e.stored_bytes) != e.checksum) throw InputError(where(), "checksum mismatch: the record is corrupt");
   const int side = static_cast<int>(header_.geom.stored_side());
   try {
     decoder_for(e.codec).decode(record, e.stored_bytes, side, side, static_cast<int>(header_.layers[k.layer()].channels), out);
   } catch (const CodecError& err) {
-    throw InputError(where, std::string("does not decode: ") + err.what());
+    throw InputError(where(), std::string("does not decode: ") + err.what());
   }
 }
 
