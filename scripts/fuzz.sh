@@ -19,16 +19,8 @@ targets=("$@")
 ((${#targets[@]})) || mapfile -t targets < <(ls tests/fuzz/corpus)
 for t in "${targets[@]}"; do [ -d "tests/fuzz/corpus/$t" ] || usage; done
 
-missing=()
-for p in clang libclang-rt-dev; do  # libFuzzer and the sanitizer runtimes of Debian's clang
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if ((${#missing[@]})); then
-  echo "fuzz: installing ${missing[*]}" >&2
-  if [ "$(id -u)" -eq 0 ]; then SUDO=(); else SUDO=(sudo); fi
-  "${SUDO[@]}" env DEBIAN_FRONTEND=noninteractive apt-get update -qq
-  "${SUDO[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-fi
+. scripts/packages.sh
+ensure_packages clang libclang-rt-dev  # libFuzzer and the sanitizer runtimes of Debian's clang
 # The other build dependencies, and the compiler choice only on the first configure.
 CC=clang CXX=clang++ bash scripts/setup.sh build-fuzz -DVTSIM_SANITIZE=fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" -DVTSIM_BUILD_TESTS=OFF -DVTSIM_BUILD_BENCH=OFF -DVTSIM_WERROR=OFF

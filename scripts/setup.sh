@@ -13,16 +13,8 @@ PKGS=(build-essential cmake pkg-config git
       libopenimageio-dev openimageio-tools libglm-dev doctest-dev libcli11-dev nlohmann-json3-dev
       libtomlplusplus-dev libfmt-dev libzstd-dev liblz4-dev libxxhash-dev fio python3 ninja-build)
 
-missing=()
-for p in "${PKGS[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if ((${#missing[@]})); then
-  echo "setup: installing ${missing[*]}" >&2
-  if [ "$(id -u)" -eq 0 ]; then SUDO=(); else SUDO=(sudo); fi
-  "${SUDO[@]}" env DEBIAN_FRONTEND=noninteractive apt-get update -qq
-  "${SUDO[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-fi
+. scripts/packages.sh
+ensure_packages "${PKGS[@]}"
 
 build=${1:-build}
 shift || true

@@ -11,25 +11,15 @@
 #include "sim/feedback.h"
 #include "sim/popin.h"
 #include "sim/scene.h"
+#include "view_test_util.h"
 
 using namespace vtsim;
 
 namespace {
 
-bool same_sample(const ViewSample& a, const ViewSample& b) {
-  return a.u == b.u && a.v == b.v && std::bit_cast<std::uint32_t>(a.lod) == std::bit_cast<std::uint32_t>(b.lod) &&
-         a.pixel == b.pixel;
-}
-
-bool same_span(const ViewSpan& a, const ViewSpan& b) {
-  return a.u_lo == b.u_lo && a.u_hi == b.u_hi && a.v_lo == b.v_lo && a.v_hi == b.v_hi && a.pixel == b.pixel &&
-         a.count == b.count && a.first == b.first && a.level == b.level;
-}
-
-bool same_counters(const ViewCounters& a, const ViewCounters& b) {
-  return a.sky == b.sky && a.clipped == b.clipped && a.backfacing == b.backfacing &&
-         a.outside_texture == b.outside_texture && a.untextured == b.untextured;
-}
+using test::same_counters;
+using test::same_sample;
+using test::same_span;
 
 struct RandomView {
   Camera cam;

@@ -18,6 +18,7 @@
 #include "sim/scene_mesh.h"
 #include "sim/trace_transform.h"
 #include "sim/view_spans.h"
+#include "view_test_util.h"
 
 namespace vtsim::fuzz {
 
@@ -28,19 +29,9 @@ namespace {
   std::abort();
 }
 
-bool same_span(const ViewSpan& a, const ViewSpan& b) {
-  return a.u_lo == b.u_lo && a.u_hi == b.u_hi && a.v_lo == b.v_lo && a.v_hi == b.v_hi && a.pixel == b.pixel &&
-         a.count == b.count && a.first == b.first && a.level == b.level;
-}
-
-bool same_counters(const ViewCounters& a, const ViewCounters& b) {
-  return a.sky == b.sky && a.clipped == b.clipped && a.backfacing == b.backfacing &&
-         a.outside_texture == b.outside_texture && a.untextured == b.untextured;
-}
-
-bool same_sample(const ViewSample& a, const ViewSample& b) {
-  return a.u == b.u && a.v == b.v && std::memcmp(&a.lod, &b.lod, sizeof a.lod) == 0 && a.pixel == b.pixel;
-}
+using test::same_counters;
+using test::same_sample;
+using test::same_span;
 
 void check_frame(const MeshScene& scene, const Camera& cam, const ViewParams& p, const std::string& which) {
   ViewBuffer vb;
