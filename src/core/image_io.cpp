@@ -11,6 +11,8 @@
 #include <memory>
 #include <system_error>
 
+#include <fmt/format.h>
+
 #include "core/error.h"
 #include "core/input_file.h"
 
@@ -232,6 +234,15 @@ bool encode_memory(const char* ext, const std::uint8_t* pixels, int width, int h
   const std::unique_ptr<std::uint8_t, void (*)(std::uint8_t*)> owned(bytes, a.free_bytes);
   out.assign(bytes, bytes + size);
   return true;
+}
+
+void require_read_memory(const std::string& path, const ImageSpec& spec, double out_bytes, std::uint64_t max_bytes) {
+  const double need = out_bytes + read_scratch_bytes(spec);
+  if (need > static_cast<double>(max_bytes))
+    throw InputError(path, fmt::format("{}x{} pixels x {} channel(s) need {:.1f} MiB to read, more than the {:.1f} MiB "
+                                       "available for it",
+                                       spec.width, spec.height, spec.channels, need / 1048576.0,
+                                       static_cast<double>(max_bytes) / 1048576.0));
 }
 
 }  // namespace vtsim::image_io

@@ -44,6 +44,10 @@ inline double read_scratch_bytes(const ImageSpec& s) {
   return std::max(static_cast<double>(1 << 26) + 64.0 * row, 256.0 * row);
 }
 
+// Call before allocating the buffers a read of `spec` needs: throws InputError(path, ...) when
+// those (out_bytes, the caller's) plus read_scratch_bytes exceed max_bytes, naming the size.
+void require_read_memory(const std::string& path, const ImageSpec& spec, double out_bytes, std::uint64_t max_bytes);
+
 enum class ReadStatus {
   ok,
   failed,         // error() says why (may be empty)

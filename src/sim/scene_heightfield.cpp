@@ -48,12 +48,7 @@ Heightfield load_heightfield(const std::string& path, double spacing_m, double h
     throw InputError(path, std::to_string(w) + "×" + std::to_string(h) + " pixels is more than the " +
                                std::to_string(max_posts) + "-post limit");
   if (spec.channels < 1) throw InputError(path, "image has no channels");
-  const double need = static_cast<double>(w * h) * 4.0 + image_io::read_scratch_bytes(spec);
-  if (const std::uint64_t usable = usable_memory_bytes(); need > static_cast<double>(usable))
-    throw InputError(path, std::to_string(w) + "×" + std::to_string(h) + " pixels of " + std::to_string(spec.channels) +
-                               " channel(s) need " + std::to_string(static_cast<std::uint64_t>(need / 1048576.0)) +
-                               " MiB to read, more than the " + std::to_string(usable >> 20) +
-                               " MiB this process may use");
+  image_io::require_read_memory(path, spec, static_cast<double>(w * h) * 4.0, usable_memory_bytes());
   std::vector<float> px(static_cast<std::size_t>(w * h));
   if (in.read(1, image_io::PixelType::f32, px.data()) == image_io::ReadStatus::failed)
     throw InputError(path, "cannot decode image: " + in.error());

@@ -13,8 +13,6 @@
 #include <filesystem>
 #include <thread>
 
-#include <fmt/format.h>
-
 #include "core/error.h"
 #include "core/host_memory.h"
 #include "core/image_io.h"
@@ -381,16 +379,12 @@ Image8 read_image8(const std::string& path, Transfer transfer, std::uint64_t max
   if (s.width < 1 || s.height < 1 || s.depth != 1 || s.channels < 1)
     throw InputError(path, "is not a 2D image (" + std::to_string(s.width) + "x" + std::to_string(s.height) + "x" +
                                std::to_string(s.depth) + ", " + std::to_string(s.channels) + " channels)");
-  // The texels, a float copy for non-8-bit sources, and OpenImageIO's own strip buffer; in double
-  // (2^31 · 2^31 · 4 · 5 does not fit 64 bits). Checked before any allocation.
-  const double need = static_cast<double>(s.width) * static_cast<double>(s.height) *
-                          static_cast<double>(std::min(s.channels, 4)) * (s.is_uint8 ? 1.0 : 5.0) +
-                      image_io::read_scratch_bytes(s);
-  if (need > static_cast<double>(max_bytes))
-    throw InputError(path, fmt::format("{}x{} pixels x {} channel(s) need {:.1f} MiB to read, more than the {:.1f} MiB "
-                                       "available for it",
-                                       s.width, s.height, std::min(s.channels, 4), need / 1048576.0,
-                                       static_cast<double>(max_bytes) / 1048576.0));
+  // The texels and a float copy for non-8-bit sources; in double (2^31 · 2^31 · 4 · 5 does not
+  // fit 64 bits).
+  image_io::require_read_memory(path, s,
+                                static_cast<double>(s.width) * static_cast<double>(s.height) *
+                                    static_cast<double>(std::min(s.channels, 4)) * (s.is_uint8 ? 1.0 : 5.0),
+                                max_bytes);
   Image8 img;
   img.width = static_cast<std::uint64_t>(s.width);
   img.height = static_cast<std::uint64_t>(s.height);
