@@ -139,6 +139,9 @@ ImageSpec to_spec(const abi::Spec& s) {
   r.channels = s.nchannels;
   r.is_uint8 = s.is_uint8 != 0;
   r.is_float = s.is_float != 0;
+  r.tile_width = s.tile_width;
+  r.tile_height = s.tile_height;
+  r.tile_depth = s.tile_depth;
   return r;
 }
 
@@ -201,6 +204,8 @@ ReadStatus ImageReader::read(int channels, PixelType type, void* out, int thread
   const abi::Status s = api_->read(reader_, channels, to_abi(type), out, threads, err.data(), err.size());
   error_ = err.data();
   if (s == abi::kOk) return ReadStatus::ok;
+  // OpenImageIO's PNM reader fails on missing pixel data without a message.
+  if (error_.empty()) error_ = "the reader gave no reason (truncated or damaged pixel data?)";
   return s == abi::kOkWithError ? ReadStatus::ok_with_error : ReadStatus::failed;
 }
 
@@ -239,10 +244,12 @@ bool encode_memory(const char* ext, const std::uint8_t* pixels, int width, int h
 void require_read_memory(const std::string& path, const ImageSpec& spec, double out_bytes, std::uint64_t max_bytes) {
   const double need = out_bytes + read_scratch_bytes(spec);
   if (need > static_cast<double>(max_bytes))
-    throw InputError(path, fmt::format("{}x{} pixels x {} channel(s) need {:.1f} MiB to read, more than the {:.1f} MiB "
+    throw InputError(path, fmt::format("{}x{} pixels x {} channel(s){} need {:.1f} MiB to read, more than the {:.1f} MiB "
                                        "available for it",
-                                       spec.width, spec.height, spec.channels, need / 1048576.0,
-                                       static_cast<double>(max_bytes) / 1048576.0));
+                                       spec.width, spec.height, spec.channels,
+                                       spec.tile_width > 0 ? fmt::format(" in {}x{} tiles", spec.tile_width, spec.tile_height)
+                                                           : std::string(),
+                                       need / 1048576.0, static_cast<double>(max_bytes) / 1048576.0));
 }
 
 }  // namespace vtsim::image_io

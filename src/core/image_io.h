@@ -14,6 +14,7 @@
 // Thread-safety: the module is loaded once (thread-safe); the functions may be called from many
 // threads at once, each on its own ImageReader.
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -30,17 +31,29 @@ struct ImageSpec {
   int width = 0, height = 0, depth = 0, channels = 0;
   bool is_uint8 = false;  // the file stores 8-bit unsigned pixels
   bool is_float = false;  // ... floating-point pixels (half, float, double)
+  int tile_width = 0, tile_height = 0, tile_depth = 0;  // the file's tiles; 0 for scanline files
 };
 
-// Bytes OpenImageIO itself may allocate while read() converts a scanline image to the requested
-// type (ImageInput::read_scanlines, OpenImageIO 2.4): a strip of ~64 MiB rounded up to whole
-// chunks of at least 64 rows (256 with a larger oiio:read_chunk) of every channel in the file's own
-// format, however few rows the image has — a 52-byte PBM claiming 44,444,444 × 2 pixels made it
-// allocate 11 GB (fuzz finding). An upper bound, in double (it can pass 2^64); tiled files, whose
-// buffers follow the tile size in their header, are not covered.
+// Bytes OpenImageIO itself may allocate while read() converts the image to the requested type
+// (ImageInput::read_image, OpenImageIO 2.4), an upper bound in double (it can pass 2^64):
+// - scanline files: read_scanlines' strip of ~64 MiB rounded up to whole chunks of at least 64
+//   rows (256 with a larger oiio:read_chunk) of every channel in the file's own format, however
+//   few rows the image has — a 52-byte PBM claiming 44,444,444 × 2 pixels made it allocate 11 GB
+//   (fuzz finding);
+// - tiled files: read_tiles reads a row of tiles at a time into one buffer, plus a whole tile for
+//   partial edge tiles, one in read_native_tiles and the format's own decode buffer (counted as 4
+//   tiles), all sized by the tile in the header, not the image — a 12 KB TIFF of 64 × 64 pixels
+//   claiming 65,520 × 65,520 tiles took 24 GB before the OOM killer stopped it.
 inline double read_scratch_bytes(const ImageSpec& s) {
   const double value_bytes = s.is_uint8 ? 1.0 : s.is_float ? 8.0 : 4.0;
-  const double row = static_cast<double>(s.width) * static_cast<double>(s.channels) * value_bytes;
+  const double pixel = static_cast<double>(s.channels) * value_bytes;
+  if (s.tile_width > 0 && s.tile_height > 0) {
+    const double tile = static_cast<double>(s.tile_width) * static_cast<double>(s.tile_height) *
+                        static_cast<double>(std::max(s.tile_depth, 1)) * pixel;
+    const double across = std::ceil(static_cast<double>(s.width) / static_cast<double>(s.tile_width));
+    return (across + 4.0) * tile;
+  }
+  const double row = static_cast<double>(s.width) * pixel;
   return std::max(static_cast<double>(1 << 26) + 64.0 * row, 256.0 * row);
 }
 

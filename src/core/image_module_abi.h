@@ -14,7 +14,7 @@
 
 namespace vtsim::image_abi {
 
-inline constexpr std::uint32_t kAbiVersion = 1;
+inline constexpr std::uint32_t kAbiVersion = 2;  // 2: Spec's tile size
 inline constexpr const char* kEntrySymbol = "vtsim_image_module_api";
 inline constexpr const char* kModuleFileName = "libvtsim_image.so";
 
@@ -33,6 +33,7 @@ struct Spec {
   std::int32_t width, height, depth, nchannels;
   std::int32_t is_uint8;  // the file's pixels are 8-bit unsigned
   std::int32_t is_float;  // ... are floating point (half, float, double)
+  std::int32_t tile_width, tile_height, tile_depth;  // the file's tile size; 0 x 0 x 0 for scanline files
 };
 
 struct IntAttribute {

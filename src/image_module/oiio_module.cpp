@@ -61,8 +61,15 @@ OIIO::TypeDesc type_of(PixelType t) {
 }
 
 Spec spec_of(const OIIO::ImageSpec& s) {
-  return Spec{s.width, s.height, s.depth, s.nchannels, s.format == OIIO::TypeDesc::UINT8 ? 1 : 0,
-              s.format.is_floating_point() ? 1 : 0};
+  return Spec{s.width,
+              s.height,
+              s.depth,
+              s.nchannels,
+              s.format == OIIO::TypeDesc::UINT8 ? 1 : 0,
+              s.format.is_floating_point() ? 1 : 0,
+              s.tile_width,
+              s.tile_height,
+              s.tile_width > 0 ? s.tile_depth : 0};
 }
 
 // --- in-memory PNG / JPEG (the png and jpeg tile codecs) ---------------------------------------

@@ -33,7 +33,8 @@ double lattice(std::int64_t i, std::int64_t j, int octave, std::uint64_t seed) {
 }  // namespace
 
 Heightfield load_heightfield(const std::string& path, double spacing_m, double height_scale_m,
-                             double z0_m, double x0_m, double y0_m, std::int64_t max_posts) {
+                             double z0_m, double x0_m, double y0_m, std::int64_t max_posts,
+                             std::uint64_t max_bytes) {
   max_posts = std::min(max_posts, kMaxHeightfieldPosts);
   check_grid_params(spacing_m, x0_m, y0_m);
   if (!std::isfinite(height_scale_m)) throw InputError("height_scale_m", "must be finite");
@@ -48,7 +49,8 @@ Heightfield load_heightfield(const std::string& path, double spacing_m, double h
     throw InputError(path, std::to_string(w) + "×" + std::to_string(h) + " pixels is more than the " +
                                std::to_string(max_posts) + "-post limit");
   if (spec.channels < 1) throw InputError(path, "image has no channels");
-  image_io::require_read_memory(path, spec, static_cast<double>(w * h) * 4.0, usable_memory_bytes());
+  image_io::require_read_memory(path, spec, static_cast<double>(w * h) * 4.0,
+                                max_bytes != 0 ? max_bytes : usable_memory_bytes());
   std::vector<float> px(static_cast<std::size_t>(w * h));
   if (in.read(1, image_io::PixelType::f32, px.data()) == image_io::ReadStatus::failed)
     throw InputError(path, "cannot decode image: " + in.error());

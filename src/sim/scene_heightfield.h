@@ -26,10 +26,12 @@ inline constexpr std::int64_t kMaxHeightfieldPosts = std::int64_t{1} << 26;
 // pixel types to [0, 1]). Image row j is post row j (world y grows with the image row). Throws
 // InputError(path, ...) for unreadable files, fewer than 2×2 or more than kMaxHeightfieldPosts
 // posts, and (path:row r, column c) for a non-finite value.
-// The size is checked from the image header before any pixel is decoded (max_posts: the limit).
+// The size is checked from the image header before any pixel is decoded (max_posts: the limit),
+// and so is the memory the read needs, OpenImageIO's buffers included (image_io::
+// require_read_memory against max_bytes; 0 = usable_memory_bytes()).
 Heightfield load_heightfield(const std::string& path, double spacing_m, double height_scale_m,
                              double z0_m, double x0_m, double y0_m,
-                             std::int64_t max_posts = kMaxHeightfieldPosts);
+                             std::int64_t max_posts = kMaxHeightfieldPosts, std::uint64_t max_bytes = 0);
 
 // Deterministic value-noise fBm (6 octaves, lattice period 256 posts down to 8): hills of
 // ±amplitude around z0. Same seed, same heights, bit for bit.

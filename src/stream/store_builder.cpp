@@ -11,7 +11,10 @@
 #include <cstring>
 #include <exception>
 #include <filesystem>
+#include <numeric>
 #include <thread>
+
+#include <fmt/format.h>
 
 #include "core/error.h"
 #include "core/host_memory.h"
@@ -366,6 +369,29 @@ class MipWalker {
   std::uint32_t level_ = 0;
 };
 
+// The most the mip walk holds at once, in bytes, and the layer being reduced then. The peak is
+// the step to level 1 (later levels are 4× smaller): MipWalker::advance builds level 1 in float
+// beside level 0 and quantises it before level 0 is dropped, one layer after another, so the
+// layers already reduced hold level 1 in float and 8 bits (5 bytes a value), the layer being
+// reduced its level 0 and the same, and the layers after it their level 0.
+std::pair<double, std::size_t> mip_walk_peak(const std::vector<image_io::ImageSpec>& layers) {
+  std::vector<double> level0, level1;
+  for (const image_io::ImageSpec& s : layers) {
+    const double c = std::min(s.channels, 4);
+    level0.push_back(static_cast<double>(s.width) * static_cast<double>(s.height) * c);
+    level1.push_back(std::ceil(s.width / 2.0) * std::ceil(s.height / 2.0) * c * 5.0);
+  }
+  std::pair<double, std::size_t> peak{0.0, 0};
+  double reduced = 0.0, unreduced = std::accumulate(level0.begin(), level0.end(), 0.0);
+  for (std::size_t i = 0; i < layers.size(); ++i) {
+    unreduced -= level0[i];
+    const double bytes = reduced + level0[i] + level1[i] + unreduced;
+    if (bytes > peak.first) peak = {bytes, i};
+    reduced += level1[i];
+  }
+  return peak;
+}
+
 }  // namespace
 
 Image8 read_image8(const std::string& path, Transfer transfer, std::uint64_t max_bytes) {
@@ -461,8 +487,24 @@ BuildResult build_store(const std::vector<std::string>& images, const BuildOptio
   spec.tile = o.tile;
   spec.border = o.border;
   spec.levels = o.levels;
-  std::vector<Image8> level0;
   const std::uint64_t memory = o.memory_limit_bytes != 0 ? o.memory_limit_bytes : usable_memory_bytes();
+  // The mip walk needs more than the level-0 images: check it from the headers before reading any
+  // (an image that does not open is left to read_image8, which names its problem in order).
+  if (o.levels != 1) {
+    std::vector<image_io::ImageSpec> headers;
+    for (const std::string& path : images)
+      if (auto in = image_io::ImageReader::open_file(path, true); in && in.spec().width > 0 && in.spec().height > 0)
+        headers.push_back(in.spec());
+    const auto [peak, at] = mip_walk_peak(headers);
+    if (headers.size() == images.size() && peak > static_cast<double>(memory) &&
+        std::max(headers[at].width, headers[at].height) > 1)
+      throw InputError(images[at], fmt::format("the mip walk over {} layer(s) of {}x{} needs {:.1f} MiB when it reduces "
+                                               "this one (every level 0, and level 1 in float and 8 bits of the "
+                                               "layers reduced so far), more than the {:.1f} MiB available",
+                                               images.size(), headers[at].width, headers[at].height,
+                                               peak / 1048576.0, static_cast<double>(memory) / 1048576.0));
+  }
+  std::vector<Image8> level0;
   std::uint64_t used = 0;  // by the level-0 images read so far (at most `memory`)
   for (std::size_t i = 0; i < images.size(); ++i) {
     StoreLayerSpec L;

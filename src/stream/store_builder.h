@@ -138,8 +138,9 @@ struct BuildOptions {
   unsigned threads = 0;                              // encode workers; 0 = hardware threads
   std::uint64_t memory_limit_bytes = 0;              // the level-0 images together, each with its
                                                      // read buffers (read_image8's max_bytes is
-                                                     // what earlier layers left); 0 =
-                                                     // usable_memory_bytes()
+                                                     // what earlier layers left), and the mip
+                                                     // walk's peak (checked from the headers
+                                                     // first); 0 = usable_memory_bytes()
 };
 
 struct BuildResult {

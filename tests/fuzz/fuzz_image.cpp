@@ -1,9 +1,12 @@
 // Images (through the OpenImageIO module, core/image_io.h), as a heightfield (scene.file) and as
-// the layer of a store (`vtsim store build`): the input is written as a .pnm (PBM/PGM/PPM, whose
-// header alone sets size, channels and bit depth) and, when the first read accepts it, the store
-// built from it must open and every tile (first 4,096) read back. The decoders themselves are
-// OpenImageIO's; this target checks what vtsim does with what they return.
+// the layer of a store (`vtsim store build`): the input is written as a .tif when it starts with a
+// TIFF signature (tiled TIFFs size OpenImageIO's read buffers by the tile in their header), else
+// as a .pnm (PBM/PGM/PPM, whose header alone sets size, channels and bit depth). When the first
+// read accepts it, the store built from it must open and every tile (first 4,096) read back. The
+// decoders themselves are OpenImageIO's and libtiff's; this target checks what vtsim does with what
+// they return.
 #include <algorithm>
+#include <cstring>
 #include <filesystem>
 #include <vector>
 
@@ -20,8 +23,11 @@ namespace vtsim::fuzz {
 constexpr std::uint64_t kMemoryLimit = std::uint64_t{96} << 20;
 
 void image(const std::uint8_t* data, std::size_t size) {
-  const std::string path = input_file(data, size, "pnm");
-  expect_accept_or_reject("image", [&] { (void)load_heightfield(path, 8.0, 1.0, 0.0, 0.0, 0.0, std::int64_t{1} << 20); });
+  const bool tiff = size >= 4 && (std::memcmp(data, "II*\0", 4) == 0 || std::memcmp(data, "MM\0*", 4) == 0);
+  const std::string path = input_file(data, size, tiff ? "tif" : "pnm");
+  expect_accept_or_reject("image", [&] {
+    (void)load_heightfield(path, 8.0, 1.0, 0.0, 0.0, 0.0, std::int64_t{1} << 20, kMemoryLimit);
+  });
   const std::string out = std::filesystem::path(path).replace_filename("built.vts").string();
   // The store build only for images of at most 2^18 pixels: a 14 × 603,105 PGM made a store of
   // 300,000 tiles (1.2 GB written) per input, the fuzzer's 10 s timeout. Larger images still go
