@@ -26,6 +26,7 @@ CC=clang CXX=clang++ bash scripts/setup.sh build-fuzz -DVTSIM_SANITIZE=fuzz -DCM
   "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" -DVTSIM_BUILD_TESTS=OFF -DVTSIM_BUILD_BENCH=OFF -DVTSIM_WERROR=OFF
 
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+export LSAN_OPTIONS=suppressions=$here/scripts/lsan.supp:print_suppressions=0  # OpenImageIO's, as in test.sh
 status=0
 stamp=$(mktemp)  # findings newer than this are this run's
 trap 'rm -f "$stamp"' EXIT

@@ -3,8 +3,10 @@
 // nothing to commands that touch no image.
 #include <doctest/doctest.h>
 
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -127,4 +129,45 @@ TEST_CASE("image module: a module that cannot be loaded is a clear error, and on
   std::remove(junk.c_str());
   std::remove(png.c_str());
   std::remove(log.c_str());
+}
+
+TEST_CASE("image module: read_chunked gives whole rows in order, whole rows of tiles for a tiled file") {
+  const std::string dir = std::filesystem::temp_directory_path().string();
+  // Scanlines: a 37 × 29 RGB PNG read in chunks of 5 rows (a chunk size of 5 rows' bytes).
+  const int w = 37, h = 29, c = 3;
+  std::vector<std::uint8_t> px(static_cast<std::size_t>(w * h * c));
+  for (std::size_t i = 0; i < px.size(); ++i) px[i] = static_cast<std::uint8_t>(i * 31 + 7);
+  const std::string png = dir + "/vtsim-chunked.png";
+  REQUIRE(image_io::write_file(png, w, h, c, PixelType::u8, px.data(), true).status == WriteStatus::ok);
+  auto in = image_io::ImageReader::open_file(png, true);
+  REQUIRE(in.ok());
+  std::vector<std::uint8_t> back;
+  std::vector<std::pair<int, int>> chunks;
+  CHECK(in.read_chunked<std::uint8_t>(c, 5 * w * c, [&](int y0, int y1, const std::uint8_t* v) {
+    chunks.emplace_back(y0, y1);
+    back.insert(back.end(), v, v + (y1 - y0) * w * c);
+  }) == ReadStatus::ok);
+  CHECK(back == px);
+  CHECK(chunks == std::vector<std::pair<int, int>>{{0, 5}, {5, 10}, {10, 15}, {15, 20}, {20, 25}, {25, 29}});
+  std::remove(png.c_str());
+
+  // Tiles: 40 × 70 grey in 16 × 16 tiles, asked for chunks of 20 rows: one row of tiles (16 rows) a
+  // chunk, the last one partial; as float (v / 255, to OpenImageIO's rounding).
+  const std::string tif = dir + "/vtsim-chunked.tif";
+  test::write_tiled_tiff(tif, 40, 70, 16, 16);
+  auto tin = image_io::ImageReader::open_file(tif, true);
+  REQUIRE(tin.ok());
+  CHECK(tin.spec().tile_width == 16);
+  CHECK(tin.spec().tile_height == 16);
+  chunks.clear();
+  std::uint64_t bad = 0;
+  CHECK(tin.read_chunked<float>(1, 20 * 40 * sizeof(float), [&](int y0, int y1, const float* v) {
+    chunks.emplace_back(y0, y1);
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < 40; ++x)
+        bad += std::lround(v[(y - y0) * 40 + x] * 255.0f) != static_cast<std::uint8_t>(x * 7 + y * 13);
+  }) == ReadStatus::ok);
+  CHECK(bad == 0);
+  CHECK(chunks == std::vector<std::pair<int, int>>{{0, 16}, {16, 32}, {32, 48}, {48, 64}, {64, 70}});
+  std::remove(tif.c_str());
 }

@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "store_test_util.h"
+#include "test_util.h"
 #include "stream/store_builder.h"
 #include "stream/tile_store.h"
 
@@ -258,55 +259,23 @@ TEST_CASE("an image whose header claims more pixels than the memory limit is ref
     CHECK(e.where() == huge);
     CHECK(std::string(e.what()).find("more than the 64.0 MiB") != std::string::npos);
   }
-  // The limit counts every layer's level-0 texels, and the image being read also needs
-  // OpenImageIO's strip buffer (image_io::read_scratch_bytes: 64 MiB + 64 rows of 64 RGBA8 pixels
-  // here). Two 64 × 64 RGBA images (16 KiB each): the second needs 16 KiB + 64 MiB + 16 KiB after
-  // the first's 16 KiB, so 64 MiB + 48 KiB fits and 64 MiB + 40 KiB does not.
+  // The limit counts every layer's level-0 texels, and the image being read also needs its chunk of
+  // rows (here the whole 16 KiB image) and OpenImageIO's strip buffer (image_io::read_scratch_bytes:
+  // 64 MiB + 64 rows of 64 RGBA8 pixels). Two 64 × 64 RGBA images (16 KiB each): the second needs
+  // 16 + 16 KiB + 64 MiB + 16 KiB after the first's 16 KiB, so 64 MiB + 64 KiB fits and 64 MiB +
+  // 56 KiB does not.
   write_image8(dir.file("a.png"), test::make_image(64, 64, 4));
   write_image8(dir.file("b.png"), test::make_image(64, 64, 4));
-  o.memory_limit_bytes = (std::uint64_t{64} << 20) + (48 << 10);
+  o.memory_limit_bytes = (std::uint64_t{64} << 20) + (64 << 10);
   CHECK_NOTHROW(build_store({dir.file("a.png"), dir.file("b.png")}, o, dir.file("ab.vts")));
-  o.memory_limit_bytes = (std::uint64_t{64} << 20) + (40 << 10);
+  o.memory_limit_bytes = (std::uint64_t{64} << 20) + (56 << 10);
   CHECK_THROWS_AS(build_store({dir.file("a.png"), dir.file("b.png")}, o, dir.file("ab2.vts")), InputError);
 }
-
-namespace {
-
-// A little-endian, uncompressed, 8-bit grey TIFF of w × h pixels in tw × th tiles, texel (x, y) =
-// (7x + 13y) mod 256 (padding of edge tiles included). claim_tw / claim_th, when non-zero, replace
-// the tile size in the header only (the data stays tw × th tiles): a header lying about its tiles.
-void write_tiled_tiff(const std::string& path, std::uint32_t w, std::uint32_t h, std::uint32_t tw, std::uint32_t th,
-                      std::uint32_t claim_tw = 0, std::uint32_t claim_th = 0) {
-  const std::uint32_t across = (w + tw - 1) / tw, down = (h + th - 1) / th, n = across * down;
-  std::vector<std::uint8_t> f;
-  auto u16 = [&](std::uint32_t v) { f.push_back(std::uint8_t(v)), f.push_back(std::uint8_t(v >> 8)); };
-  auto u32 = [&](std::uint32_t v) { u16(v & 0xFFFF), u16(v >> 16); };
-  const std::uint32_t entries = 10, ifd = 8, arrays = ifd + 2 + entries * 12 + 4, data = arrays + 8 * n;
-  u16('I' | 'I' << 8), u16(42), u32(ifd);
-  u16(entries);
-  auto entry = [&](std::uint32_t tag, std::uint32_t type, std::uint32_t count, std::uint32_t value) {
-    u16(tag), u16(type), u32(count);
-    if (type == 3) u16(value), u16(0); else u32(value);
-  };
-  entry(256, 4, 1, w), entry(257, 4, 1, h), entry(258, 3, 1, 8), entry(259, 3, 1, 1), entry(262, 3, 1, 1);
-  entry(277, 3, 1, 1), entry(322, 4, 1, claim_tw ? claim_tw : tw), entry(323, 4, 1, claim_th ? claim_th : th);
-  entry(324, 4, n, n == 1 ? data : arrays), entry(325, 4, n, n == 1 ? tw * th : arrays + 4 * n);
-  u32(0);
-  for (std::uint32_t i = 0; i < n; ++i) u32(data + i * tw * th);
-  for (std::uint32_t i = 0; i < n; ++i) u32(tw * th);
-  if (n == 1) f.resize(arrays);  // one tile: offset and count sit in the entries
-  for (std::uint32_t t = 0; t < n; ++t)
-    for (std::uint32_t j = 0; j < th; ++j)
-      for (std::uint32_t i = 0; i < tw; ++i) f.push_back(std::uint8_t((t % across * tw + i) * 7 + (t / across * th + j) * 13));
-  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(f.data()), std::streamsize(f.size()));
-}
-
-}  // namespace
 
 TEST_CASE("a tiled image is read whole; one whose header claims huge tiles is refused before it is read") {
   test::TempDir dir;
   // 40 × 24 pixels in 16 × 16 tiles: 3 × 2 tiles, the right and bottom ones partial.
-  write_tiled_tiff(dir.file("tiled.tif"), 40, 24, 16, 16);
+  test::write_tiled_tiff(dir.file("tiled.tif"), 40, 24, 16, 16);
   const Image8 img = read_image8(dir.file("tiled.tif"), Transfer::linear);
   REQUIRE(img.width == 40);
   REQUIRE(img.height == 24);
@@ -319,7 +288,7 @@ TEST_CASE("a tiled image is read whole; one whose header claims huge tiles is re
   // allocate a row of tiles, ~4 GiB a tile (read_scratch_bytes counts 5 such tiles: a row of one
   // and 4 more), before finding the data missing. Before the fix this took 24 GB and the OOM killer.
   const std::string lying = dir.file("lying.tif");
-  write_tiled_tiff(lying, 64, 64, 64, 64, 65520, 65520);
+  test::write_tiled_tiff(lying, 64, 64, 64, 64, 65520, 65520);
   BuildOptions o;
   o.memory_limit_bytes = std::uint64_t{1} << 30;
   try {
@@ -335,41 +304,40 @@ TEST_CASE("a tiled image is read whole; one whose header claims huge tiles is re
 
 TEST_CASE("the mip walk's peak is checked against the memory limit from the headers, before any image is read") {
   test::TempDir dir;
-  // A PGM header of 8192 × 8192 pixels and no pixels: 64 MiB of level 0. Reading it would need
-  // 64 MiB + OpenImageIO's strip (64 MiB + 64 rows of 8 KiB = 64.5 MiB); the walk holds level 0
-  // and level 1 in float and 8 bits (4096² × 5 B = 80 MiB): 144 MiB at its peak.
+  // A PGM header of 12288 × 8192 pixels and no pixels: 96 MiB of level 0. Reading it needs 96 MiB,
+  // a chunk of rows (1,365 rows: 3 KiB under 16 MiB) and OpenImageIO's strip (64 MiB + 64 rows of
+  // 12 KiB): 176 MiB + 764 KiB. The
+  // walk holds level 0 and level 1 in float and 8 bits (6144 × 4096 × 5 B = 120 MiB): 216 MiB.
   const std::string pgm = dir.file("big.pgm");
-  std::ofstream(pgm, std::ios::binary) << "P5\n8192 8192\n255\n";
+  std::ofstream(pgm, std::ios::binary) << "P5\n12288 8192\n255\n";
   BuildOptions o;
-  o.memory_limit_bytes = (std::uint64_t{144} << 20) - 1;
+  o.memory_limit_bytes = (std::uint64_t{216} << 20) - 1;
   try {
     build_store({pgm}, o, dir.file("o.vts"));
-    FAIL("the mip walk's 144 MiB passed a limit one byte lower");
+    FAIL("the mip walk's 216 MiB passed a limit one byte lower");
   } catch (const InputError& e) {
     CHECK(e.where() == pgm);
-    CHECK(std::string(e.what()).find("the mip walk over 1 layer(s) of 8192x8192 needs 144.0 MiB") != std::string::npos);
+    CHECK(std::string(e.what()).find("the mip walk over 1 layer(s) of 12288x8192 needs 216.0 MiB") != std::string::npos);
   }
   // At exactly the peak the walk's check passes, and the build goes on to read the image, which
-  // has no pixels.
-  o.memory_limit_bytes = std::uint64_t{144} << 20;
+  // has no pixels: the first chunk of rows fails (nothing was allocated for the rows after it).
+  o.memory_limit_bytes = std::uint64_t{216} << 20;
   try {
     build_store({pgm}, o, dir.file("o.vts"));
     FAIL("built a store from an image without pixels");
   } catch (const InputError& e) {
     CHECK(e.where() == pgm);
-    CHECK(std::string(e.what()).find("mip walk") == std::string::npos);
     CHECK(std::string(e.what()).find("cannot read the image: the reader gave no reason") != std::string::npos);
   }
-  // One level only: no walk, so only the read's 128.5 MiB is checked (and then the read fails).
-  o.memory_limit_bytes = std::uint64_t{130} << 20;
+  // One level only: no walk, so only the read's need is checked (and then the read fails).
   o.levels = 1;
-  try {
-    build_store({pgm}, o, dir.file("o.vts"));
-    FAIL("built a store from an image without pixels");
-  } catch (const InputError& e) {
-    CHECK(std::string(e.what()).find("mip walk") == std::string::npos);
-    CHECK(std::string(e.what()).find("MiB to read") == std::string::npos);
-  }
+  o.memory_limit_bytes = (std::uint64_t{176} << 20) + (764 << 10);
+  CHECK_THROWS_WITH_AS(build_store({pgm}, o, dir.file("o.vts")),
+                       doctest::Contains("cannot read the image: the reader gave no reason"), InputError);
+  o.memory_limit_bytes -= 1;
+  CHECK_THROWS_WITH_AS(build_store({pgm}, o, dir.file("o.vts")), doctest::Contains("need 176.7 MiB to read"),
+                       InputError);
+  CHECK_FALSE(std::filesystem::exists(dir.file("o.vts")));
 }
 
 TEST_CASE("a default layer name is the image's stem cut at a character boundary; an unusable stem names the image") {

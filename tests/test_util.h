@@ -6,12 +6,14 @@
 #include <doctest/doctest.h>
 #include <sys/wait.h>
 
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace vtsim::test {
 
@@ -63,5 +65,34 @@ inline CliRun run_vtsim_capture(const std::string& args, const std::string& err_
 }
 
 inline const std::string kData = VTSIM_TEST_DATA;  // tests/data
+
+// A little-endian, uncompressed, 8-bit grey TIFF of w × h pixels in tw × th tiles, texel (x, y) =
+// (7x + 13y) mod 256 (padding of edge tiles included). claim_tw / claim_th, when non-zero, replace
+// the tile size in the header only (the data stays tw × th tiles): a header lying about its tiles.
+inline void write_tiled_tiff(const std::string& path, std::uint32_t w, std::uint32_t h, std::uint32_t tw, std::uint32_t th,
+                             std::uint32_t claim_tw = 0, std::uint32_t claim_th = 0) {
+  const std::uint32_t across = (w + tw - 1) / tw, down = (h + th - 1) / th, n = across * down;
+  std::vector<std::uint8_t> f;
+  auto u16 = [&](std::uint32_t v) { f.push_back(std::uint8_t(v)), f.push_back(std::uint8_t(v >> 8)); };
+  auto u32 = [&](std::uint32_t v) { u16(v & 0xFFFF), u16(v >> 16); };
+  const std::uint32_t entries = 10, ifd = 8, arrays = ifd + 2 + entries * 12 + 4, data = arrays + 8 * n;
+  u16('I' | 'I' << 8), u16(42), u32(ifd);
+  u16(entries);
+  auto entry = [&](std::uint32_t tag, std::uint32_t type, std::uint32_t count, std::uint32_t value) {
+    u16(tag), u16(type), u32(count);
+    if (type == 3) u16(value), u16(0); else u32(value);
+  };
+  entry(256, 4, 1, w), entry(257, 4, 1, h), entry(258, 3, 1, 8), entry(259, 3, 1, 1), entry(262, 3, 1, 1);
+  entry(277, 3, 1, 1), entry(322, 4, 1, claim_tw ? claim_tw : tw), entry(323, 4, 1, claim_th ? claim_th : th);
+  entry(324, 4, n, n == 1 ? data : arrays), entry(325, 4, n, n == 1 ? tw * th : arrays + 4 * n);
+  u32(0);
+  for (std::uint32_t i = 0; i < n; ++i) u32(data + i * tw * th);
+  for (std::uint32_t i = 0; i < n; ++i) u32(tw * th);
+  if (n == 1) f.resize(arrays);  // one tile: offset and count sit in the entries
+  for (std::uint32_t t = 0; t < n; ++t)
+    for (std::uint32_t j = 0; j < th; ++j)
+      for (std::uint32_t i = 0; i < tw; ++i) f.push_back(std::uint8_t((t % across * tw + i) * 7 + (t / across * th + j) * 13));
+  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(f.data()), std::streamsize(f.size()));
+}
 
 }  // namespace vtsim::test

@@ -196,17 +196,29 @@ ImageReader::~ImageReader() {
 }
 
 ReadStatus ImageReader::read(int channels, PixelType type, void* out, int threads) {
-  if (reader_ == nullptr) {
-    error_ = "image is not open";
-    return ReadStatus::failed;
-  }
+  if (reader_ == nullptr) return not_open();
   ErrorBuf err{};
-  const abi::Status s = api_->read(reader_, channels, to_abi(type), out, threads, err.data(), err.size());
-  error_ = err.data();
-  if (s == abi::kOk) return ReadStatus::ok;
+  return finish_read(api_->read(reader_, channels, to_abi(type), out, threads, err.data(), err.size()), err.data());
+}
+
+ReadStatus ImageReader::read_rows(int y0, int y1, int channels, PixelType type, void* out, int threads) {
+  if (reader_ == nullptr) return not_open();
+  ErrorBuf err{};
+  return finish_read(api_->read_rows(reader_, y0, y1, channels, to_abi(type), out, threads, err.data(), err.size()),
+                     err.data());
+}
+
+ReadStatus ImageReader::not_open() {
+  error_ = "image is not open";
+  return ReadStatus::failed;
+}
+
+ReadStatus ImageReader::finish_read(std::int32_t status, const char* err) {
+  error_ = err;
+  if (status == abi::kOk) return ReadStatus::ok;
   // OpenImageIO's PNM reader fails on missing pixel data without a message.
   if (error_.empty()) error_ = "the reader gave no reason (truncated or damaged pixel data?)";
-  return s == abi::kOkWithError ? ReadStatus::ok_with_error : ReadStatus::failed;
+  return status == abi::kOkWithError ? ReadStatus::ok_with_error : ReadStatus::failed;
 }
 
 WriteResult write_file(const std::string& path, int width, int height, int channels, PixelType type,

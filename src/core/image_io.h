@@ -18,6 +18,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -57,6 +58,14 @@ inline double read_scratch_bytes(const ImageSpec& s) {
   return std::max(static_cast<double>(1 << 26) + 64.0 * row, 256.0 * row);
 }
 
+// Rows in one chunk of ImageReader::read_chunked for rows of row_bytes: about chunk_bytes, at
+// least one row (one row of tiles for a tiled file), at most the image's height.
+inline std::int64_t chunk_rows(const ImageSpec& s, std::size_t row_bytes, std::size_t chunk_bytes) {
+  std::int64_t rows = std::max<std::int64_t>(1, static_cast<std::int64_t>(chunk_bytes / std::max<std::size_t>(row_bytes, 1)));
+  if (s.tile_width > 0 && s.tile_height > 0) rows = std::max<std::int64_t>(1, rows / s.tile_height) * s.tile_height;
+  return std::min<std::int64_t>(rows, s.height);
+}
+
 // Call before allocating the buffers a read of `spec` needs: throws InputError(path, ...) when
 // those (out_bytes, the caller's) plus read_scratch_bytes exceed max_bytes, naming the size.
 void require_read_memory(const std::string& path, const ImageSpec& spec, double out_bytes, std::uint64_t max_bytes);
@@ -91,14 +100,52 @@ class ImageReader {
   // values). threads: the reader's own worker threads (0: OpenImageIO's default; the decode pool
   // passes 1). Requires ok().
   ReadStatus read(int channels, PixelType type, void* out, int threads = 0);
+  // Reads rows [y0, y1) the same way into out (width*(y1-y0)*channels values). A tiled file needs
+  // y0 a multiple of spec().tile_height, and y1 too unless it is the height.
+  ReadStatus read_rows(int y0, int y1, int channels, PixelType type, void* out, int threads = 0);
+  // Reads the whole image as T (std::uint8_t, std::uint16_t or float) in chunks of whole rows —
+  // whole rows of tiles for a tiled file — of about chunk_bytes, calling sink(y0, y1, values) for
+  // rows [y0, y1) in order (channels values a pixel). It holds one chunk, so a header claiming
+  // more rows than the file has fails at the first chunk it lacks, before the caller has grown its
+  // image past the rows read. Stops at the first chunk that fails (failed); ok_with_error if any
+  // chunk reported damage (error() keeps the first such message).
+  template <class T, class Sink>
+  ReadStatus read_chunked(int channels, std::size_t chunk_bytes, Sink&& sink);
 
  private:
   ImageReader() = default;
+  ReadStatus not_open();
+  ReadStatus finish_read(std::int32_t status, const char* err);  // status: an image_abi::Status
   const image_abi::Api* api_ = nullptr;
   image_abi::Reader* reader_ = nullptr;
   ImageSpec spec_;
   std::string error_;
 };
+
+template <class T, class Sink>
+ReadStatus ImageReader::read_chunked(int channels, std::size_t chunk_bytes, Sink&& sink) {
+  static_assert(std::is_same_v<T, std::uint8_t> || std::is_same_v<T, std::uint16_t> || std::is_same_v<T, float>);
+  constexpr PixelType type = std::is_same_v<T, std::uint8_t>    ? PixelType::u8
+                             : std::is_same_v<T, std::uint16_t> ? PixelType::u16
+                                                                : PixelType::f32;
+  const std::size_t row_values = static_cast<std::size_t>(spec_.width) * static_cast<std::size_t>(channels);
+  const std::int64_t rows = chunk_rows(spec_, row_values * sizeof(T), chunk_bytes);
+  std::vector<T> buf(static_cast<std::size_t>(rows) * row_values);
+  ReadStatus result = ReadStatus::ok;
+  std::string damage;
+  for (std::int64_t y = 0; y < spec_.height; y += rows) {
+    const std::int64_t y1 = std::min<std::int64_t>(spec_.height, y + rows);
+    const ReadStatus s = read_rows(static_cast<int>(y), static_cast<int>(y1), channels, type, buf.data());
+    if (s == ReadStatus::failed) return s;
+    if (s == ReadStatus::ok_with_error && result == ReadStatus::ok) {
+      result = s;
+      damage = error_;
+    }
+    sink(static_cast<int>(y), static_cast<int>(y1), static_cast<const T*>(buf.data()));
+  }
+  if (result == ReadStatus::ok_with_error) error_ = damage;
+  return result;
+}
 
 enum class WriteStatus {
   ok,

@@ -14,7 +14,7 @@
 
 namespace vtsim::image_abi {
 
-inline constexpr std::uint32_t kAbiVersion = 2;  // 2: Spec's tile size
+inline constexpr std::uint32_t kAbiVersion = 2;  // 2: Spec's tile size, read_rows
 inline constexpr const char* kEntrySymbol = "vtsim_image_module_api";
 inline constexpr const char* kModuleFileName = "libvtsim_image.so";
 
@@ -58,6 +58,11 @@ struct Api {
   // reader's worker threads (0: OpenImageIO's default).
   Status (*read)(Reader* reader, std::int32_t nchannels, PixelType type, void* out, std::int32_t threads, char* err,
                  std::size_t err_size);
+  // Reads rows [ybegin, yend) of the first subimage the same way into out (width*(yend-ybegin)
+  // pixels). Tiled files: ybegin a multiple of the tile height, and yend too unless it is the
+  // image's height.
+  Status (*read_rows)(Reader* reader, std::int32_t ybegin, std::int32_t yend, std::int32_t nchannels, PixelType type,
+                      void* out, std::int32_t threads, char* err, std::size_t err_size);
   void (*close)(Reader* reader);  // null is fine
 
   // Writes a w x h x c image of `type` to `path` (format from the extension).

@@ -176,20 +176,38 @@ Status open_memory(const char* ext, const std::uint8_t* bytes, std::size_t size,
   });
 }
 
+// One read's outcome: ok, or the reader's error as failed / (pixels read) ok-with-error.
+Status finish_read(Reader* r, bool ok, char* err, std::size_t err_size) {
+  if (!ok) {
+    set_error(err, err_size, r->in->geterror());
+    return kFailed;
+  }
+  // libjpeg/libpng report some damage only as warnings; OIIO surfaces them as pending errors.
+  if (r->in->has_error()) {
+    set_error(err, err_size, r->in->geterror());
+    return kOkWithError;
+  }
+  return kOk;
+}
+
 Status read(Reader* r, std::int32_t nchannels, PixelType type, void* out, std::int32_t threads, char* err,
             std::size_t err_size) {
   return guarded(err, err_size, kFailed, [&] {
     if (threads > 0) r->in->threads(threads);
-    if (!r->in->read_image(0, 0, 0, nchannels, type_of(type), out)) {
-      set_error(err, err_size, r->in->geterror());
-      return kFailed;
-    }
-    // libjpeg/libpng report some damage only as warnings; OIIO surfaces them as pending errors.
-    if (r->in->has_error()) {
-      set_error(err, err_size, r->in->geterror());
-      return kOkWithError;
-    }
-    return kOk;
+    return finish_read(r, r->in->read_image(0, 0, 0, nchannels, type_of(type), out), err, err_size);
+  });
+}
+
+Status read_rows(Reader* r, std::int32_t ybegin, std::int32_t yend, std::int32_t nchannels, PixelType type, void* out,
+                 std::int32_t threads, char* err, std::size_t err_size) {
+  return guarded(err, err_size, kFailed, [&] {
+    if (threads > 0) r->in->threads(threads);
+    const OIIO::ImageSpec& s = r->in->spec();
+    const bool ok = s.tile_width > 0
+                        ? r->in->read_tiles(0, 0, s.x, s.x + s.width, s.y + ybegin, s.y + yend, s.z, s.z + 1, 0,
+                                            nchannels, type_of(type), out)
+                        : r->in->read_scanlines(0, 0, s.y + ybegin, s.y + yend, s.z, 0, nchannels, type_of(type), out);
+    return finish_read(r, ok, err, err_size);
   });
 }
 
@@ -244,8 +262,8 @@ Status encode_memory(const char* ext, const std::uint8_t* pixels, std::int32_t w
 
 void free_bytes(std::uint8_t* bytes) { std::free(bytes); }
 
-constexpr Api kApi = {kAbiVersion, sizeof(Api), open_file, open_memory, read, close, write_file, encode_memory,
-                      free_bytes};
+constexpr Api kApi = {kAbiVersion, sizeof(Api), open_file,     open_memory, read,
+                      read_rows,   close,       write_file, encode_memory, free_bytes};
 
 }  // namespace
 

@@ -49,10 +49,18 @@ Heightfield load_heightfield(const std::string& path, double spacing_m, double h
     throw InputError(path, std::to_string(w) + "×" + std::to_string(h) + " pixels is more than the " +
                                std::to_string(max_posts) + "-post limit");
   if (spec.channels < 1) throw InputError(path, "image has no channels");
-  image_io::require_read_memory(path, spec, static_cast<double>(w * h) * 4.0,
+  // The posts grow as rows are read: a header claiming more rows than the file holds fails at
+  // the first missing chunk (4 MiB of rows), not after allocating them all.
+  constexpr std::size_t kChunkBytes = std::size_t{4} << 20;
+  const double chunk = static_cast<double>(image_io::chunk_rows(spec, static_cast<std::size_t>(w) * 4, kChunkBytes)) *
+                       static_cast<double>(w) * 4.0;
+  image_io::require_read_memory(path, spec, static_cast<double>(w * h) * 4.0 + chunk,
                                 max_bytes != 0 ? max_bytes : usable_memory_bytes());
-  std::vector<float> px(static_cast<std::size_t>(w * h));
-  if (in.read(1, image_io::PixelType::f32, px.data()) == image_io::ReadStatus::failed)
+  std::vector<float> px;
+  px.reserve(static_cast<std::size_t>(w * h));
+  if (in.read_chunked<float>(1, kChunkBytes, [&](int y0, int y1, const float* v) {
+        px.insert(px.end(), v, v + static_cast<std::size_t>(y1 - y0) * static_cast<std::size_t>(w));
+      }) == image_io::ReadStatus::failed)
     throw InputError(path, "cannot decode image: " + in.error());
   Heightfield hf;
   hf.nx = static_cast<int>(w);

@@ -394,8 +394,11 @@ std::pair<double, std::size_t> mip_walk_peak(const std::vector<image_io::ImageSp
 
 }  // namespace
 
+// Rows read_image8 reads at a time: 16 MiB amortises OpenImageIO's per-call work and is small
+// beside any image large enough for the memory check to matter.
+constexpr std::size_t kReadChunkBytes = std::size_t{16} << 20;
+
 Image8 read_image8(const std::string& path, Transfer transfer, std::uint64_t max_bytes) {
-  using image_io::PixelType;
   auto in = image_io::ImageReader::open_file(path, /*unassociated_alpha=*/true);  // texels as stored
   if (!in) {
     const std::string& e = in.error();
@@ -405,34 +408,42 @@ Image8 read_image8(const std::string& path, Transfer transfer, std::uint64_t max
   if (s.width < 1 || s.height < 1 || s.depth != 1 || s.channels < 1)
     throw InputError(path, "is not a 2D image (" + std::to_string(s.width) + "x" + std::to_string(s.height) + "x" +
                                std::to_string(s.depth) + ", " + std::to_string(s.channels) + " channels)");
-  // The texels and a float copy for non-8-bit sources; in double (2^31 · 2^31 · 4 · 5 does not
-  // fit 64 bits).
-  image_io::require_read_memory(path, s,
-                                static_cast<double>(s.width) * static_cast<double>(s.height) *
-                                    static_cast<double>(std::min(s.channels, 4)) * (s.is_uint8 ? 1.0 : 5.0),
-                                max_bytes);
+  // Level 0 grows as its rows are read (so a header claiming more rows than the file holds fails
+  // at the first missing chunk, not after the whole image is zero-filled), converted from one
+  // chunk of float rows for non-8-bit sources. In double: 2^31 · 2^31 · 4 does not fit 64 bits.
+  const std::uint32_t channels = static_cast<std::uint32_t>(std::min(s.channels, 4));
+  const std::size_t value_size = s.is_uint8 ? 1 : sizeof(float);
+  const double row_values = static_cast<double>(s.width) * channels;
+  const double chunk = static_cast<double>(image_io::chunk_rows(s, static_cast<std::size_t>(row_values) * value_size,
+                                                                kReadChunkBytes)) *
+                       row_values * static_cast<double>(value_size);
+  image_io::require_read_memory(path, s, static_cast<double>(s.height) * row_values + chunk, max_bytes);
   Image8 img;
   img.width = static_cast<std::uint64_t>(s.width);
   img.height = static_cast<std::uint64_t>(s.height);
-  img.channels = static_cast<std::uint32_t>(std::min(s.channels, 4));
-  const int c = static_cast<int>(img.channels);
-  const std::size_t n = static_cast<std::size_t>(img.width * img.height * img.channels);
-  img.texels.resize(n);
+  img.channels = channels;
+  img.texels.reserve(static_cast<std::size_t>(img.width * img.height * img.channels));  // address space, not pages
+  const int c = static_cast<int>(channels);
+  image_io::ReadStatus status;
   if (s.is_uint8) {
-    if (in.read(c, PixelType::u8, img.texels.data()) == image_io::ReadStatus::failed)
-      throw InputError(path, "cannot read the image: " + in.error());
-    return img;
+    status = in.read_chunked<std::uint8_t>(c, kReadChunkBytes, [&](int y0, int y1, const std::uint8_t* v) {
+      img.texels.insert(img.texels.end(), v, v + static_cast<std::size_t>(y1 - y0) * img.width * channels);
+    });
+  } else {
+    const bool linear_source = s.is_float;
+    status = in.read_chunked<float>(c, kReadChunkBytes, [&](int y0, int y1, const float* v) {
+      const std::size_t n = static_cast<std::size_t>(y1 - y0) * img.width * channels;
+      img.texels.resize(img.texels.size() + n);
+      std::uint8_t* out = img.texels.data() + img.texels.size() - n;
+      for (std::size_t i = 0; i < n; ++i) {
+        const auto ch = static_cast<std::uint32_t>(i % channels);
+        float x = std::isfinite(v[i]) ? std::clamp(v[i], 0.0f, 1.0f) : 0.0f;
+        if (linear_source && transfer == Transfer::srgb && is_colour(ch, channels)) x = linear_to_srgb(x);
+        out[i] = quantise(x);
+      }
+    });
   }
-  std::vector<float> f(n);
-  if (in.read(c, PixelType::f32, f.data()) == image_io::ReadStatus::failed)
-    throw InputError(path, "cannot read the image: " + in.error());
-  const bool linear_source = s.is_float;
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto ch = static_cast<std::uint32_t>(i % img.channels);
-    float v = std::isfinite(f[i]) ? std::clamp(f[i], 0.0f, 1.0f) : 0.0f;
-    if (linear_source && transfer == Transfer::srgb && is_colour(ch, img.channels)) v = linear_to_srgb(v);
-    img.texels[i] = quantise(v);
-  }
+  if (status == image_io::ReadStatus::failed) throw InputError(path, "cannot read the image: " + in.error());
   return img;
 }
 

@@ -104,8 +104,9 @@ struct Image8 {
 // 8-bit sources are taken as they are; float and half sources (linear light) are encoded with the
 // sRGB curve when `transfer` is srgb, else clamped to [0, 1]; 16-bit sources are rescaled.
 // Throws InputError naming the file, also before allocating anything when the image needs more than
-// max_bytes to read (its 8-bit texels, a float copy for other sources, OpenImageIO's own buffer:
-// image_io::require_read_memory): a header alone can claim 2^31 × 2^31 pixels.
+// max_bytes to read (its 8-bit texels, one ~16 MiB chunk of rows, OpenImageIO's own buffer:
+// image_io::require_read_memory): a header alone can claim 2^31 × 2^31 pixels. The texels grow
+// with the rows read, so a file holding fewer rows than its header claims fails early.
 Image8 read_image8(const std::string& path, store::Transfer transfer,
                    std::uint64_t max_bytes = std::numeric_limits<std::uint64_t>::max());
 
