@@ -403,7 +403,7 @@ TEST_CASE("compare: a document's shape is bounded â€” depth, key path, values â€
   CHECK(contains(input_error([&] { load_json_file(p); }), "number overflow"));
 }
 
-TEST_CASE("compare: inputs are checked by descriptor; a FIFO, a directory, a device or a huge file is refused unread") {
+TEST_CASE("compare: inputs are checked by descriptor: a FIFO, a directory, a device or a huge file is refused unread") {
   // load_json_file and the tolerance reader (read_toml_entries) both go through read_regular_file.
   ScratchDir dir;
   const std::string fifo = dir.file("fifo"), big = dir.file("big.json");

@@ -272,7 +272,7 @@ TEST_CASE("an image whose header claims more pixels than the memory limit is ref
   CHECK_THROWS_AS(build_store({dir.file("a.png"), dir.file("b.png")}, o, dir.file("ab2.vts")), InputError);
 }
 
-TEST_CASE("a tiled image is read whole; one whose header claims huge tiles is refused before it is read") {
+TEST_CASE("a tiled image is read whole, and one whose header claims huge tiles is refused before it is read") {
   test::TempDir dir;
   // 40 × 24 pixels in 16 × 16 tiles: 3 × 2 tiles, the right and bottom ones partial.
   test::write_tiled_tiff(dir.file("tiled.tif"), 40, 24, 16, 16);
@@ -283,6 +283,12 @@ TEST_CASE("a tiled image is read whole; one whose header claims huge tiles is re
   std::uint64_t bad = 0;
   for (std::uint64_t y = 0; y < 24; ++y)
     for (std::uint64_t x = 0; x < 40; ++x) bad += *img.at(x, y) != std::uint8_t(x * 7 + y * 13);
+  CHECK(bad == 0);
+  // One tile holding the whole image.
+  test::write_tiled_tiff(dir.file("one.tif"), 16, 16, 16, 16);
+  const Image8 one = read_image8(dir.file("one.tif"), Transfer::linear);
+  for (std::uint64_t y = 0; y < 16; ++y)
+    for (std::uint64_t x = 0; x < 16; ++x) bad += *one.at(x, y) != std::uint8_t(x * 7 + y * 13);
   CHECK(bad == 0);
   // The same 64 × 64 pixels with a header claiming 65,520 × 65,520 tiles: OpenImageIO would
   // allocate a row of tiles, ~4 GiB a tile (read_scratch_bytes counts 5 such tiles: a row of one
@@ -305,7 +311,7 @@ TEST_CASE("a tiled image is read whole; one whose header claims huge tiles is re
 TEST_CASE("the mip walk's peak is checked against the memory limit from the headers, before any image is read") {
   test::TempDir dir;
   // A PGM header of 12288 × 8192 pixels and no pixels: 96 MiB of level 0. Reading it needs 96 MiB,
-  // a chunk of rows (1,365 rows: 3 KiB under 16 MiB) and OpenImageIO's strip (64 MiB + 64 rows of
+  // a chunk of rows (1,365 rows: 4 KiB under 16 MiB) and OpenImageIO's strip (64 MiB + 64 rows of
   // 12 KiB): 176 MiB + 764 KiB. The
   // walk holds level 0 and level 1 in float and 8 bits (6144 × 4096 × 5 B = 120 MiB): 216 MiB.
   const std::string pgm = dir.file("big.pgm");
@@ -340,7 +346,7 @@ TEST_CASE("the mip walk's peak is checked against the memory limit from the head
   CHECK_FALSE(std::filesystem::exists(dir.file("o.vts")));
 }
 
-TEST_CASE("a default layer name is the image's stem cut at a character boundary; an unusable stem names the image") {
+TEST_CASE("a default layer name is the image's stem cut at a character boundary, and an unusable stem names the image") {
   test::TempDir dir;
   // 30 bytes of 'a' and a 2-byte 'é': byte 31 would split the 'é', so the name stops before it.
   const std::string stem = std::string(30, 'a') + "\xC3\xA9";

@@ -318,7 +318,7 @@ TEST_CASE("the writer refuses missing and duplicate tiles and leaves nothing beh
   CHECK(std::filesystem::is_empty(dir.path));
 }
 
-TEST_CASE("stores are written only over regular files; FIFOs, directories and devices are never read or replaced") {
+TEST_CASE("stores are written only over regular files: FIFOs, directories and devices are never read or replaced") {
   test::TempDir dir;
   StoreSpec spec;
   spec.width = spec.height = 8;

@@ -75,7 +75,8 @@ inline void write_tiled_tiff(const std::string& path, std::uint32_t w, std::uint
   std::vector<std::uint8_t> f;
   auto u16 = [&](std::uint32_t v) { f.push_back(std::uint8_t(v)), f.push_back(std::uint8_t(v >> 8)); };
   auto u32 = [&](std::uint32_t v) { u16(v & 0xFFFF), u16(v >> 16); };
-  const std::uint32_t entries = 10, ifd = 8, arrays = ifd + 2 + entries * 12 + 4, data = arrays + 8 * n;
+  // One tile: its offset and count sit in the entries, and its data right after the IFD.
+  const std::uint32_t entries = 10, ifd = 8, arrays = ifd + 2 + entries * 12 + 4, data = n == 1 ? arrays : arrays + 8 * n;
   u16('I' | 'I' << 8), u16(42), u32(ifd);
   u16(entries);
   auto entry = [&](std::uint32_t tag, std::uint32_t type, std::uint32_t count, std::uint32_t value) {
@@ -88,7 +89,7 @@ inline void write_tiled_tiff(const std::string& path, std::uint32_t w, std::uint
   u32(0);
   for (std::uint32_t i = 0; i < n; ++i) u32(data + i * tw * th);
   for (std::uint32_t i = 0; i < n; ++i) u32(tw * th);
-  if (n == 1) f.resize(arrays);  // one tile: offset and count sit in the entries
+  f.resize(data);
   for (std::uint32_t t = 0; t < n; ++t)
     for (std::uint32_t j = 0; j < th; ++j)
       for (std::uint32_t i = 0; i < tw; ++i) f.push_back(std::uint8_t((t % across * tw + i) * 7 + (t / across * th + j) * 13));

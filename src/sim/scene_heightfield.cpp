@@ -52,8 +52,7 @@ Heightfield load_heightfield(const std::string& path, double spacing_m, double h
   // The posts grow as rows are read: a header claiming more rows than the file holds fails at
   // the first missing chunk (4 MiB of rows), not after allocating them all.
   constexpr std::size_t kChunkBytes = std::size_t{4} << 20;
-  const double chunk = static_cast<double>(image_io::chunk_rows(spec, static_cast<std::size_t>(w) * 4, kChunkBytes)) *
-                       static_cast<double>(w) * 4.0;
+  const double chunk = image_io::chunk_read_bytes(spec, static_cast<std::size_t>(w) * 4, kChunkBytes);
   image_io::require_read_memory(path, spec, static_cast<double>(w * h) * 4.0 + chunk,
                                 max_bytes != 0 ? max_bytes : usable_memory_bytes());
   std::vector<float> px;

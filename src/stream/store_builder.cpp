@@ -414,9 +414,8 @@ Image8 read_image8(const std::string& path, Transfer transfer, std::uint64_t max
   const std::uint32_t channels = static_cast<std::uint32_t>(std::min(s.channels, 4));
   const std::size_t value_size = s.is_uint8 ? 1 : sizeof(float);
   const double row_values = static_cast<double>(s.width) * channels;
-  const double chunk = static_cast<double>(image_io::chunk_rows(s, static_cast<std::size_t>(row_values) * value_size,
-                                                                kReadChunkBytes)) *
-                       row_values * static_cast<double>(value_size);
+  const double chunk =
+      image_io::chunk_read_bytes(s, static_cast<std::size_t>(row_values) * value_size, kReadChunkBytes);
   image_io::require_read_memory(path, s, static_cast<double>(s.height) * row_values + chunk, max_bytes);
   Image8 img;
   img.width = static_cast<std::uint64_t>(s.width);
