@@ -171,3 +171,32 @@ TEST_CASE("image module: read_chunked gives whole rows in order, whole rows of t
   CHECK(chunks == std::vector<std::pair<int, int>>{{0, 16}, {16, 32}, {32, 48}, {48, 64}, {64, 70}});
   std::remove(tif.c_str());
 }
+
+TEST_CASE("image module: a PNG chunk declaring more bytes than the file holds is refused before libpng allocates it") {
+  const std::string dir = std::filesystem::temp_directory_path().string();
+  const std::string good = dir + "/vtsim-png-good.png";
+  std::vector<std::uint8_t> px(8 * 8 * 3, 77);
+  REQUIRE(image_io::write_file(good, 8, 8, 3, PixelType::u8, px.data(), true).status == WriteStatus::ok);
+  const std::string bytes = slurp(good);
+  REQUIRE(bytes.size() > 33);
+  CHECK(image_io::ImageReader::open_file(good, true).ok());
+  // After the signature (8 bytes) and IHDR (25): a tEXt chunk declaring 1,560,281,159 bytes with
+  // 5 bytes behind it (the fuzz finding declared the same; libpng cleared 1.6 GB in 9 s for it).
+  std::string lying = bytes.substr(0, 33) + std::string("\x5d\x00\x00\x47", 4) + "tEXtabcde" + bytes.substr(33);
+  const std::string bad = dir + "/vtsim-png-lying.png";
+  std::ofstream(bad, std::ios::binary) << lying;
+  const auto in = image_io::ImageReader::open_file(bad, true);
+  CHECK_FALSE(in.ok());
+  CHECK(contains(in.error(), "PNG chunk 'tEXt' at byte 33 declares 1560281159 bytes of data"));
+  const auto mem = image_io::ImageReader::open_memory(
+      "png", reinterpret_cast<const std::uint8_t*>(lying.data()), lying.size());
+  CHECK_FALSE(mem.ok());
+  CHECK(contains(mem.error(), "PNG chunk 'tEXt' at byte 33"));
+  // Cut inside its last chunk (IEND's CRC): refused at open, naming the chunk.
+  std::ofstream(bad, std::ios::binary | std::ios::trunc) << bytes.substr(0, bytes.size() - 2);
+  const auto cut = image_io::ImageReader::open_file(bad, true);
+  CHECK_FALSE(cut.ok());
+  CHECK(contains(cut.error(), "PNG chunk 'IEND'"));
+  std::remove(good.c_str());
+  std::remove(bad.c_str());
+}
