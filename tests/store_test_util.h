@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "core/error.h"
 #include "core/tile_key.h"
 #include "stream/store_builder.h"
 
@@ -62,6 +63,20 @@ inline const std::uint8_t* clamped(const Image8& img, std::int64_t x, std::int64
   const std::int64_t cx = x < 0 ? 0 : (x >= static_cast<std::int64_t>(img.width) ? static_cast<std::int64_t>(img.width) - 1 : x);
   const std::int64_t cy = y < 0 ? 0 : (y >= static_cast<std::int64_t>(img.height) ? static_cast<std::int64_t>(img.height) - 1 : y);
   return img.at(static_cast<std::uint64_t>(cx), static_cast<std::uint64_t>(cy));
+}
+
+// What build_store refuses with: the InputError's where() and what(), or where "" and what
+// "built" when it builds.
+struct Refusal {
+  std::string where, what;
+};
+inline Refusal build_refusal(const std::vector<std::string>& images, const BuildOptions& o, const std::string& out) {
+  try {
+    build_store(images, o, out);
+  } catch (const InputError& e) {
+    return {e.where(), e.what()};
+  }
+  return {"", "built"};
 }
 
 }  // namespace vtsim::test

@@ -220,12 +220,7 @@ TEST_CASE("bad builder inputs are errors naming the file or option") {
   write_image8(dir.file("b.png"), test::make_image(64, 32, 3));
   const std::string out = dir.file("o.vts");
   auto where = [&](const std::vector<std::string>& imgs, const BuildOptions& o) {
-    try {
-      build_store(imgs, o, out);
-    } catch (const InputError& e) {
-      return e.where();
-    }
-    return std::string("no error");
+    return test::build_refusal(imgs, o, out).where;
   };
   BuildOptions o;
   CHECK(where({dir.file("a.png"), dir.file("b.png")}, o) == dir.file("b.png"));  // sizes differ
@@ -252,12 +247,10 @@ TEST_CASE("an image whose header claims more pixels than the memory limit is ref
   std::ofstream(huge, std::ios::binary) << "P4444444444444444444444444444 2 3\n4 5 6 7\n8 0 10 15\n";
   BuildOptions o;
   o.memory_limit_bytes = std::uint64_t{64} << 20;
-  try {
-    build_store({huge}, o, dir.file("o.vts"));
-    FAIL("built a store from a 4 GiB image in 64 MiB");
-  } catch (const InputError& e) {
-    CHECK(e.where() == huge);
-    CHECK(std::string(e.what()).find("more than the 64.0 MiB") != std::string::npos);
+  {
+    const test::Refusal r = test::build_refusal({huge}, o, dir.file("o.vts"));
+    CHECK(r.where == huge);
+    CHECK(test::contains(r.what, "more than the 64.0 MiB"));
   }
   // The limit counts every layer's level-0 texels, and the image being read also needs its chunk of
   // rows (here the whole 16 KiB image) and OpenImageIO's strip buffer (image_io::read_scratch_bytes:
@@ -297,13 +290,10 @@ TEST_CASE("a tiled image is read whole, and one whose header claims huge tiles i
   test::write_tiled_tiff(lying, 64, 64, 64, 64, 65520, 65520);
   BuildOptions o;
   o.memory_limit_bytes = std::uint64_t{1} << 30;
-  try {
-    build_store({lying}, o, dir.file("o.vts"));
-    FAIL("read an image whose tiles claim 4 GiB each in 1 GiB");
-  } catch (const InputError& e) {
-    CHECK(e.where() == lying);
-    CHECK(std::string(e.what()).find("in 65520x65520 tiles need 20470.0 MiB to read, more than the 1024.0 MiB") !=
-          std::string::npos);
+  {
+    const test::Refusal r = test::build_refusal({lying}, o, dir.file("o.vts"));
+    CHECK(r.where == lying);
+    CHECK(test::contains(r.what, "in 65520x65520 tiles need 20470.0 MiB to read, more than the 1024.0 MiB"));
   }
   CHECK_FALSE(std::filesystem::exists(dir.file("o.vts")));
 }
@@ -318,22 +308,18 @@ TEST_CASE("the mip walk's peak is checked against the memory limit from the head
   std::ofstream(pgm, std::ios::binary) << "P5\n12288 8192\n255\n";
   BuildOptions o;
   o.memory_limit_bytes = (std::uint64_t{216} << 20) - 1;
-  try {
-    build_store({pgm}, o, dir.file("o.vts"));
-    FAIL("the mip walk's 216 MiB passed a limit one byte lower");
-  } catch (const InputError& e) {
-    CHECK(e.where() == pgm);
-    CHECK(std::string(e.what()).find("the mip walk over 1 layer(s) of 12288x8192 needs 216.0 MiB") != std::string::npos);
+  {
+    const test::Refusal r = test::build_refusal({pgm}, o, dir.file("o.vts"));
+    CHECK(r.where == pgm);
+    CHECK(test::contains(r.what, "the mip walk over 1 layer(s) of 12288x8192 needs 216.0 MiB"));
   }
   // At exactly the peak the walk's check passes, and the build goes on to read the image, which
   // has no pixels: the first chunk of rows fails (nothing was allocated for the rows after it).
   o.memory_limit_bytes = std::uint64_t{216} << 20;
-  try {
-    build_store({pgm}, o, dir.file("o.vts"));
-    FAIL("built a store from an image without pixels");
-  } catch (const InputError& e) {
-    CHECK(e.where() == pgm);
-    CHECK(std::string(e.what()).find("cannot read the image: the reader gave no reason") != std::string::npos);
+  {
+    const test::Refusal r = test::build_refusal({pgm}, o, dir.file("o.vts"));
+    CHECK(r.where == pgm);
+    CHECK(test::contains(r.what, "cannot read the image: the reader gave no reason"));
   }
   // One level only: no walk, so only the read's need is checked (and then the read fails).
   o.levels = 1;
@@ -358,12 +344,10 @@ TEST_CASE("a default layer name is the image's stem cut at a character boundary,
   CHECK(TileStore::open(out).layer(0).name == std::string(30, 'a'));
   const std::string ctl = dir.file("a\x01" "b.png");
   write_image8(ctl, test::make_image(32, 32, 3));
-  try {
-    build_store({ctl}, o, out);
-    FAIL("a control character in a layer name was accepted");
-  } catch (const InputError& e) {
-    CHECK(e.where() == ctl);
-    CHECK(std::string(e.what()).find("name the layers with --layer-names") != std::string::npos);
+  {
+    const test::Refusal r = test::build_refusal({ctl}, o, out);
+    CHECK(r.where == ctl);
+    CHECK(test::contains(r.what, "name the layers with --layer-names"));
   }
 }
 
