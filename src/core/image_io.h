@@ -35,8 +35,9 @@ struct ImageSpec {
   int tile_width = 0, tile_height = 0, tile_depth = 0;  // the file's tiles; 0 for scanline files
 };
 
-// Bytes OpenImageIO itself may allocate while read() converts the image to the requested type
-// (ImageInput::read_image, OpenImageIO 2.4), an upper bound in double (it can pass 2^64):
+// Bytes OpenImageIO itself may allocate while read() or read_rows() converts the image to the
+// requested type (ImageInput::read_scanlines / read_tiles, OpenImageIO 2.4), an upper bound in
+// double (it can pass 2^64):
 // - scanline files: read_scanlines' strip of ~64 MiB rounded up to whole chunks of at least 64
 //   rows (256 with a larger oiio:read_chunk) of every channel in the file's own format, however
 //   few rows the image has — a 52-byte PBM claiming 44,444,444 × 2 pixels made it allocate 11 GB
