@@ -1,7 +1,7 @@
 // Images (through the OpenImageIO module, core/image_io.h), as a heightfield (scene.file) and as
-// the layer of a store (`vtsim store build`): the input is written as a .tif or .png when it
+// the layer of a store (`vtsim store build`): the input is written as a .tif, .png or .jpg when it
 // starts with that format's signature (tiled TIFFs size OpenImageIO's read buffers by the tile in
-// their header; a PNG's header claims its size before any data), else as a .pnm (PBM/PGM/PPM,
+// their header; PNG and JPEG headers claim a size before any data), else as a .pnm (PBM/PGM/PPM,
 // whose header alone sets size, channels and bit depth). When the first
 // read accepts it, the store built from it must open and every tile (first 4,096) read back. The
 // decoders themselves are OpenImageIO's and libtiff's; this target checks what vtsim does with what
@@ -24,8 +24,11 @@ namespace vtsim::fuzz {
 constexpr std::uint64_t kMemoryLimit = std::uint64_t{96} << 20;
 
 void image(const std::uint8_t* data, std::size_t size) {
-  auto starts = [&](const char* magic) { return size >= 4 && std::memcmp(data, magic, 4) == 0; };
-  const char* ext = starts("II*\0") || starts("MM\0*") ? "tif" : starts("\x89PNG") ? "png" : "pnm";
+  auto starts = [&](const char* magic, std::size_t n) { return size >= n && std::memcmp(data, magic, n) == 0; };
+  const char* ext = starts("II*\0", 4) || starts("MM\0*", 4) ? "tif"
+                    : starts("\x89PNG", 4)                    ? "png"
+                    : starts("\xFF\xD8\xFF", 3)              ? "jpg"
+                                                              : "pnm";
   const std::string path = input_file(data, size, ext);
   expect_accept_or_reject("image", [&] {
     (void)load_heightfield(path, 8.0, 1.0, 0.0, 0.0, 0.0, std::int64_t{1} << 20, kMemoryLimit);
