@@ -143,7 +143,7 @@ TEST_CASE("image module: read_chunked gives whole rows in order, whole rows of t
   REQUIRE(in.ok());
   std::vector<std::uint8_t> back;
   std::vector<std::pair<int, int>> chunks;
-  CHECK(in.read_chunked<std::uint8_t>(c, 5 * w * c, [&](int y0, int y1, const std::uint8_t* v) {
+  CHECK(in.read_chunked<std::uint8_t>(c, 5 * w * c, image_io::OnDamage::stop, [&](int y0, int y1, const std::uint8_t* v) {
     chunks.emplace_back(y0, y1);
     back.insert(back.end(), v, v + (y1 - y0) * w * c);
   }) == ReadStatus::ok);
@@ -161,7 +161,7 @@ TEST_CASE("image module: read_chunked gives whole rows in order, whole rows of t
   CHECK(tin.spec().tile_height == 16);
   chunks.clear();
   std::uint64_t bad = 0;
-  CHECK(tin.read_chunked<float>(1, 20 * 40 * sizeof(float), [&](int y0, int y1, const float* v) {
+  CHECK(tin.read_chunked<float>(1, 20 * 40 * sizeof(float), image_io::OnDamage::stop, [&](int y0, int y1, const float* v) {
     chunks.emplace_back(y0, y1);
     for (int y = y0; y < y1; ++y)
       for (int x = 0; x < 40; ++x)
@@ -170,6 +170,35 @@ TEST_CASE("image module: read_chunked gives whole rows in order, whole rows of t
   CHECK(bad == 0);
   CHECK(chunks == std::vector<std::pair<int, int>>{{0, 16}, {16, 32}, {32, 48}, {48, 64}, {64, 70}});
   std::remove(tif.c_str());
+}
+
+TEST_CASE("image module: read_chunked stops at the first chunk the reader reports damaged, or reads on") {
+  // A truncated JPEG: libjpeg warns "Premature end of JPEG file" and fills the missing rows grey,
+  // and OpenImageIO returns the read as done with a pending error (ok_with_error).
+  const std::string jpg = std::filesystem::temp_directory_path().string() + "/vtsim-cut.jpg";
+  const int w = 64, h = 256;
+  std::vector<std::uint8_t> px(static_cast<std::size_t>(w * h));
+  for (std::size_t i = 0; i < px.size(); ++i) px[i] = static_cast<std::uint8_t>((i * 2654435761u) >> 13);
+  REQUIRE(image_io::write_file(jpg, w, h, 1, PixelType::u8, px.data(), true).status == WriteStatus::ok);
+  test::cut_file(jpg, 0.5);
+  for (const auto on : {image_io::OnDamage::stop, image_io::OnDamage::read_on}) {
+    CAPTURE(static_cast<int>(on));
+    auto in = image_io::ImageReader::open_file(jpg, true);
+    REQUIRE(in.ok());
+    int rows = 0;
+    CHECK(in.read_chunked<std::uint8_t>(1, 16 * w, on, [&](int y0, int y1, const std::uint8_t*) {
+      CHECK(y0 == rows);
+      rows = y1;
+    }) == ReadStatus::ok_with_error);
+    CHECK(contains(in.error(), "Premature end of JPEG file"));
+    if (on == image_io::OnDamage::stop) {
+      CHECK(rows > 0);  // the chunks before the damage
+      CHECK(rows < h);
+    } else {
+      CHECK(rows == h);
+    }
+  }
+  std::remove(jpg.c_str());
 }
 
 TEST_CASE("image module: a PNG chunk declaring more bytes than the file holds is refused before libpng allocates it") {

@@ -8,6 +8,7 @@
 #include <cstdio>
 
 #include "core/error.h"
+#include "core/image_io.h"
 #include "store_test_util.h"
 #include "test_util.h"
 #include "stream/store_builder.h"
@@ -237,6 +238,35 @@ TEST_CASE("bad builder inputs are errors naming the file or option") {
   o.layer_names = {"x", "y"};
   CHECK(where({dir.file("a.png")}, o) == "--layer-names");
   CHECK_FALSE(std::filesystem::exists(out));
+}
+
+TEST_CASE("a source image the reader reports damaged is refused unless accept_damaged (truncated JPEG, TIFF)") {
+  // libjpeg and libtiff fill what a cut file lacks and OpenImageIO reports the read done with a
+  // pending error: built as read, the store would hold grey (JPEG) or zero (TIFF) rows nobody drew.
+  test::TempDir dir;
+  for (const std::string name : {"cut.jpg", "cut.tif"}) {
+    CAPTURE(name);
+    const std::string path = dir.file(name);
+    if (name == "cut.jpg") {
+      write_image8(path, test::make_image(96, 200, 3));
+    } else {  // 16-bit grey: libtiff decodes its strips one by one and reports the missing ones
+      std::vector<std::uint16_t> px(64 * 64);
+      for (std::size_t k = 0; k < px.size(); ++k) px[k] = static_cast<std::uint16_t>(k * 2654435761u >> 7);
+      REQUIRE(image_io::write_file(path, 64, 64, 1, image_io::PixelType::u16, px.data(), false).status ==
+              image_io::WriteStatus::ok);
+    }
+    test::cut_file(path, 0.6);
+    BuildOptions o;
+    const test::Refusal r = test::build_refusal({path}, o, dir.file("o.vts"));
+    CHECK(r.where == path);
+    CHECK(test::contains(r.what, "is damaged: "));
+    CHECK(test::contains(r.what, "(the first 0 of"));  // one chunk of rows holds the whole image
+    CHECK(test::contains(r.what, name == "cut.jpg" ? "Premature end of JPEG file" : "Read error"));
+    CHECK_FALSE(std::filesystem::exists(dir.file("o.vts")));
+    o.accept_damaged = true;
+    CHECK(build_store({path}, o, dir.file("o.vts")).tiles > 0);
+    std::filesystem::remove(dir.file("o.vts"));
+  }
 }
 
 TEST_CASE("an image whose header claims more pixels than the memory limit is refused before it is read") {

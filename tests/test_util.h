@@ -29,6 +29,13 @@ inline std::string slurp(const std::string& path) {
   return ss.str();
 }
 
+// Cuts the file at `path` to its first `fraction` of bytes (a transfer that stopped part way).
+inline void cut_file(const std::string& path, double fraction) {
+  const std::string bytes = slurp(path);
+  std::ofstream(path, std::ios::binary | std::ios::trunc)
+      << bytes.substr(0, static_cast<std::size_t>(static_cast<double>(bytes.size()) * fraction));
+}
+
 // Runs `cmdline` through the shell with stdout and stderr into `log`; the exit code, or −1 when
 // the command did not exit normally.
 inline int run_shell(const std::string& cmdline, const std::string& log) {

@@ -288,6 +288,17 @@ TEST_CASE("heightfield: images load as heights / bad files are rejected") {
     std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
   }
   CHECK_THROWS_WITH_AS(load_heightfield(cut, 1.0, 1.0, 0.0, 0.0, 0.0), doctest::Contains(cut.c_str()), InputError);
+  // A cut TIFF reads "ok" with libtiff's error pending and the missing strips zero-filled: refused.
+  const std::string cut_tif = test::temp_path("cut.tif");
+  {
+    std::vector<std::uint16_t> px(64 * 64);
+    for (std::size_t k = 0; k < px.size(); ++k) px[k] = static_cast<std::uint16_t>(k * 2654435761u >> 7);
+    REQUIRE(image_io::write_file(cut_tif, 64, 64, 1, image_io::PixelType::u16, px.data(), false).status ==
+            image_io::WriteStatus::ok);
+    test::cut_file(cut_tif, 0.5);
+  }
+  CHECK_THROWS_WITH_AS(load_heightfield(cut_tif, 1.0, 1.0, 0.0, 0.0, 0.0), doctest::Contains("is damaged"), InputError);
+  std::remove(cut_tif.c_str());
   REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
   CHECK_THROWS_WITH_AS(load_heightfield(fifo, 1.0, 1.0, 0.0, 0.0, 0.0), doctest::Contains("not a regular file"),
                        InputError);

@@ -254,7 +254,7 @@ void register_store_commands(CLI::App& app) {
       std::string out, codecs = "zstd", names, transfers = "srgb";
       std::uint32_t tile = 128, border = 4, levels = 0;
       unsigned threads = 0;
-      bool progress = false;
+      bool progress = false, accept_damaged = false;
     };
     auto o = std::make_shared<Opts>();
     c->add_option("IMAGE", o->images, "Images OpenImageIO reads (PNG, JPEG, TIFF, EXR...), one per layer")->required();
@@ -268,8 +268,11 @@ void register_store_commands(CLI::App& app) {
     c->add_option("--transfer", o->transfers, "srgb or linear per layer (mip filtering in linear light for srgb)")->capture_default_str();
     c->add_option("--threads", o->threads, "Encode threads (0 = all cores); the file does not depend on it");
     c->add_flag("--progress", o->progress, "Show progress even when stderr is not a terminal");
+    c->add_flag("--accept-damaged", o->accept_damaged,
+                "Build from images the reader reports damaged (truncated JPEG/TIFF), its filler included");
     c->callback([o] {
       BuildOptions b;
+      b.accept_damaged = o->accept_damaged;
       b.tile = o->tile;
       b.border = o->border;
       b.levels = o->levels;

@@ -86,6 +86,14 @@ enum class ReadStatus {
   ok_with_error,  // pixels read, but the reader reports an error (damaged data); error() has it
 };
 
+// What read_chunked does at a chunk the reader reports damaged (ok_with_error). libjpeg and libtiff
+// fill what they cannot decode (a truncated JPEG's missing rows come back grey) and say so only as
+// a pending error, so a caller that must not build on invented pixels stops there.
+enum class OnDamage {
+  stop,     // return ok_with_error at once; the sink never sees the damaged chunk
+  read_on,  // hand the chunk to the sink and go on; ok_with_error at the end
+};
+
 // An image open for reading: a file, or a PNG / JPEG held in memory.
 class ImageReader {
  public:
@@ -117,10 +125,10 @@ class ImageReader {
   // whole rows of tiles for a tiled file — of about chunk_bytes, calling sink(y0, y1, values) for
   // rows [y0, y1) in order (channels values a pixel). It holds one chunk, so a header claiming
   // more rows than the file has fails at the first chunk it lacks, before the caller has grown its
-  // image past the rows read. Stops at the first chunk that fails (failed); ok_with_error if any
-  // chunk reported damage (error() keeps the first such message).
+  // image past the rows read. Stops at the first chunk that fails (failed). At the first chunk the
+  // reader reports damaged: on_damage (ok_with_error either way; error() keeps the first message).
   template <class T, class Sink>
-  ReadStatus read_chunked(int channels, std::size_t chunk_bytes, Sink&& sink);
+  ReadStatus read_chunked(int channels, std::size_t chunk_bytes, OnDamage on_damage, Sink&& sink);
 
  private:
   ImageReader() = default;
@@ -133,7 +141,7 @@ class ImageReader {
 };
 
 template <class T, class Sink>
-ReadStatus ImageReader::read_chunked(int channels, std::size_t chunk_bytes, Sink&& sink) {
+ReadStatus ImageReader::read_chunked(int channels, std::size_t chunk_bytes, OnDamage on_damage, Sink&& sink) {
   static_assert(std::is_same_v<T, std::uint8_t> || std::is_same_v<T, std::uint16_t> || std::is_same_v<T, float>);
   constexpr PixelType type = std::is_same_v<T, std::uint8_t>    ? PixelType::u8
                              : std::is_same_v<T, std::uint16_t> ? PixelType::u16
@@ -147,6 +155,7 @@ ReadStatus ImageReader::read_chunked(int channels, std::size_t chunk_bytes, Sink
     const std::int64_t y1 = std::min<std::int64_t>(spec_.height, y + rows);
     const ReadStatus s = read_rows(static_cast<int>(y), static_cast<int>(y1), channels, type, buf.data());
     if (s == ReadStatus::failed) return s;
+    if (s == ReadStatus::ok_with_error && on_damage == OnDamage::stop) return s;
     if (s == ReadStatus::ok_with_error && result == ReadStatus::ok) {
       result = s;
       damage = error_;

@@ -57,10 +57,18 @@ Heightfield load_heightfield(const std::string& path, double spacing_m, double h
                                 max_bytes != 0 ? max_bytes : usable_memory_bytes());
   std::vector<float> px;
   px.reserve(static_cast<std::size_t>(w * h));
-  if (in.read_chunked<float>(1, kChunkBytes, [&](int y0, int y1, const float* v) {
-        px.insert(px.end(), v, v + static_cast<std::size_t>(y1 - y0) * static_cast<std::size_t>(w));
-      }) == image_io::ReadStatus::failed)
-    throw InputError(path, "cannot decode image: " + in.error());
+  // Damage the reader papers over (a truncated JPEG or TIFF reads "ok" with rows of filler) is
+  // refused: those rows would be terrain nobody made.
+  switch (in.read_chunked<float>(1, kChunkBytes, image_io::OnDamage::stop, [&](int y0, int y1, const float* v) {
+    px.insert(px.end(), v, v + static_cast<std::size_t>(y1 - y0) * static_cast<std::size_t>(w));
+  })) {
+    case image_io::ReadStatus::ok: break;
+    case image_io::ReadStatus::failed: throw InputError(path, "cannot decode image: " + in.error());
+    case image_io::ReadStatus::ok_with_error:
+      throw InputError(path, "is damaged: " + in.error() + " (the first " +
+                                 std::to_string(px.size() / static_cast<std::size_t>(w)) + " of " +
+                                 std::to_string(h) + " rows read cleanly)");
+  }
   Heightfield hf;
   hf.nx = static_cast<int>(w);
   hf.ny = static_cast<int>(h);

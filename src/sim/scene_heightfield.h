@@ -24,8 +24,9 @@ inline constexpr std::int64_t kMaxHeightfieldPosts = std::int64_t{1} << 26;
 
 // Reads the first channel of any image OpenImageIO reads; z = z0 + scale·value (OIIO maps integer
 // pixel types to [0, 1]). Image row j is post row j (world y grows with the image row). Throws
-// InputError(path, ...) for unreadable files, fewer than 2×2 or more than kMaxHeightfieldPosts
-// posts, and (path:row r, column c) for a non-finite value.
+// InputError(path, ...) for unreadable files, damaged ones (the reader filled rows it could not
+// decode), fewer than 2×2 or more than kMaxHeightfieldPosts posts, and (path:row r, column c) for
+// a non-finite value.
 // The size is checked from the image header before any pixel is decoded (max_posts: the limit),
 // and so is the memory the read needs, OpenImageIO's buffers included (image_io::
 // require_read_memory against max_bytes; 0 = usable_memory_bytes()).

@@ -398,7 +398,7 @@ std::pair<double, std::size_t> mip_walk_peak(const std::vector<image_io::ImageSp
 // beside any image large enough for the memory check to matter.
 constexpr std::size_t kReadChunkBytes = std::size_t{16} << 20;
 
-Image8 read_image8(const std::string& path, Transfer transfer, std::uint64_t max_bytes) {
+Image8 read_image8(const std::string& path, Transfer transfer, std::uint64_t max_bytes, bool accept_damaged) {
   auto in = image_io::ImageReader::open_file(path, /*unassociated_alpha=*/true);  // texels as stored
   if (!in) {
     const std::string& e = in.error();
@@ -423,14 +423,15 @@ Image8 read_image8(const std::string& path, Transfer transfer, std::uint64_t max
   img.channels = channels;
   img.texels.reserve(static_cast<std::size_t>(img.width * img.height * img.channels));  // address space, not pages
   const int c = static_cast<int>(channels);
+  const image_io::OnDamage on_damage = accept_damaged ? image_io::OnDamage::read_on : image_io::OnDamage::stop;
   image_io::ReadStatus status;
   if (s.is_uint8) {
-    status = in.read_chunked<std::uint8_t>(c, kReadChunkBytes, [&](int y0, int y1, const std::uint8_t* v) {
+    status = in.read_chunked<std::uint8_t>(c, kReadChunkBytes, on_damage, [&](int y0, int y1, const std::uint8_t* v) {
       img.texels.insert(img.texels.end(), v, v + static_cast<std::size_t>(y1 - y0) * img.width * channels);
     });
   } else {
     const bool linear_source = s.is_float;
-    status = in.read_chunked<float>(c, kReadChunkBytes, [&](int y0, int y1, const float* v) {
+    status = in.read_chunked<float>(c, kReadChunkBytes, on_damage, [&](int y0, int y1, const float* v) {
       const std::size_t n = static_cast<std::size_t>(y1 - y0) * img.width * channels;
       img.texels.resize(img.texels.size() + n);
       std::uint8_t* out = img.texels.data() + img.texels.size() - n;
@@ -443,6 +444,12 @@ Image8 read_image8(const std::string& path, Transfer transfer, std::uint64_t max
     });
   }
   if (status == image_io::ReadStatus::failed) throw InputError(path, "cannot read the image: " + in.error());
+  if (status == image_io::ReadStatus::ok_with_error && !accept_damaged)
+    throw InputError(path, "is damaged: " + in.error() + " (the first " +
+                               std::to_string(img.texels.size() / (img.width * channels)) + " of " +
+                               std::to_string(img.height) +
+                               " rows read cleanly; the reader fills what it cannot decode, and "
+                               "--accept-damaged builds from that)");
   return img;
 }
 
@@ -528,7 +535,7 @@ BuildResult build_store(const std::vector<std::string>& images, const BuildOptio
     L.codec = o.codecs.empty() ? CodecSpec{CodecId::zstd, default_codec_param(CodecId::zstd)}
                                : o.codecs[o.codecs.size() == 1 ? 0 : i];
     L.transfer = o.transfers.empty() ? Transfer::srgb : o.transfers[o.transfers.size() == 1 ? 0 : i];
-    level0.push_back(read_image8(images[i], L.transfer, memory - used));
+    level0.push_back(read_image8(images[i], L.transfer, memory - used, o.accept_damaged));
     used += level0.back().texels.size();
     L.channels = level0.back().channels;
     if (i > 0 && (level0[i].width != level0[0].width || level0[i].height != level0[0].height))

@@ -106,9 +106,12 @@ struct Image8 {
 // Throws InputError naming the file, also before allocating anything when the image needs more than
 // max_bytes to read (its 8-bit texels, one ~16 MiB chunk of rows, OpenImageIO's own buffer:
 // image_io::require_read_memory): a header alone can claim 2^31 × 2^31 pixels. The texels grow
-// with the rows read, so a file holding fewer rows than its header claims fails early.
+// with the rows read, so a file holding fewer rows than its header claims fails early. A file the
+// reader reports damaged while giving pixels anyway (libjpeg and libtiff fill what they cannot
+// decode: a truncated JPEG's missing rows come back grey) throws at the first damaged chunk of
+// rows, unless accept_damaged: then the filled image is returned.
 Image8 read_image8(const std::string& path, store::Transfer transfer,
-                   std::uint64_t max_bytes = std::numeric_limits<std::uint64_t>::max());
+                   std::uint64_t max_bytes = std::numeric_limits<std::uint64_t>::max(), bool accept_damaged = false);
 
 // Writes an 8-bit image with OpenImageIO (format from the extension). Throws InputError.
 void write_image8(const std::string& path, const Image8& image);
@@ -142,6 +145,8 @@ struct BuildOptions {
                                                      // what earlier layers left), and the mip
                                                      // walk's peak (checked from the headers
                                                      // first); 0 = usable_memory_bytes()
+  bool accept_damaged = false;                       // build from images the reader reports
+                                                     // damaged, its filler included (read_image8)
 };
 
 struct BuildResult {
