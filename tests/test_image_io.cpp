@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "core/error.h"
@@ -170,6 +171,33 @@ TEST_CASE("image module: read_chunked gives whole rows in order, whole rows of t
   CHECK(bad == 0);
   CHECK(chunks == std::vector<std::pair<int, int>>{{0, 16}, {16, 32}, {32, 48}, {48, 64}, {64, 70}});
   std::remove(tif.c_str());
+}
+
+TEST_CASE("image module: the spec names the reader, and readers that decode the whole image are charged for it") {
+  // The names image_io::whole_image_decode_bytes matches: a misspelt one would fall to the
+  // conservative default and pass unnoticed, so each is read back from a file of its format.
+  const std::string dir = std::filesystem::temp_directory_path().string();
+  const int w = 64, h = 32, c = 3;  // OpenJPEG's default 6 resolution levels need 32 pixels a side
+  std::vector<std::uint8_t> px(static_cast<std::size_t>(w * h * c), 100);
+  const double pixels = w * h;
+  const std::vector<std::tuple<const char*, const char*, double>> cases = {
+      {"tif", "tiff", 0.0},           {"exr", "openexr", 0.0},       {"hdr", "hdr", 0.0},
+      {"bmp", "bmp", 0.0},            {"sgi", "sgi", 0.0},           {"png", "png", pixels * c},
+      {"pnm", "pnm", pixels * c},     {"tga", "targa", pixels * c},  {"jpg", "jpeg", pixels * c * 2},
+      {"jp2", "jpeg2000", pixels * c * 4}, {"webp", "webp", pixels * 4}, {"gif", "gif", pixels * 4 * 8},
+  };
+  for (const auto& [ext_c, name, whole] : cases) {
+    const std::string ext = ext_c;
+    CAPTURE(ext);
+    const std::string path = dir + "/vtsim-format." + ext;
+    REQUIRE(image_io::write_file(path, w, h, c, PixelType::u8, px.data(), true).status == WriteStatus::ok);
+    auto in = image_io::ImageReader::open_file(path, true);
+    REQUIRE(in.ok());
+    CHECK(in.spec().format == name);
+    // For 8-bit files; the float ones (exr, hdr) have no whole-image term either.
+    CHECK(image_io::whole_image_decode_bytes(in.spec()) == whole * (in.spec().is_uint8 ? 1.0 : 0.0));
+    std::remove(path.c_str());
+  }
 }
 
 TEST_CASE("image module: read_chunked stops at the first chunk the reader reports damaged, or reads on") {

@@ -283,16 +283,35 @@ TEST_CASE("an image whose header claims more pixels than the memory limit is ref
     CHECK(test::contains(r.what, "more than the 64.0 MiB"));
   }
   // The limit counts every layer's level-0 texels, and the image being read also needs its chunk of
-  // rows (here the whole 16 KiB image) and OpenImageIO's strip buffer (image_io::read_scratch_bytes:
-  // 64 MiB + 64 rows of 64 RGBA8 pixels). Two 64 × 64 RGBA images (16 KiB each): the second needs
-  // 16 + 16 KiB + 64 MiB + 16 KiB after the first's 16 KiB, so 64 MiB + 64 KiB fits and 64 MiB +
-  // 56 KiB does not.
+  // rows (here the whole 16 KiB image), OpenImageIO's strip buffer (image_io::read_scratch_bytes:
+  // 64 MiB + 64 rows of 64 RGBA8 pixels) and, for a PNG, a whole copy of the image (an interlaced
+  // PNG is read whole: whole_image_decode_bytes). Two 64 × 64 RGBA images (16 KiB each): the second
+  // needs 16 + 16 KiB + 64 MiB + 16 + 16 KiB after the first's 16 KiB, so 64 MiB + 80 KiB fits and
+  // 64 MiB + 72 KiB does not.
   write_image8(dir.file("a.png"), test::make_image(64, 64, 4));
   write_image8(dir.file("b.png"), test::make_image(64, 64, 4));
-  o.memory_limit_bytes = (std::uint64_t{64} << 20) + (64 << 10);
+  o.memory_limit_bytes = (std::uint64_t{64} << 20) + (80 << 10);
   CHECK_NOTHROW(build_store({dir.file("a.png"), dir.file("b.png")}, o, dir.file("ab.vts")));
-  o.memory_limit_bytes = (std::uint64_t{64} << 20) + (56 << 10);
+  o.memory_limit_bytes = (std::uint64_t{64} << 20) + (72 << 10);
   CHECK_THROWS_AS(build_store({dir.file("a.png"), dir.file("b.png")}, o, dir.file("ab2.vts")), InputError);
+}
+
+TEST_CASE("a JPEG 2000 source is charged OpenJPEG's whole-image decode: a limit the same TIFF fits refuses it") {
+  // 64 × 64 RGB: the TIFF needs its 12 KiB of texels, a 12 KiB chunk and the 64 MiB + 12 KiB strip;
+  // OpenJPEG also decodes the whole image to a 32-bit plane per channel: 48 KiB more (measured on
+  // 4096² RGB: +197 MB of peak memory against the TIFF, docs/store-format.md §8).
+  test::TempDir dir;
+  const Image8 img = test::make_image(64, 64, 3);
+  write_image8(dir.file("a.tif"), img);
+  write_image8(dir.file("a.jp2"), img);
+  BuildOptions o;
+  o.memory_limit_bytes = (std::uint64_t{64} << 20) + (36 << 10);
+  CHECK(build_store({dir.file("a.tif")}, o, dir.file("t.vts")).tiles > 0);
+  const test::Refusal r = test::build_refusal({dir.file("a.jp2")}, o, dir.file("j.vts"));
+  CHECK(r.where == dir.file("a.jp2"));
+  CHECK(test::contains(r.what, "need 64.1 MiB to read, more than the 64.0 MiB"));
+  o.memory_limit_bytes = (std::uint64_t{64} << 20) + (84 << 10);
+  CHECK(build_store({dir.file("a.jp2")}, o, dir.file("j.vts")).tiles > 0);
 }
 
 TEST_CASE("a tiled image is read whole, and one whose header claims huge tiles is refused before it is read") {
@@ -331,9 +350,10 @@ TEST_CASE("a tiled image is read whole, and one whose header claims huge tiles i
 TEST_CASE("the mip walk's peak is checked against the memory limit from the headers, before any image is read") {
   test::TempDir dir;
   // A PGM header of 12288 × 8192 pixels and no pixels: 96 MiB of level 0. Reading it needs 96 MiB,
-  // a chunk of rows (1,365 rows: 4 KiB under 16 MiB) and OpenImageIO's strip (64 MiB + 64 rows of
-  // 12 KiB): 176 MiB + 764 KiB. The
-  // walk holds level 0 and level 1 in float and 8 bits (6144 × 4096 × 5 B = 120 MiB): 216 MiB.
+  // a chunk of rows (1,365 rows: 4 KiB under 16 MiB), OpenImageIO's strip (64 MiB + 64 rows of
+  // 12 KiB) and its PNM reader's copy of the whole image (96 MiB; image_io::whole_image_decode_bytes):
+  // 272 MiB + 764 KiB. The walk holds level 0 and level 1 in float and 8 bits (6144 × 4096 × 5 B =
+  // 120 MiB): 216 MiB, checked from the headers before any read.
   const std::string pgm = dir.file("big.pgm");
   std::ofstream(pgm, std::ios::binary) << "P5\n12288 8192\n255\n";
   BuildOptions o;
@@ -343,21 +363,27 @@ TEST_CASE("the mip walk's peak is checked against the memory limit from the head
     CHECK(r.where == pgm);
     CHECK(test::contains(r.what, "the mip walk over 1 layer(s) of 12288x8192 needs 216.0 MiB"));
   }
-  // At exactly the peak the walk's check passes, and the build goes on to read the image, which
-  // has no pixels: the first chunk of rows fails (nothing was allocated for the rows after it).
+  // At exactly the peak the walk's check passes, and the read's own check refuses.
   o.memory_limit_bytes = std::uint64_t{216} << 20;
+  {
+    const test::Refusal r = test::build_refusal({pgm}, o, dir.file("o.vts"));
+    CHECK(r.where == pgm);
+    CHECK(test::contains(r.what, "need 272.7 MiB to read, more than the 216.0 MiB"));
+  }
+  // With room for the read, the build reads the image, which has no pixels: the first chunk of rows
+  // fails (nothing was allocated for the rows after it).
+  o.memory_limit_bytes = (std::uint64_t{272} << 20) + (764 << 10);
   {
     const test::Refusal r = test::build_refusal({pgm}, o, dir.file("o.vts"));
     CHECK(r.where == pgm);
     CHECK(test::contains(r.what, "cannot read the image: the reader gave no reason"));
   }
-  // One level only: no walk, so only the read's need is checked (and then the read fails).
+  // One level only: no walk, so only the read's need is checked.
   o.levels = 1;
-  o.memory_limit_bytes = (std::uint64_t{176} << 20) + (764 << 10);
   CHECK_THROWS_WITH_AS(build_store({pgm}, o, dir.file("o.vts")),
                        doctest::Contains("cannot read the image: the reader gave no reason"), InputError);
   o.memory_limit_bytes -= 1;
-  CHECK_THROWS_WITH_AS(build_store({pgm}, o, dir.file("o.vts")), doctest::Contains("need 176.7 MiB to read"),
+  CHECK_THROWS_WITH_AS(build_store({pgm}, o, dir.file("o.vts")), doctest::Contains("need 272.7 MiB to read"),
                        InputError);
   CHECK_FALSE(std::filesystem::exists(dir.file("o.vts")));
 }

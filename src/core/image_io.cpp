@@ -145,6 +145,7 @@ ImageSpec to_spec(const abi::Spec& s) {
   r.tile_width = s.tile_width;
   r.tile_height = s.tile_height;
   r.tile_depth = s.tile_depth;
+  r.format.assign(s.format, strnlen(s.format, sizeof s.format));
   return r;
 }
 
@@ -302,6 +303,33 @@ bool encode_memory(const char* ext, const std::uint8_t* pixels, int width, int h
   const std::unique_ptr<std::uint8_t, void (*)(std::uint8_t*)> owned(bytes, a.free_bytes);
   out.assign(bytes, bytes + size);
   return true;
+}
+
+// Bytes a format's reader (OpenImageIO 2.4 and its libraries) holds beyond the rows it returns,
+// per pixel of the whole image. Peak RSS of `vtsim store build F --levels 1 --codec raw --threads
+// 1` on 4096 × 4096 RGB 8-bit noise, against the TIFF's 201 MB (docs/store-format.md §8):
+// - tiff, openexr, hdr, bmp, sgi: +0–5 MB, rows (or tiles) at a time: nothing;
+// - png: the same, but an interlaced PNG is read whole in the file's format: one copy;
+// - pnm, targa: +42 MB, the image in the file's format: one copy;
+// - jpeg: +0 MB baseline, +42 MB progressive (libjpeg keeps a 16-bit coefficient per component
+//   sample of the whole image, up to 2 bytes a channel with no chroma subsampling);
+// - jpeg2000: +197 MB, OpenJPEG's 32-bit plane per component: 4 bytes a channel (201 MB);
+// - webp: +56 MB, libwebp decodes to RGBA8: 4 bytes a pixel (67 MB);
+// - any other reader (not measured): a float or double RGBA copy, 8 bytes × max(channels, 4).
+// The interlaced / progressive cases are counted for every PNG and JPEG: the header the check
+// reads does not say, and over-counting only refuses images within ~2× of the limit.
+double whole_image_decode_bytes(const ImageSpec& s) {
+  const double pixels = static_cast<double>(s.width) * static_cast<double>(s.height) *
+                        static_cast<double>(std::max(s.depth, 1));
+  const double channels = static_cast<double>(s.channels);
+  const double native = s.is_uint8 ? 1.0 : s.is_float ? 8.0 : 4.0;  // as read_scratch_bytes
+  const std::string& f = s.format;
+  if (f == "tiff" || f == "openexr" || f == "hdr" || f == "bmp" || f == "sgi") return 0.0;
+  if (f == "png" || f == "pnm" || f == "targa") return pixels * channels * native;
+  if (f == "jpeg") return pixels * channels * 2.0;
+  if (f == "jpeg2000") return pixels * channels * 4.0;
+  if (f == "webp") return pixels * 4.0;
+  return pixels * std::max(channels, 4.0) * 8.0;
 }
 
 void require_read_memory(const std::string& path, const ImageSpec& spec, double out_bytes, std::uint64_t max_bytes) {

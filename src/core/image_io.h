@@ -33,6 +33,7 @@ struct ImageSpec {
   bool is_uint8 = false;  // the file stores 8-bit unsigned pixels
   bool is_float = false;  // ... floating-point pixels (half, float, double)
   int tile_width = 0, tile_height = 0, tile_depth = 0;  // the file's tiles; 0 for scanline files
+  std::string format;  // OpenImageIO's reader: "tiff", "openexr", "png", "jpeg", "jpeg2000", ...
 };
 
 // Bytes OpenImageIO itself may allocate while read() or read_rows() converts the image to the
@@ -45,18 +46,21 @@ struct ImageSpec {
 // - tiled files: read_tiles reads a row of tiles at a time into one buffer, plus a whole tile for
 //   partial edge tiles, one in read_native_tiles and the format's own decode buffer (counted as 4
 //   tiles), all sized by the tile in the header, not the image — a 12 KB TIFF of 64 × 64 pixels
-//   claiming 65,520 × 65,520 tiles took 24 GB before the OOM killer stopped it.
+//   claiming 65,520 × 65,520 tiles took 24 GB before the OOM killer stopped it;
+// - plus, for readers that hold more than rows at a time, whole_image_decode_bytes.
+double whole_image_decode_bytes(const ImageSpec& s);
 inline double read_scratch_bytes(const ImageSpec& s) {
   const double value_bytes = s.is_uint8 ? 1.0 : s.is_float ? 8.0 : 4.0;
   const double pixel = static_cast<double>(s.channels) * value_bytes;
+  const double whole = whole_image_decode_bytes(s);
   if (s.tile_width > 0 && s.tile_height > 0) {
     const double tile = static_cast<double>(s.tile_width) * static_cast<double>(s.tile_height) *
                         static_cast<double>(std::max(s.tile_depth, 1)) * pixel;
     const double across = std::ceil(static_cast<double>(s.width) / static_cast<double>(s.tile_width));
-    return (across + 4.0) * tile;
+    return (across + 4.0) * tile + whole;
   }
   const double row = static_cast<double>(s.width) * pixel;
-  return std::max(static_cast<double>(1 << 26) + 64.0 * row, 256.0 * row);
+  return std::max(static_cast<double>(1 << 26) + 64.0 * row, 256.0 * row) + whole;
 }
 
 // Rows in one chunk of ImageReader::read_chunked for rows of row_bytes: about chunk_bytes, at

@@ -14,7 +14,7 @@
 
 namespace vtsim::image_abi {
 
-inline constexpr std::uint32_t kAbiVersion = 2;  // 2: Spec's tile size, read_rows
+inline constexpr std::uint32_t kAbiVersion = 3;  // 2: Spec's tile size, read_rows; 3: Spec's format
 inline constexpr const char* kEntrySymbol = "vtsim_image_module_api";
 inline constexpr const char* kModuleFileName = "libvtsim_image.so";
 
@@ -34,6 +34,7 @@ struct Spec {
   std::int32_t is_uint8;  // the file's pixels are 8-bit unsigned
   std::int32_t is_float;  // ... are floating point (half, float, double)
   std::int32_t tile_width, tile_height, tile_depth;  // the file's tile size; 0 x 0 x 0 for scanline files
+  char format[32];  // OpenImageIO's reader name ("tiff", "jpeg2000", ...), NUL-terminated, cut to fit
 };
 
 struct IntAttribute {

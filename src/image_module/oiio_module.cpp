@@ -9,6 +9,7 @@
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <exception>
@@ -60,16 +61,20 @@ OIIO::TypeDesc type_of(PixelType t) {
   return OIIO::TypeDesc::UNKNOWN;
 }
 
-Spec spec_of(const OIIO::ImageSpec& s) {
-  return Spec{s.width,
-              s.height,
-              s.depth,
-              s.nchannels,
-              s.format == OIIO::TypeDesc::UINT8 ? 1 : 0,
-              s.format.is_floating_point() ? 1 : 0,
-              s.tile_width,
-              s.tile_height,
-              s.tile_width > 0 ? s.tile_depth : 0};
+Spec spec_of(const OIIO::ImageInput& in) {
+  const OIIO::ImageSpec& s = in.spec();
+  Spec r{s.width,
+         s.height,
+         s.depth,
+         s.nchannels,
+         s.format == OIIO::TypeDesc::UINT8 ? 1 : 0,
+         s.format.is_floating_point() ? 1 : 0,
+         s.tile_width,
+         s.tile_height,
+         s.tile_width > 0 ? s.tile_depth : 0,
+         {}};
+  std::snprintf(r.format, sizeof r.format, "%s", in.format_name());
+  return r;
 }
 
 // --- in-memory PNG / JPEG (the png and jpeg tile codecs) ---------------------------------------
@@ -152,7 +157,7 @@ Status open_file(const char* path, std::int32_t unassociated_alpha, Reader** out
       set_error(err, err_size, OIIO::geterror());
       return kCannotOpen;
     }
-    *spec = spec_of(r->in->spec());
+    *spec = spec_of(*r->in);
     *out = r.release();
     return kOk;
   });
@@ -170,7 +175,7 @@ Status open_memory(const char* ext, const std::uint8_t* bytes, std::size_t size,
       set_error(err, err_size, error);
       return s;
     }
-    *spec = spec_of(r->in->spec());
+    *spec = spec_of(*r->in);
     *out = r.release();
     return kOk;
   });
