@@ -200,6 +200,64 @@ TEST_CASE("image module: the spec names the reader, and readers that decode the 
   }
 }
 
+TEST_CASE("image module: a JPEG whose Photoshop IPTC block overruns its APP13 segment is refused before OpenImageIO reads it") {
+  // OpenImageIO 2.4 copies the IPTC block's declared size from the segment's buffer unchecked
+  // (heap-buffer-overflow under ASan: tests/fuzz/corpus/image/asan_jpeg_app13_iptc_overrun.jpg).
+  const std::string dir = std::filesystem::temp_directory_path().string();
+  const std::string good = dir + "/vtsim-app13-good.jpg";
+  std::vector<std::uint8_t> px(16 * 8 * 3, 90);
+  REQUIRE(image_io::write_file(good, 16, 8, 3, PixelType::u8, px.data(), true).status == WriteStatus::ok);
+  const std::string jpeg = slurp(good);
+  REQUIRE(jpeg.size() > 2);
+  // APP13 after SOI: "Photoshop 3.0\0", "8BIM", 0x0404, 4 skipped bytes, the IPTC size, the block
+  // (one IIM record: 1C 02, tag 5 "ObjectName", 2-byte length 3, "abc").
+  auto with_app13 = [&](int declared, const std::string& block) {
+    std::string seg = std::string("Photoshop 3.0") + '\0' + "8BIM" + "\x04\x04" + std::string(4, '\0') +
+                      static_cast<char>(declared >> 8) + static_cast<char>(declared & 0xFF) + block;
+    const std::size_t length = seg.size() + 2;
+    return jpeg.substr(0, 2) + "\xFF\xED" + static_cast<char>(length >> 8) + static_cast<char>(length & 0xFF) + seg +
+           jpeg.substr(2);
+  };
+  const std::string record = std::string("\x1C\x02\x05\x00\x03", 5) + "abc";
+  auto open = [&](const std::string& bytes) {
+    const std::string path = dir + "/vtsim-app13.jpg";
+    std::ofstream(path, std::ios::binary) << bytes;
+    auto in = image_io::ImageReader::open_file(path, true);
+    std::remove(path.c_str());
+    return in;
+  };
+  {  // the block as declared: opens, and decodes
+    auto in = open(with_app13(static_cast<int>(record.size()), record));
+    REQUIRE(in.ok());
+    std::vector<std::uint8_t> back(px.size());
+    CHECK(in.read(3, PixelType::u8, back.data()) == ReadStatus::ok);
+  }
+  {  // declaring 200 bytes where 8 follow
+    auto in = open(with_app13(200, record));
+    CHECK_FALSE(in.ok());
+    CHECK(contains(in.error(), "JPEG APP13 segment at byte 2: its IPTC block declares 200 bytes, more than the 8"));
+  }
+  {  // behind bytes libjpeg skips to find the marker (stray bytes, FF fill, a stuffed FF 00)
+    const std::string bad = with_app13(200, record);
+    auto in = open(bad.substr(0, 2) + std::string("junk\xFF\x00\xFF\xFF", 8) + bad.substr(2));
+    CHECK_FALSE(in.ok());
+    CHECK(contains(in.error(), "JPEG APP13 segment at byte 10: its IPTC block declares 200 bytes"));
+  }
+  {  // cut inside the header OpenImageIO reads
+    const std::string cut = jpeg.substr(0, 2) + std::string("\xFF\xED\x00\x10Photoshop 3.0\0", 18) + jpeg.substr(2);
+    auto in = open(cut);
+    CHECK_FALSE(in.ok());
+    CHECK(contains(in.error(), "holds 14 bytes, too few for the Photoshop IPTC header"));
+  }
+  {  // the same check in memory (the JPEG tile codec's payloads come from untrusted stores)
+    const std::string bad = with_app13(200, record);
+    auto mem = image_io::ImageReader::open_memory("jpg", reinterpret_cast<const std::uint8_t*>(bad.data()), bad.size());
+    CHECK_FALSE(mem.ok());
+    CHECK(contains(mem.error(), "its IPTC block declares 200 bytes"));
+  }
+  std::remove(good.c_str());
+}
+
 TEST_CASE("image module: read_chunked stops at the first chunk the reader reports damaged, or reads on") {
   // A truncated JPEG: libjpeg warns "Premature end of JPEG file" and fills the missing rows grey,
   // and OpenImageIO returns the read as done with a pending error (ok_with_error).

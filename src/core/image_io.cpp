@@ -185,6 +185,74 @@ std::string png_chunk_problem(std::uint64_t size, Read&& read) {
   return "";
 }
 
+// OpenImageIO 2.4's JPEG reader decodes an APP13 "Photoshop 3.0" segment's IPTC block with the
+// size the block declares, unchecked against the segment: a 1,213-byte JPEG declaring more made it
+// copy from past its buffer (heap-buffer-overflow in decode_iptc_iim under ASan; fuzz finding), and
+// an APP13 shorter than the header it reads is read past too. Finds the markers before the first
+// scan as libjpeg does (jdmarker.c next_marker: bytes up to a 0xFF are skipped, 0xFF fill bytes
+// too, FF 00 is not a marker; then for all but RSTn / TEM a big-endian length counting its own 2
+// bytes, ITU-T T.81 B.1.1.4) and refuses an APP13 that starts like "Photoshop 3.0\0" but does not
+// hold what OpenImageIO reads: the 14-byte name, "8BIM", resource 0x0404, 4 bytes it skips, a
+// 2-byte size (26 bytes), then `size` bytes. "" when fine, or when not a JPEG.
+template <class Read>
+std::string jpeg_segment_problem(std::uint64_t size, Read&& read) {
+  std::array<std::uint8_t, 4096> window{};
+  std::uint64_t window_at = 0, window_size = 0;
+  auto byte = [&](std::uint64_t at) -> int {  // -1 past the end
+    if (at < window_at || at >= window_at + window_size) {
+      window_at = at;
+      window_size = at < size ? read(at, window.data(), static_cast<std::size_t>(std::min<std::uint64_t>(window.size(), size - at))) : 0;
+      if (window_size == 0) return -1;
+    }
+    return window[static_cast<std::size_t>(at - window_at)];
+  };
+  if (byte(0) != 0xFF || byte(1) != 0xD8) return "";
+  static constexpr char kName[] = "Photoshop 3.0";  // and its NUL: 14 bytes
+  std::array<std::uint8_t, 26> h{};
+  for (std::uint64_t at = 2;;) {
+    int c = byte(at);
+    for (;;) {  // next_marker
+      while (c >= 0 && c != 0xFF) c = byte(++at);
+      while (c == 0xFF) c = byte(++at);
+      if (c != 0) break;
+      c = byte(++at);
+    }
+    if (c < 0) return "";
+    const std::uint64_t marker_at = at - 1;
+    ++at;  // past the marker byte
+    if (c == 0xD9 || c == 0xDA) return "";  // EOI, SOS: no more metadata segments
+    if (c == 0x01 || (c >= 0xD0 && c <= 0xD7)) continue;
+    const int hi = byte(at), lo = byte(at + 1);
+    if (hi < 0 || lo < 0) return "";
+    const std::uint32_t length = static_cast<std::uint32_t>(hi << 8 | lo);
+    if (c == 0xED) {  // APP13
+      const std::uint64_t data = std::min<std::uint64_t>(length < 2 ? 0 : length - 2, size - std::min(size, at + 2));
+      std::size_t n = 0;
+      for (; n < h.size() && n < data; ++n) h[n] = static_cast<std::uint8_t>(byte(at + 2 + n));
+      if (std::memcmp(h.data(), kName, std::min(n, sizeof kName)) == 0) {  // OpenImageIO's strcmp reads on while it matches
+        if (n < h.size())
+          return fmt::format("JPEG APP13 segment at byte {} holds {} bytes, too few for the Photoshop IPTC header "
+                             "(26 bytes; damaged or truncated)",
+                             marker_at, data);
+        const std::uint32_t iptc = std::uint32_t{h[24]} << 8 | h[25];
+        if (std::memcmp(h.data() + 14, "8BIM\x04\x04", 6) == 0 && iptc + 26 > data)
+          return fmt::format("JPEG APP13 segment at byte {}: its IPTC block declares {} bytes, more than the {} "
+                             "the segment holds after its header (damaged)",
+                             marker_at, iptc, data - 26);
+      }
+    }
+    at += length;
+  }
+}
+
+// What png_chunk_problem or jpeg_segment_problem find, by the bytes' signature.
+template <class Read>
+std::string header_problem(std::uint64_t size, Read&& read) {
+  std::string problem = png_chunk_problem(size, read);
+  if (problem.empty()) problem = jpeg_segment_problem(size, read);
+  return problem;
+}
+
 }  // namespace
 
 ImageReader ImageReader::open_file(const std::string& path, bool unassociated_alpha) {
@@ -199,7 +267,7 @@ ImageReader ImageReader::open_file(const std::string& path, bool unassociated_al
   std::ifstream f(path, std::ios::binary);
   std::error_code ec;
   const std::uint64_t size = fs::file_size(path, ec);
-  r.error_ = png_chunk_problem(ec ? 0 : size, [&](std::uint64_t at, std::uint8_t* out, std::size_t n) {
+  r.error_ = header_problem(ec ? 0 : size, [&](std::uint64_t at, std::uint8_t* out, std::size_t n) {
     f.seekg(static_cast<std::streamoff>(at));
     f.read(reinterpret_cast<char*>(out), static_cast<std::streamsize>(n));
     const auto got = f.gcount();
@@ -221,7 +289,7 @@ ImageReader ImageReader::open_file(const std::string& path, bool unassociated_al
 ImageReader ImageReader::open_memory(const char* ext, const std::uint8_t* bytes, std::size_t size) {
   ImageReader r;
   r.api_ = &api();
-  r.error_ = png_chunk_problem(size, [&](std::uint64_t at, std::uint8_t* out, std::size_t n) {
+  r.error_ = header_problem(size, [&](std::uint64_t at, std::uint8_t* out, std::size_t n) {
     n = static_cast<std::size_t>(std::min<std::uint64_t>(n, size - at));
     std::memcpy(out, bytes + at, n);
     return n;

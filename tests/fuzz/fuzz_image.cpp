@@ -1,8 +1,9 @@
 // Images (through the OpenImageIO module, core/image_io.h), as a heightfield (scene.file) and as
-// the layer of a store (`vtsim store build`): the input is written as a .tif, .png or .jpg when it
-// starts with that format's signature (tiled TIFFs size OpenImageIO's read buffers by the tile in
-// their header; PNG and JPEG headers claim a size before any data), else as a .pnm (PBM/PGM/PPM,
-// whose header alone sets size, channels and bit depth). When the first
+// the layer of a store (`vtsim store build`): the input is written as a .tif, .png, .jpg, .exr,
+// .jp2, .webp or .hdr when it starts with that format's signature (tiled TIFFs size OpenImageIO's
+// read buffers by the tile in their header; the others claim a size before any data; JPEG 2000 and
+// WebP readers decode the whole image), else as a .pnm (PBM/PGM/PPM, whose header alone sets size,
+// channels and bit depth). When the first
 // read accepts it, the store built from it must open and every tile (first 4,096) read back. The
 // decoders themselves are OpenImageIO's and libtiff's; this target checks what vtsim does with what
 // they return.
@@ -25,10 +26,14 @@ constexpr std::uint64_t kMemoryLimit = std::uint64_t{96} << 20;
 
 void image(const std::uint8_t* data, std::size_t size) {
   auto starts = [&](const char* magic, std::size_t n) { return size >= n && std::memcmp(data, magic, n) == 0; };
-  const char* ext = starts("II*\0", 4) || starts("MM\0*", 4) ? "tif"
-                    : starts("\x89PNG", 4)                    ? "png"
-                    : starts("\xFF\xD8\xFF", 3)              ? "jpg"
-                                                              : "pnm";
+  const char* ext = starts("II*\0", 4) || starts("MM\0*", 4)                ? "tif"
+                    : starts("\x89PNG", 4)                                   ? "png"
+                    : starts("\xFF\xD8\xFF", 3)                             ? "jpg"
+                    : starts("v/1\x01", 4)                                   ? "exr"
+                    : starts("\0\0\0\x0CjP  ", 8) || starts("\xFF\x4F\xFF\x51", 4) ? "jp2"
+                    : starts("RIFF", 4) && size >= 12 && std::memcmp(data + 8, "WEBP", 4) == 0 ? "webp"
+                    : starts("#?", 2)                                         ? "hdr"
+                                                                              : "pnm";
   const std::string path = input_file(data, size, ext);
   expect_accept_or_reject("image", [&] {
     (void)load_heightfield(path, 8.0, 1.0, 0.0, 0.0, 0.0, std::int64_t{1} << 20, kMemoryLimit);
