@@ -258,6 +258,34 @@ TEST_CASE("image module: a JPEG whose Photoshop IPTC block overruns its APP13 se
   std::remove(good.c_str());
 }
 
+TEST_CASE("image module: an OpenEXR header attribute declaring more bytes than the file holds is refused before OpenEXR allocates it") {
+  // OpenEXR 3.1 sizes a string attribute by its declared size before reading it: 1,466 bytes made
+  // it allocate 2.1 GB (tests/fuzz/corpus/image/oom_exr_string_attribute_2gb.exr). Every header
+  // of a multi-part file is walked: the last part's 'compression' attribute is made to lie.
+  const std::string two_part = slurp(std::string(VTSIM_TEST_DATA) + "/two_part_16x8.exr");
+  REQUIRE(two_part.size() > 100);
+  const std::string dir = std::filesystem::temp_directory_path().string();
+  const std::string path = dir + "/vtsim-exr-header.exr";
+  std::ofstream(path, std::ios::binary) << two_part;
+  {
+    auto in = image_io::ImageReader::open_file(path, true);
+    REQUIRE(in.ok());
+    CHECK(in.spec().format == "openexr");
+  }
+  const std::string attr = std::string("compression") + '\0' + "compression" + '\0';
+  const std::size_t second = two_part.rfind(attr);
+  REQUIRE(second != std::string::npos);
+  REQUIRE(second != two_part.find(attr));
+  std::string lying = two_part;
+  lying.replace(second + attr.size(), 4, std::string("\xFF\xFF\xFF\x7F", 4));
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << lying;
+  auto in = image_io::ImageReader::open_file(path, true);
+  CHECK_FALSE(in.ok());
+  CHECK(contains(in.error(), "OpenEXR header attribute 'compression' (compression) at byte " + std::to_string(second) +
+                                 " declares 2147483647 bytes, more than the"));
+  std::remove(path.c_str());
+}
+
 TEST_CASE("image module: read_chunked stops at the first chunk the reader reports damaged, or reads on") {
   // A truncated JPEG: libjpeg warns "Premature end of JPEG file" and fills the missing rows grey,
   // and OpenImageIO returns the read as done with a pending error (ok_with_error).
