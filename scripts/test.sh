@@ -27,7 +27,7 @@ for v in $variants; do
   echo "== $v: ctest at $(date -u +%T), ${SECONDS}s into the run, $(cpu)s CPU"
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
   export LSAN_OPTIONS=suppressions=$here/scripts/lsan.supp:print_suppressions=0
-  export TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1
+  export TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1:suppressions=$here/scripts/tsan.supp:print_suppressions=0
   if [ "$v" = tsan ]; then
     # TSan checks the threaded code: the doctest suite "threads" (IO and decode pools, threaded
     # executor, faults, real clock, store builder and generator) and the fuzz corpus of the
