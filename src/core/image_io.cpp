@@ -185,8 +185,8 @@ std::string png_chunk_problem(std::uint64_t size, Read&& read) {
   return "";
 }
 
-// Byte `at` of a `size`-byte image read through read(offset, out, n) -> bytes read, -1 past its
-// end; reads 4 KiB at a time, for the header walks below.
+// Byte `at` of a `size`-byte image, or -1 past its end (or where read gives nothing), read through
+// read(offset, out, n) -> bytes read, 4 KiB at a time; for the header walks below.
 template <class Read>
 class ByteWindow {
  public:
