@@ -6,12 +6,12 @@
 #include <cmath>
 
 #include "harness.h"
-#include "sim/camera.h"
-#include "sim/closed_form.h"
-#include "sim/replay.h"
-#include "sim/scene.h"
-#include "sim/trace_gen.h"
-#include "stream/i_system.h"
+#include "core/camera.h"
+#include "sim/run/closed_form.h"
+#include "sim/run/replay.h"
+#include "sim/view/scene.h"
+#include "sim/trace/trace_gen.h"
+#include "stream/system/i_system.h"
 
 using namespace vtsim;
 

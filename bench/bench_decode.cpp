@@ -1,4 +1,4 @@
-// The decode stage (src/stream/decode_pool.h) against calling the codec directly on the same tiles
+// The decode stage (src/stream/exec/decode_pool.h) against calling the codec directly on the same tiles
 // with the same number of threads, side by side in one run (issue 6: >= 0.9x per worker), for the
 // store's two codecs (zstd albedo, lz4 normals), and its scaling with workers. The pool's side
 // includes everything the stage does per tile (checksum, queue, wake-up, decoded-buffer hand-out,
@@ -15,9 +15,9 @@
 #include <thread>
 
 #include "harness.h"
-#include "stream/decode_pool.h"
-#include "stream/i_codec.h"
-#include "stream/store_generator.h"
+#include "stream/exec/decode_pool.h"
+#include "stream/store/i_codec.h"
+#include "stream/store/store_generator.h"
 
 namespace {
 

@@ -27,13 +27,13 @@
 #include <time.h>
 
 #include "core/tile_key.h"
-#include "sim/camera.h"
-#include "sim/feedback.h"
-#include "sim/popin.h"
-#include "sim/scene.h"
-#include "sim/scene_heightfield.h"
-#include "sim/scene_mesh.h"
-#include "sim/scene_town.h"
+#include "core/camera.h"
+#include "stream/system/feedback.h"
+#include "sim/run/popin.h"
+#include "sim/view/scene.h"
+#include "sim/view/scene_heightfield.h"
+#include "sim/view/scene_mesh.h"
+#include "sim/view/scene_town.h"
 #include "harness.h"
 
 using namespace vtsim;

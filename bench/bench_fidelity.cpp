@@ -29,9 +29,9 @@
 
 #include "core/error.h"
 #include "harness.h"
-#include "sim/replay.h"
-#include "sim/scene.h"
-#include "sim/trace_import.h"
+#include "sim/run/replay.h"
+#include "sim/view/scene.h"
+#include "sim/trace/trace_import.h"
 
 namespace {
 

@@ -17,7 +17,7 @@
 
 #include "core/image_io.h"
 #include "harness.h"
-#include "stream/store_builder.h"
+#include "stream/store/store_builder.h"
 
 using namespace vtsim;
 namespace fs = std::filesystem;

@@ -1,4 +1,4 @@
-// Tile reads through the IO pool (src/stream/io_pool.h) against fio on the same file, side by
+// Tile reads through the IO pool (src/stream/exec/io_pool.h) against fio on the same file, side by
 // side in one run (issue 6): fio's psync engine with O_DIRECT, random reads, the same block size
 // (every record of a raw RGB 128² store is 48 KiB, so fio's block-aligned offsets are exactly the
 // records), the same thread count, the same number of reads. Targets: bandwidth >= 0.9x fio's,
@@ -17,8 +17,8 @@
 #include <random>
 
 #include "harness.h"
-#include "stream/io_pool.h"
-#include "stream/store_builder.h"
+#include "stream/exec/io_pool.h"
+#include "stream/store/store_builder.h"
 
 namespace {
 

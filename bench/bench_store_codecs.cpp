@@ -13,8 +13,8 @@
 #include <vector>
 
 #include "harness.h"
-#include "stream/i_codec.h"
-#include "stream/store_generator.h"
+#include "stream/store/i_codec.h"
+#include "stream/store/store_generator.h"
 
 using namespace vtsim;
 using store::CodecId;

@@ -18,11 +18,11 @@
 
 #include "core/error.h"
 #include "harness.h"
-#include "sim/trace_gen.h"
-#include "sim/trace_import.h"
-#include "sim/trace_io.h"
-#include "sim/trace_resample.h"
-#include "sim/trace_stats.h"
+#include "sim/trace/trace_gen.h"
+#include "sim/trace/trace_import.h"
+#include "sim/trace/trace_io.h"
+#include "sim/trace/trace_resample.h"
+#include "sim/trace/trace_stats.h"
 
 namespace {
 

@@ -24,11 +24,11 @@
 #include <vector>
 
 #include "harness.h"
-#include "sim/camera.h"
-#include "sim/replay.h"
-#include "sim/scene.h"
-#include "sim/scene_mesh.h"
-#include "sim/trace_gen.h"
+#include "core/camera.h"
+#include "sim/run/replay.h"
+#include "sim/view/scene.h"
+#include "sim/view/scene_mesh.h"
+#include "sim/trace/trace_gen.h"
 
 using namespace vtsim;
 

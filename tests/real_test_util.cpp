@@ -1,7 +1,7 @@
 // The small store of the real-engine tests (real_test_util.h): generated once per build tree.
 #include "real_test_util.h"
 
-#include "stream/store_generator.h"
+#include "stream/store/store_generator.h"
 
 namespace vtsim::test {
 

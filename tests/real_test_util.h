@@ -14,8 +14,8 @@
 #include <thread>
 #include <vector>
 
-#include "stream/i_executor.h"
-#include "stream/tile_store.h"
+#include "stream/exec/i_executor.h"
+#include "stream/store/tile_store.h"
 #include "test_util.h"
 
 namespace vtsim::test {

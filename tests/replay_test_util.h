@@ -2,7 +2,7 @@
 // Comparing two replays' results in tests.
 #include <doctest/doctest.h>
 
-#include "sim/replay.h"
+#include "sim/run/replay.h"
 
 namespace vtsim::test {
 

@@ -11,7 +11,7 @@
 
 #include "core/error.h"
 #include "core/tile_key.h"
-#include "stream/store_builder.h"
+#include "stream/store/store_builder.h"
 
 namespace vtsim::test {
 
@@ -47,7 +47,7 @@ inline Image8 make_image(std::uint64_t w, std::uint64_t h, std::uint32_t c, std:
   img.width = w;
   img.height = h;
   img.channels = c;
-  img.texels.resize(static_cast<std::size_t>(w * h * c));
+  img.texels.assign(static_cast<std::size_t>(w * h * c), std::uint8_t{0});
   for (std::uint64_t y = 0; y < h; ++y)
     for (std::uint64_t x = 0; x < w; ++x)
       for (std::uint32_t ch = 0; ch < c; ++ch) {

@@ -11,7 +11,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "sim/compare.h"
+#include "sim/run/compare.h"
 #include "trace_test_util.h"
 
 using nlohmann::json;

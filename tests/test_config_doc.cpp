@@ -1,7 +1,7 @@
 // docs/config.md carries the table `vtsim config --markdown` prints: keep them in sync.
 #include <doctest/doctest.h>
 
-#include "sim/replay_config.h"
+#include "sim/run/replay_config.h"
 #include "test_util.h"
 
 TEST_CASE("docs/config.md lists every config key with its current default and why") {

@@ -7,9 +7,9 @@
 #include <filesystem>
 
 #include "real_test_util.h"
-#include "stream/sim_executor.h"
-#include "stream/threaded_executor.h"
-#include "stream/tile_data.h"
+#include "stream/exec/sim_executor.h"
+#include "stream/exec/threaded_executor.h"
+#include "core/tile_data.h"
 
 // Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
 TEST_SUITE_BEGIN("threads");

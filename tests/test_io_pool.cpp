@@ -1,4 +1,4 @@
-// The IO thread pool (src/stream/io_pool.h): O_DIRECT alignment and fallback, correct bytes,
+// The IO thread pool (src/stream/exec/io_pool.h): O_DIRECT alignment and fallback, correct bytes,
 // priority order, cancellation, the bound on reads in flight, stop with reads under way.
 #include <doctest/doctest.h>
 
@@ -7,8 +7,8 @@
 
 #include "core/error.h"
 #include "real_test_util.h"
-#include "stream/decode_pool.h"
-#include "stream/io_pool.h"
+#include "stream/exec/decode_pool.h"
+#include "stream/exec/io_pool.h"
 
 // Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
 TEST_SUITE_BEGIN("threads");

@@ -2,8 +2,8 @@
 
 #include <random>
 
-#include "stream/pipeline.h"
-#include "stream/sim_executor.h"
+#include "stream/exec/pipeline.h"
+#include "stream/exec/sim_executor.h"
 
 using namespace vtsim;
 

@@ -1,4 +1,4 @@
-// Real-clock replays (src/sim/real_replay.h): the store decides the texture, a short replay
+// Real-clock replays (src/sim/run/real_replay.h): the store decides the texture, a short replay
 // completes with every needed tile resident and byte-exact in the VRAM arena, the simulated clock
 // reads exactly the same tiles, faults are counted and never stall the frame loop, and the CLI
 // (`vtsim replay --clock real`, `vtsim calibrate`) works end to end.
@@ -8,12 +8,12 @@
 
 #include "real_test_util.h"
 #include "core/host_memory.h"
-#include "sim/real_replay.h"
-#include "sim/scene.h"
-#include "sim/trace_gen.h"
-#include "stream/calibrate.h"
-#include "stream/store_generator.h"
-#include "stream/threaded_executor.h"
+#include "sim/run/real_replay.h"
+#include "sim/view/scene.h"
+#include "sim/trace/trace_gen.h"
+#include "stream/exec/calibrate.h"
+#include "stream/store/store_generator.h"
+#include "stream/exec/threaded_executor.h"
 
 // Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
 TEST_SUITE_BEGIN("threads");

@@ -1,4 +1,4 @@
-// Render-ahead (src/sim/render_ahead.h): workers render the frames the loop will need; the buffers
+// Render-ahead (src/sim/run/render_ahead.h): workers render the frames the loop will need; the buffers
 // equal the loop's own renders exactly, in order, and the replay's metrics do not depend on the
 // thread count; errors reach the consumer at their frame; shutdown never hangs.
 #include <doctest/doctest.h>
@@ -7,11 +7,11 @@
 #include <cstring>
 #include <stdexcept>
 
-#include "sim/camera.h"
-#include "sim/render_ahead.h"
-#include "sim/replay.h"
-#include "sim/scene.h"
-#include "sim/trace_gen.h"
+#include "core/camera.h"
+#include "sim/run/render_ahead.h"
+#include "sim/run/replay.h"
+#include "sim/view/scene.h"
+#include "sim/trace/trace_gen.h"
 #include "trace_test_util.h"
 
 // Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).

@@ -7,11 +7,11 @@
 #include <fstream>
 
 #include "core/error.h"
-#include "sim/camera.h"
-#include "sim/replay.h"
-#include "sim/scene.h"
-#include "sim/trace_gen.h"
-#include "stream/i_system.h"
+#include "core/camera.h"
+#include "sim/run/replay.h"
+#include "sim/view/scene.h"
+#include "sim/trace/trace_gen.h"
+#include "stream/system/i_system.h"
 #include "replay_test_util.h"
 #include "trace_test_util.h"
 

@@ -1,6 +1,6 @@
 #include <doctest/doctest.h>
 
-#include "stream/sim_executor.h"
+#include "stream/exec/sim_executor.h"
 
 using namespace vtsim;
 

@@ -11,8 +11,8 @@
 #include "core/image_io.h"
 #include "store_test_util.h"
 #include "test_util.h"
-#include "stream/store_builder.h"
-#include "stream/tile_store.h"
+#include "stream/store/store_builder.h"
+#include "stream/store/tile_store.h"
 
 // Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
 TEST_SUITE_BEGIN("threads");

@@ -4,7 +4,7 @@
 
 #include "core/error.h"
 #include "store_test_util.h"
-#include "stream/i_codec.h"
+#include "stream/store/i_codec.h"
 
 using namespace vtsim;
 using store::CodecId;

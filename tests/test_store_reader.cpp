@@ -12,8 +12,8 @@
 #include "store_test_util.h"
 #include "test_util.h"
 #include "trace_test_util.h"
-#include "stream/store_builder.h"
-#include "stream/tile_store.h"
+#include "stream/store/store_builder.h"
+#include "stream/store/tile_store.h"
 
 using namespace vtsim;
 using namespace vtsim::store;

@@ -1,4 +1,4 @@
-// The threaded executor (src/stream/threaded_executor.h) honours IExecutor's contract like the
+// The threaded executor (src/stream/exec/threaded_executor.h) honours IExecutor's contract like the
 // simulated one: one result per job unless cancel() returned true, completion order, collect()
 // never returns the future and never blocks; decoded tiles equal the store's; cancellation in
 // every state; shutdown with work in flight.
@@ -13,8 +13,8 @@
 #include <set>
 
 #include "real_test_util.h"
-#include "stream/threaded_executor.h"
-#include "stream/tile_data.h"
+#include "stream/exec/threaded_executor.h"
+#include "core/tile_data.h"
 
 // Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
 TEST_SUITE_BEGIN("threads");

@@ -5,8 +5,8 @@
 #include <numbers>
 #include <string>
 
-#include "sim/trace_import.h"
-#include "sim/trace_io.h"
+#include "sim/trace/trace_import.h"
+#include "sim/trace/trace_io.h"
 #include "trace_test_util.h"
 
 using namespace vtsim;
@@ -17,21 +17,13 @@ using vtsim::test::write_file;
 
 namespace {
 
+using vtsim::test::check_vec;
 using vtsim::test::kData;
 const std::string kTumFr1 = kData + "/tum_fr1_xyz_excerpt.txt";
 const std::string kTumFr2 = kData + "/tum_fr2_desk_excerpt.txt";
 const std::string kEuroc = kData + "/euroc_V1_02_excerpt.csv";
 const std::string kKitti = kData + "/kitti_synthetic_poses.txt";
 const std::string kKittiTimes = kData + "/kitti_synthetic_times.txt";
-
-void check_vec(const glm::dvec3& a, const glm::dvec3& b, double tol) {
-  CAPTURE(a.x);
-  CAPTURE(a.y);
-  CAPTURE(a.z);
-  CHECK(std::abs(a.x - b.x) <= tol);
-  CHECK(std::abs(a.y - b.y) <= tol);
-  CHECK(std::abs(a.z - b.z) <= tol);
-}
 
 using vtsim::test::kForward;
 using vtsim::test::kLeft;

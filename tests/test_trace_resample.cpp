@@ -4,8 +4,8 @@
 #include <cmath>
 #include <numbers>
 
-#include "sim/trace_resample.h"
-#include "sim/trace_stats.h"
+#include "sim/trace/trace_resample.h"
+#include "sim/trace/trace_stats.h"
 #include "trace_test_util.h"
 
 using namespace vtsim;

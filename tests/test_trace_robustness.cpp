@@ -9,9 +9,9 @@
 #include <sstream>
 #include <string>
 
-#include "sim/trace_gen.h"
-#include "sim/trace_import.h"
-#include "sim/trace_io.h"
+#include "sim/trace/trace_gen.h"
+#include "sim/trace/trace_import.h"
+#include "sim/trace/trace_io.h"
 #include "trace_test_util.h"
 
 using namespace vtsim;

@@ -7,8 +7,8 @@
 #include <nlohmann/json.hpp>
 #include <numbers>
 
-#include "sim/trace_import.h"
-#include "sim/trace_stats.h"
+#include "sim/trace/trace_import.h"
+#include "sim/trace/trace_stats.h"
 #include "trace_test_util.h"
 
 using namespace vtsim;

@@ -5,7 +5,7 @@
 #include <limits>
 #include <numbers>
 
-#include "sim/trace_transform.h"
+#include "sim/trace/trace_transform.h"
 #include "trace_test_util.h"
 
 using namespace vtsim;
@@ -27,14 +27,7 @@ Trace one_pose(const glm::dvec3& p, const glm::dquat& q = glm::dquat(1, 0, 0, 0)
   return t;
 }
 
-void check_vec(const glm::dvec3& a, const glm::dvec3& b, double tol = 1e-15) {
-  CAPTURE(a.x);
-  CAPTURE(a.y);
-  CAPTURE(a.z);
-  CHECK(std::abs(a.x - b.x) <= tol);
-  CHECK(std::abs(a.y - b.y) <= tol);
-  CHECK(std::abs(a.z - b.z) <= tol);
-}
+using vtsim::test::check_vec;
 
 // Where the FLU axes of the transformed pose point, for a source pose with identity orientation.
 struct Frame {

@@ -7,9 +7,9 @@
 #include <new>
 #include <string>
 
-#include "sim/feedback.h"
-#include "sim/popin.h"
-#include "sim/scene.h"
+#include "stream/system/feedback.h"
+#include "sim/run/popin.h"
+#include "sim/view/scene.h"
 
 namespace {
 std::atomic<long> g_allocations{0};

@@ -3,7 +3,7 @@
 #include <cmath>
 
 #include "core/error.h"
-#include "sim/camera.h"
+#include "core/camera.h"
 
 using namespace vtsim;
 

@@ -4,9 +4,9 @@
 #include <map>
 #include <stdexcept>
 
-#include "sim/feedback.h"
-#include "sim/popin.h"
-#include "sim/scene.h"
+#include "stream/system/feedback.h"
+#include "sim/run/popin.h"
+#include "sim/view/scene.h"
 
 using namespace vtsim;
 

@@ -10,9 +10,9 @@
 
 #include "core/error.h"
 #include "core/image_io.h"
-#include "sim/scene.h"
-#include "sim/scene_heightfield.h"
-#include "sim/scene_plane.h"
+#include "sim/view/scene.h"
+#include "sim/view/scene_heightfield.h"
+#include "sim/view/scene_plane.h"
 #include "test_util.h"
 #include "view_test_util.h"
 

@@ -3,8 +3,8 @@
 #include <cmath>
 #include <limits>
 
-#include "sim/lod.h"
-#include "sim/view.h"
+#include "sim/view/lod.h"
+#include "core/view.h"
 
 using namespace vtsim;
 

@@ -5,9 +5,9 @@
 #include <string>
 
 #include "core/error.h"
-#include "sim/mesh.h"
-#include "sim/scene.h"
-#include "sim/scene_mesh.h"
+#include "sim/view/mesh.h"
+#include "sim/view/scene.h"
+#include "sim/view/scene_mesh.h"
 #include "view_test_util.h"
 
 using namespace vtsim;

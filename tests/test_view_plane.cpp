@@ -4,8 +4,8 @@
 #include <vector>
 
 #include "core/error.h"
-#include "sim/scene.h"
-#include "sim/scene_plane.h"
+#include "sim/view/scene.h"
+#include "sim/view/scene_plane.h"
 #include "view_test_util.h"
 
 using namespace vtsim;

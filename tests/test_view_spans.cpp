@@ -8,9 +8,9 @@
 #include <stdexcept>
 
 #include "cache/clipmap.h"
-#include "sim/feedback.h"
-#include "sim/popin.h"
-#include "sim/scene.h"
+#include "stream/system/feedback.h"
+#include "sim/run/popin.h"
+#include "sim/view/scene.h"
 #include "view_test_util.h"
 
 using namespace vtsim;

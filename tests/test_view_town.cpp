@@ -8,9 +8,9 @@
 #include <glm/geometric.hpp>
 
 #include "core/error.h"
-#include "sim/scene.h"
-#include "sim/scene_mesh.h"
-#include "sim/scene_town.h"
+#include "sim/view/scene.h"
+#include "sim/view/scene_mesh.h"
+#include "sim/view/scene_town.h"
 
 using namespace vtsim;
 

@@ -8,11 +8,11 @@
 #include <string>
 
 #include "core/error.h"
-#include "sim/camera.h"
-#include "sim/replay.h"
-#include "sim/scene.h"
-#include "sim/trace_gen.h"
-#include "stream/i_throttle.h"
+#include "core/camera.h"
+#include "sim/run/replay.h"
+#include "sim/view/scene.h"
+#include "sim/trace/trace_gen.h"
+#include "stream/throttle/i_throttle.h"
 #include "replay_test_util.h"
 #include "test_util.h"
 #include "view_test_util.h"

@@ -6,8 +6,8 @@
 #include <algorithm>
 #include <set>
 
-#include "sim/view_spans.h"
-#include "stream/vt_system.h"
+#include "core/view_spans.h"
+#include "stream/system/vt_system.h"
 
 using namespace vtsim;
 

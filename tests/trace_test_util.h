@@ -4,6 +4,7 @@
 #include <stdlib.h>
 
 #include <bit>
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -11,7 +12,7 @@
 #include <string>
 
 #include "core/error.h"
-#include "sim/trace.h"
+#include "core/trace.h"
 #include "test_util.h"
 
 namespace vtsim::test {
@@ -74,6 +75,16 @@ inline bool same_bits(double a, double b) {
 }
 
 // Rotates v by the unit quaternion q.
+// Componentwise |a - b| <= tol, with a's components in the failure message.
+inline void check_vec(const glm::dvec3& a, const glm::dvec3& b, double tol = 1e-15) {
+  CAPTURE(a.x);
+  CAPTURE(a.y);
+  CAPTURE(a.z);
+  CHECK(std::abs(a.x - b.x) <= tol);
+  CHECK(std::abs(a.y - b.y) <= tol);
+  CHECK(std::abs(a.z - b.z) <= tol);
+}
+
 inline glm::dvec3 rotate(const glm::dquat& q, const glm::dvec3& v) { return q * v; }
 
 // Appends `frames` poses equal to the last one at 60 Hz: the camera stops.

@@ -8,8 +8,8 @@
 #include <vector>
 #include <unistd.h>
 
-#include "sim/view.h"
-#include "sim/view_spans.h"
+#include "core/view.h"
+#include "core/view_spans.h"
 
 namespace vtsim::test {
 

@@ -33,10 +33,10 @@
 #include <cstdint>
 #include <vector>
 
+#include "cache/i_residency.h"
+#include "cache/need.h"
 #include "core/tile_key.h"
-#include "sim/residency.h"
-#include "sim/view.h"
-#include "stream/pipeline.h"
+#include "core/view.h"
 
 namespace vtsim {
 

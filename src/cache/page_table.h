@@ -30,7 +30,7 @@
 
 #include "cache/page_map.h"
 #include "core/tile_key.h"
-#include "sim/view.h"
+#include "core/view.h"
 
 namespace vtsim {
 

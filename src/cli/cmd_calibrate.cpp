@@ -10,8 +10,8 @@
 
 #include "cli/commands.h"
 #include "core/error.h"
-#include "stream/calibrate.h"
-#include "stream/tile_store.h"
+#include "stream/exec/calibrate.h"
+#include "stream/store/tile_store.h"
 
 namespace vtsim::cli {
 

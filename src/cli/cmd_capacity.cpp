@@ -13,7 +13,7 @@
 #include "cli/commands.h"
 #include "cli/format.h"
 #include "core/error.h"
-#include "sim/replay_config.h"
+#include "sim/run/replay_config.h"
 
 namespace vtsim::cli {
 

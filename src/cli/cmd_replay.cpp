@@ -9,13 +9,13 @@
 
 #include "cli/commands.h"
 #include "core/error.h"
-#include "sim/real_replay.h"
-#include "sim/replay.h"
-#include "sim/report_html.h"
-#include "sim/scene.h"
-#include "sim/scene_town.h"
-#include "sim/trace_import.h"
-#include "stream/tile_store.h"
+#include "sim/run/real_replay.h"
+#include "sim/run/replay.h"
+#include "sim/run/report_html.h"
+#include "sim/view/scene.h"
+#include "sim/view/scene_town.h"
+#include "sim/trace/trace_import.h"
+#include "stream/store/tile_store.h"
 
 namespace vtsim::cli {
 

@@ -12,9 +12,9 @@
 #include "cli/commands.h"
 #include "cli/format.h"
 #include "core/error.h"
-#include "stream/store_builder.h"
-#include "stream/store_generator.h"
-#include "stream/tile_store.h"
+#include "stream/store/store_builder.h"
+#include "stream/store/store_generator.h"
+#include "stream/store/tile_store.h"
 
 namespace vtsim::cli {
 namespace {

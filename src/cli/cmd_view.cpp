@@ -9,12 +9,12 @@
 
 #include "cli/commands.h"
 #include "core/error.h"
-#include "sim/camera.h"
-#include "sim/feedback.h"
-#include "sim/scene.h"
-#include "sim/scene_heightfield.h"
-#include "sim/trace_import.h"
-#include "sim/view_image.h"
+#include "core/camera.h"
+#include "stream/system/feedback.h"
+#include "sim/view/scene.h"
+#include "sim/view/scene_heightfield.h"
+#include "sim/trace/trace_import.h"
+#include "sim/view/view_image.h"
 
 namespace vtsim::cli {
 

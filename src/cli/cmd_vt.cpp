@@ -9,9 +9,9 @@
 
 #include "cli/commands.h"
 #include "core/error.h"
-#include "sim/replay.h"
-#include "sim/scene.h"
-#include "sim/trace_import.h"
+#include "sim/run/replay.h"
+#include "sim/view/scene.h"
+#include "sim/trace/trace_import.h"
 
 namespace vtsim::cli {
 

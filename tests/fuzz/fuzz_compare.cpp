@@ -3,7 +3,7 @@
 #include <string>
 
 #include "fuzz_targets.h"
-#include "sim/compare.h"
+#include "sim/run/compare.h"
 
 namespace vtsim::fuzz {
 

@@ -7,10 +7,10 @@
 #include <vector>
 
 #include "fuzz_targets.h"
-#include "sim/replay.h"
-#include "sim/replay_config.h"
-#include "sim/scene.h"
-#include "sim/trace_transform.h"
+#include "sim/run/replay.h"
+#include "sim/run/replay_config.h"
+#include "sim/view/scene.h"
+#include "sim/trace/trace_transform.h"
 
 namespace vtsim::fuzz {
 

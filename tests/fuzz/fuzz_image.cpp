@@ -14,10 +14,10 @@
 
 #include "core/image_io.h"
 #include "fuzz_targets.h"
-#include "sim/scene_heightfield.h"
-#include "stream/aligned_io.h"
-#include "stream/store_builder.h"
-#include "stream/tile_store.h"
+#include "sim/view/scene_heightfield.h"
+#include "stream/store/aligned_io.h"
+#include "stream/store/store_builder.h"
+#include "stream/store/tile_store.h"
 
 namespace vtsim::fuzz {
 

@@ -13,11 +13,11 @@
 #include <string>
 
 #include "fuzz_targets.h"
-#include "sim/camera.h"
-#include "sim/mesh.h"
-#include "sim/scene_mesh.h"
-#include "sim/trace_transform.h"
-#include "sim/view_spans.h"
+#include "core/camera.h"
+#include "sim/view/mesh.h"
+#include "sim/view/scene_mesh.h"
+#include "sim/trace/trace_transform.h"
+#include "core/view_spans.h"
 #include "view_test_util.h"
 
 namespace vtsim::fuzz {

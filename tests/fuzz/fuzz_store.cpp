@@ -5,8 +5,8 @@
 #include <vector>
 
 #include "fuzz_targets.h"
-#include "stream/aligned_io.h"
-#include "stream/tile_store.h"
+#include "stream/store/aligned_io.h"
+#include "stream/store/tile_store.h"
 
 namespace vtsim::fuzz {
 

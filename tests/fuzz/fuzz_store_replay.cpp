@@ -10,11 +10,11 @@
 
 #include "core/error.h"
 #include "fuzz_targets.h"
-#include "sim/real_replay.h"
-#include "sim/replay_config.h"
-#include "sim/scene.h"
-#include "sim/trace_transform.h"
-#include "stream/tile_store.h"
+#include "sim/run/real_replay.h"
+#include "sim/run/replay_config.h"
+#include "sim/view/scene.h"
+#include "sim/trace/trace_transform.h"
+#include "stream/store/tile_store.h"
 
 namespace vtsim::fuzz {
 

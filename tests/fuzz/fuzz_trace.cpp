@@ -10,11 +10,11 @@
 #include <string>
 
 #include "fuzz_targets.h"
-#include "sim/trace_import.h"
-#include "sim/trace_io.h"
-#include "sim/trace_resample.h"
-#include "sim/trace_stats.h"
-#include "sim/trace_transform.h"
+#include "sim/trace/trace_import.h"
+#include "sim/trace/trace_io.h"
+#include "sim/trace/trace_resample.h"
+#include "sim/trace/trace_stats.h"
+#include "sim/trace/trace_transform.h"
 
 namespace vtsim::fuzz {
 

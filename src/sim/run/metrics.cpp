@@ -1,0 +1,209 @@
+#include "sim/run/metrics.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <stdexcept>
+
+#include "core/error.h"
+
+namespace vtsim {
+
+Percentiles percentiles(std::vector<double> v) {
+  Percentiles p;
+  p.count = v.size();
+  if (v.empty()) return p;
+  std::sort(v.begin(), v.end());
+  // Nearest rank: the smallest value with at least q of the data at or below it.
+  auto rank = [&](double q) {
+    const auto k = static_cast<std::size_t>(std::ceil(q * static_cast<double>(v.size())));
+    return v[std::min(v.size() - 1, k == 0 ? 0 : k - 1)];
+  };
+  p.p50 = rank(0.50);
+  p.p95 = rank(0.95);
+  p.p99 = rank(0.99);
+  p.max = v.back();
+  double s = 0;
+  for (double x : v) s += x;
+  p.mean = s / static_cast<double>(v.size());
+  return p;
+}
+
+nlohmann::json to_json(const Percentiles& p) {
+  return {{"p50", p.p50}, {"p95", p.p95}, {"p99", p.p99}, {"max", p.max}, {"mean", p.mean}, {"count", p.count}};
+}
+
+void MetricsCollector::add_level_bytes(int level, std::uint64_t disk, std::uint64_t upload) {
+  const auto l = static_cast<std::size_t>(level);
+  if (level_disk_.size() <= l) {
+    level_disk_.resize(l + 1, 0);
+    level_upload_.resize(l + 1, 0);
+  }
+  level_disk_[l] += disk;
+  level_upload_[l] += upload;
+}
+
+nlohmann::json MetricsCollector::latency_json() const {
+  std::vector<double> total, frames, queue, io, dwait, dec, uwait, up;
+  std::size_t ram_hits = 0;
+  for (const auto& l : latencies_) {
+    total.push_back(ticks_to_ms(l.total));
+    frames.push_back(l.frames);
+    queue.push_back(ticks_to_ms(l.queue));
+    io.push_back(ticks_to_ms(l.io));
+    dwait.push_back(ticks_to_ms(l.decode_wait));
+    dec.push_back(ticks_to_ms(l.decode));
+    uwait.push_back(ticks_to_ms(l.upload_wait));
+    up.push_back(ticks_to_ms(l.upload));
+    ram_hits += l.ram_hit;
+  }
+  nlohmann::json j = to_json(percentiles(total));
+  j["frames"] = to_json(percentiles(frames));
+  j["stages_ms"] = {{"queue", to_json(percentiles(queue))},        {"io", to_json(percentiles(io))},
+                    {"decode_wait", to_json(percentiles(dwait))}, {"decode", to_json(percentiles(dec))},
+                    {"upload_wait", to_json(percentiles(uwait))}, {"upload", to_json(percentiles(up))}};
+  j["tiles"] = latencies_.size();
+  j["from_ram_cache"] = ram_hits;
+  return j;
+}
+
+nlohmann::json MetricsCollector::popin_json(double sharp_margin) const {
+  std::vector<double> blurry;
+  double deficit = 0.0, samples = 0.0;
+  std::uint64_t pops = 0;
+  for (const auto& r : frames_) {
+    if (!r.measured) continue;
+    blurry.push_back(r.samples ? static_cast<double>(r.blurry) / r.samples : 0.0);
+    deficit += r.deficit_sum;
+    samples += r.samples;
+    pops += r.pops;
+  }
+  const Percentiles bp = percentiles(blurry);
+  // Time to sharp after each cut or fast turn: from the event frame to the first measured frame,
+  // at or after the blurriest frame of the kPeakHorizon_s following the event, whose blurry
+  // fraction is back within `sharp_margin` of the second before the event. Searching from the
+  // peak matters for turns: the view is still sharp when the turn starts and blurs as it sweeps
+  // over pages that are not resident (seed 001 §4), so the first frame alone would read "0 s".
+  constexpr double kPeakHorizon_s = 3.0;  // a blur starting later is not this event's
+  const auto bf_of = [](const FrameRow& r) { return r.samples ? static_cast<double>(r.blurry) / r.samples : 0.0; };
+  std::vector<double> tts;
+  std::size_t unresolved = 0;
+  for (std::size_t e = 0; e < frames_.size(); ++e) {
+    if (!frames_[e].event) continue;
+    const double te = frames_[e].t_s;
+    double base = 0.0;
+    int nb = 0;
+    for (std::size_t k = e; k-- > 0 && frames_[k].t_s >= te - 1.0;) {
+      if (frames_[k].event) break;
+      if (!frames_[k].measured || frames_[k].samples == 0) continue;
+      base += bf_of(frames_[k]);
+      ++nb;
+    }
+    base = nb ? base / nb : 0.0;
+    std::size_t end = e + 1;  // the event's window: up to the next event
+    while (end < frames_.size() && !frames_[end].event) ++end;
+    std::size_t peak = e;
+    double peak_bf = -1.0;
+    for (std::size_t f = e; f < end && frames_[f].t_s <= te + kPeakHorizon_s; ++f)
+      if (frames_[f].measured && bf_of(frames_[f]) > peak_bf) peak_bf = bf_of(frames_[f]), peak = f;
+    bool found = false;
+    for (std::size_t f = peak; f < end; ++f) {
+      const auto& r = frames_[f];
+      if (!r.measured) continue;
+      if (bf_of(r) <= base + sharp_margin) {
+        tts.push_back(r.t_s - te);
+        found = true;
+        break;
+      }
+    }
+    if (!found) ++unresolved;
+  }
+  const Percentiles tp = percentiles(tts);
+  return {{"blurry_fraction_mean", bp.mean},
+          {"blurry_fraction_p99", bp.p99},
+          {"blurry_fraction_max", bp.max},
+          {"mean_deficit", samples > 0 ? deficit / samples : 0.0},
+          {"visible_pops", pops},
+          {"measured_frames", bp.count},
+          {"time_to_sharp_s", {{"events", tts.size() + unresolved},
+                               {"mean", tp.mean},
+                               {"max", tp.max},
+                               {"never_sharp", unresolved}}}};
+}
+
+nlohmann::json MetricsCollector::upload_per_frame_json() const {
+  std::vector<double> b, t;
+  for (const auto& r : frames_) {
+    b.push_back(static_cast<double>(r.upload_bytes));
+    t.push_back(r.uploads);
+  }
+  const Percentiles pb = percentiles(b), pt = percentiles(t);
+  return {{"bytes", {{"p50", pb.p50}, {"p99", pb.p99}, {"max", pb.max}, {"mean", pb.mean}}},
+          {"tiles", {{"p50", pt.p50}, {"p99", pt.p99}, {"max", pt.max}, {"mean", pt.mean}}}};
+}
+
+nlohmann::json MetricsCollector::per_level_json(double duration_s) const {
+  nlohmann::json a = nlohmann::json::array();
+  for (std::size_t l = 0; l < level_disk_.size(); ++l) {
+    if (!level_disk_[l] && !level_upload_[l]) continue;
+    a.push_back({{"level", l},
+                 {"disk_read_bytes", level_disk_[l]},
+                 {"upload_bytes", level_upload_[l]},
+                 {"disk_read_MBps", duration_s > 0 ? static_cast<double>(level_disk_[l]) / duration_s / 1e6 : 0.0},
+                 {"upload_MBps", duration_s > 0 ? static_cast<double>(level_upload_[l]) / duration_s / 1e6 : 0.0}});
+  }
+  return a;
+}
+
+nlohmann::json MetricsCollector::throttle_json(std::size_t max_changes) const {
+  std::size_t throttled = 0, needs_throttled = 0;
+  int max_clamp = 0;
+  for (const auto& r : frames_) {
+    throttled += r.clamp > r.finest_needed;
+    needs_throttled += r.throttled_needs;
+    max_clamp = std::max(max_clamp, r.clamp);
+  }
+  nlohmann::json changes = nlohmann::json::array();
+  for (std::size_t i = 0; i < throttle_.size() && i < max_changes; ++i) {
+    const auto& c = throttle_[i];
+    changes.push_back({{"frame", c.frame}, {"t_s", c.t_s}, {"from", c.from}, {"to", c.to}, {"bias", c.bias}, {"reason", c.reason}});
+  }
+  return {{"frames_throttled", throttled},
+          {"requests_throttled", needs_throttled},
+          {"max_clamp", max_clamp},
+          {"changes", throttle_.size()},
+          {"lod_timeline", changes},
+          {"lod_timeline_truncated", throttle_.size() > max_changes}};
+}
+
+void MetricsCollector::set_system_columns(std::vector<std::string> names) {
+  if (names.size() > kSystemCounters) throw std::invalid_argument("MetricsCollector: too many system columns");
+  system_columns_ = std::move(names);
+}
+
+void MetricsCollector::write_frames_csv(const std::string& path) const {
+  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "wb"), &std::fclose);
+  if (!f) throw InputError(path, "cannot open for writing");
+  std::string header = "frame,t_s,clamp,bias,measured,samples,blurry_fraction,mean_deficit,pops,finest_needed,event,"
+                       "disk_bytes,decoded_bytes,upload_bytes,uploads,needs,live_requests,ram_bytes,throttled_needs";
+  for (const auto& c : system_columns_) header += "," + c;
+  header += "\n";
+  std::fputs(header.c_str(), f.get());
+  for (const auto& r : frames_) {
+    const double bf = r.samples ? static_cast<double>(r.blurry) / r.samples : 0.0;
+    const double md = r.samples ? r.deficit_sum / r.samples : 0.0;
+    std::string line = fmt::format("{},{:.6f},{},{},{},{},{:.6f},{:.6f},{},{},{},{},{},{},{},{},{},{},{}", r.frame,
+                                   r.t_s, r.clamp, r.bias, r.measured ? 1 : 0, r.samples, bf, md, r.pops,
+                                   r.finest_needed, r.event ? 1 : 0, r.disk_bytes, r.decoded_bytes, r.upload_bytes,
+                                   r.uploads, r.needs, r.live_requests, r.ram_bytes, r.throttled_needs);
+    for (std::size_t i = 0; i < system_columns_.size(); ++i) line += fmt::format(",{}", r.system[i]);
+    line += "\n";
+    std::fputs(line.c_str(), f.get());
+  }
+  if (std::fflush(f.get()) != 0) throw InputError(path, "write failed");
+}
+
+}  // namespace vtsim

@@ -1,0 +1,252 @@
+#include "sim/run/real_replay.h"
+
+#include <fmt/format.h>
+
+#include <time.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+#include "cache/page_table.h"
+#include "core/error.h"
+#include "core/host_memory.h"
+#include "sim/view/scene.h"
+#include "sim/trace/trace_io.h"
+#include "stream/exec/threaded_executor.h"
+#include "stream/system/vt_system.h"
+
+namespace vtsim {
+
+namespace {
+
+const char* format_for_channels(std::uint32_t channels) {
+  switch (channels) {
+    case 1: return "r8";
+    case 2: return "rg8";
+    case 3: return "rgb8";
+    default: return "rgba8";
+  }
+}
+
+double thread_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+}
+
+}  // namespace
+
+std::vector<std::string> bind_store_texture(ReplayConfig& cfg, const TileStore& store) {
+  const ReplayConfig def;
+  const store::Geometry& g = store.geometry();
+  const std::string& path = store.path();
+  auto bind = [&](const char* key, auto& value, auto def_value, auto store_value) {
+    using T = std::decay_t<decltype(value)>;
+    if (value != def_value && value != static_cast<T>(store_value))
+      throw InputError("config", fmt::format("field '{}': {} disagrees with the store {} ({}); leave it unset to take the "
+                                             "store's",
+                                             key, value, path, store_value));
+    value = static_cast<T>(store_value);
+  };
+  bind("texture.width", cfg.width, def.width, g.width);
+  bind("texture.height", cfg.height, def.height, g.height);
+  bind("texture.tile_size", cfg.tile_size, def.tile_size, g.tile);
+  bind("texture.border", cfg.border, def.border, g.border);
+
+  std::string layers;
+  const auto totals = store.totals();
+  for (std::uint32_t i = 0; i < store.layer_count(); ++i) {
+    const double ratio = totals[i].stored_bytes ? static_cast<double>(totals[i].decoded_bytes) / static_cast<double>(totals[i].stored_bytes) : 1.0;
+    layers += fmt::format("{}{}:{}:{:.4g}", i ? "," : "", store.layer(i).name, format_for_channels(store.layer(i).channels),
+                          std::clamp(ratio, 1.0, 1000.0));
+  }
+  if (cfg.layers != def.layers) {
+    const auto want = parse_layers(cfg.layers), have = parse_layers(layers);
+    bool same = want.size() == have.size();
+    for (std::size_t i = 0; same && i < want.size(); ++i) same = want[i].name == have[i].name && want[i].format == have[i].format;
+    if (!same)
+      throw InputError("config", "field 'texture.layers': '" + cfg.layers + "' disagrees with the store " + path + " ('" +
+                                     layers + "'); leave it unset to take the store's");
+  }
+  cfg.layers = layers;
+  validate(cfg);
+  // The clipmap samples every level down to 1×1; a virtual texture's levels go down to one page.
+  const bool vt = cfg.system == "vt";
+  const std::uint32_t need = vt ? static_cast<std::uint32_t>(VtGeometry({cfg.width, cfg.height}, cfg.tile_size, cfg.border).levels())
+                                : store::full_level_count(g.width, g.height);
+  if (g.levels < need || (!vt && g.levels != need))
+    throw InputError(path + ": header field 'level_count'",
+                     fmt::format("{} levels; {} ({}): generate the store without --levels", g.levels,
+                                 vt ? "a virtual texture needs every level down to a single page"
+                                    : "a clipmap samples every level down to 1×1",
+                                 need));
+  return {fmt::format("texture from the store {}: {}×{} texels, tile {}, border {}, {} levels, layers {}", path, g.width,
+                      g.height, g.tile, g.border, g.levels, layers)};
+}
+
+TileSizer store_sizer(const TileStore& store) {
+  return [&store](TileKey k) -> TileSizes {
+    if (!store.contains(k)) return {};
+    const TileLocation loc = store.locate(k);
+    return {loc.read_bytes, loc.decoded_bytes};
+  };
+}
+
+void apply_speed(ReplayConfig& cfg, Trace& trace, double speed) {
+  if (!(speed > 0.0 && speed <= 1000.0)) throw InputError("--speed", fmt::format("{} is outside (0, 1000]", speed));
+  if (speed == 1.0) return;
+  if (cfg.fps * speed > 10000.0)  // the resampler's limit (trace_resample.cpp)
+    throw InputError("--speed", fmt::format("{} times run.fps {} is above 10000 frames/s", speed, cfg.fps));
+  for (const Pose& p : trace.poses)
+    if (std::abs(p.t_s / speed) > kMaxAbsTime_s)
+      throw InputError("--speed", fmt::format("{} stretches the trace's time {} s beyond +-{:g} s", speed, p.t_s, kMaxAbsTime_s));
+  for (Pose& p : trace.poses) p.t_s /= speed;
+  cfg.fps *= speed;
+}
+
+RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const TileStore& store,
+                        const RealClockOptions& options) {
+  // Start-up, until frame 0: buffers reserved, workers warmed, the arena allocated, the first view
+  // rendered (docs/real-engine.md §2, §7a).
+  const auto setup_start = std::chrono::steady_clock::now();
+  double startup_s = 0;
+  ThreadedExecutorConfig xc;
+  xc.io_threads = cfg.io_threads;
+  xc.decode_workers = cfg.decode_workers;
+  xc.capacity = static_cast<std::size_t>(cfg.max_in_flight);
+  xc.direct = cfg.io_direct;
+  xc.faults = cfg.faults;
+  xc.tile_memory_bytes = static_cast<std::uint64_t>(cfg.ram_MiB * 1048576.0);
+
+  // Host memory the size of the RAM cache and of the VRAM the arena stands for, allocated before
+  // the first frame: both must fit together in what this process may use, checked before either
+  // is allocated (core/host_memory.h says why).
+  const std::uint64_t usable = options.memory_limit_bytes > 0 ? options.memory_limit_bytes : usable_memory_bytes();
+  const auto mib = [](std::uint64_t b) { return static_cast<double>(b) / 1048576.0; };
+  const std::uint64_t reserve = ThreadedExecutor::reserved_pages(store, xc) * ThreadedExecutor::page_bytes(store);
+  if (reserve > usable)
+    throw InputError("config", fmt::format("field 'ram.capacity_MiB': the RAM cache's buffers need {:.1f} MiB, more than "
+                                           "the {:.1f} MiB of memory this process may use",
+                                           mib(reserve), mib(usable)));
+  std::vector<std::uint32_t> layer_bytes;
+  for (std::uint32_t i = 0; i < store.layer_count(); ++i) layer_bytes.push_back(store.tile_bytes(i));
+  RealRun run;
+  const bool vt = cfg.system == "vt";
+  try {
+    if (vt) {
+      run.arena = std::make_unique<VramArena>(
+          VramArena::for_pool(static_cast<std::uint32_t>(cfg.vt_pool_pages), layer_bytes, usable - reserve));
+    } else {
+      ClipmapParams cp;
+      cp.extent = scene.texture();
+      cp.tile_size = cfg.tile_size;
+      cp.clipsize = cfg.clipsize;
+      cp.layers = static_cast<int>(store.layer_count());
+      run.arena = std::make_unique<VramArena>(VramArena::for_clipmap(cp, layer_bytes, usable - reserve));
+    }
+  } catch (const VramArena::ArenaTooLarge& e) {
+    throw InputError("config", fmt::format("field '{}': the VRAM arena needs {:.1f} MiB, more than the {:.1f} MiB of "
+                                           "memory this process may use ({:.1f} MiB) less the RAM cache's buffers "
+                                           "({:.1f} MiB, ram.capacity_MiB)",
+                                           vt ? "vt.pool_pages" : "clipmap.clipsize", mib(e.bytes), mib(e.limit),
+                                           mib(usable), mib(reserve)));
+  } catch (const std::bad_alloc&) {
+    throw InputError("config", fmt::format("field '{}': the VRAM arena does not fit in host memory", vt ? "vt.pool_pages" : "clipmap.clipsize"));
+  }
+  VramArena& arena = *run.arena;
+  ThreadedExecutor exec(store, xc);
+
+  // Frame pacing: frame f starts at its trace time on the wall clock, or as soon as the previous
+  // frame is done when the loop runs late (the lateness is measured, not hidden).
+  const double period_s = cfg.fps > 0 ? 1.0 / cfg.fps : 1.0 / 60.0;
+  const Ticks half_period = seconds_to_ticks(period_s / 2);
+  std::uint64_t late_frames = 0, no_data = 0;
+  Ticks max_late = 0, sum_late = 0;
+  int frames = 0;
+  std::vector<std::pair<int, double>> late_list;  // (frame, ms late): the first 20 late frames
+  ReplayEnv env;
+  env.executor = &exec;
+  env.sizer = store_sizer(store);
+  env.clock_name = "real";
+  env.progress = options.progress;
+  // The frame loop's own cost: wall and CPU time (this thread) from one frame's start to the next
+  // frame's pacing point. Wall well above CPU means the thread waited for a core.
+  std::vector<double> work_wall_ms, work_cpu_ms;
+  Ticks frame_start = 0;
+  double cpu_start = 0;
+  env.pace = [&](int f, Ticks target) -> Ticks {
+    if (f > 0) {
+      work_wall_ms.push_back(ticks_to_ms(exec.now() - frame_start));
+      work_cpu_ms.push_back(thread_cpu_ms() - cpu_start);
+    }
+    if (f == 0) {
+      startup_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count();
+      exec.restart_clock();
+    }
+    std::this_thread::sleep_until(exec.clock().at(target));
+    const Ticks now = exec.now();
+    const Ticks late = std::max<Ticks>(0, now - target);
+    max_late = std::max(max_late, late);
+    sum_late += late;
+    if (late > half_period) {
+      ++late_frames;
+      if (late_list.size() < 20) late_list.push_back({f, ticks_to_ms(late)});
+    }
+    ++frames;
+    frame_start = now;
+    cpu_start = thread_cpu_ms();
+    return now;
+  };
+  env.on_upload = [&](const UploadItem& u, std::int64_t slot) {
+    if (u.data) arena.upload(*u.data, slot);
+    else ++no_data;
+  };
+  // VT: every page complete in the pool must be in the arena at its slot, every layer.
+  std::uint64_t pool_layers_missing = 0;
+  env.on_finish = [&](const IStreamingSystem& system) {
+    const auto* vts = dynamic_cast<const VtSystem*>(&system);
+    if (!vts) return;
+    const PagePool& pool = vts->pool();
+    for (std::uint32_t s = 0; s < pool.slots(); ++s) {
+      const std::optional<TileKey> page = pool.complete_page(s);
+      if (!page) continue;
+      run.pool_pages.emplace_back(*page, s);
+      for (std::uint32_t layer = 0; layer < store.layer_count(); ++layer)
+        pool_layers_missing += arena.peek(TileKey(layer, page->level(), page->x(), page->y()), s).empty();
+    }
+  };
+  run.result = run_replay(cfg, trace, scene, env);
+  exec.shutdown();
+
+  const VramArena::Stats& as = arena.stats();
+  const FaultLayer::Counts inj = exec.injected_faults();
+  nlohmann::json& rc = run.result.summary["real_clock"];
+  rc["io_threads"] = exec.io_threads();
+  rc["decode_workers"] = exec.decode_workers();
+  rc["max_in_flight"] = cfg.max_in_flight;
+  rc["o_direct"] = exec.direct();
+  rc["o_direct_warning"] = exec.direct_warning();
+  rc["startup_s"] = startup_s;
+  rc["late_frames"] = late_frames;
+  rc["first_late_frames"] = late_list;
+  rc["max_late_ms"] = ticks_to_ms(max_late);
+  rc["mean_late_ms"] = frames ? ticks_to_ms(sum_late) / frames : 0.0;
+  rc["uploads_without_data"] = no_data;
+  rc["frame_work_ms"] = {{"wall", to_json(percentiles(work_wall_ms))}, {"cpu", to_json(percentiles(work_cpu_ms))}};
+  rc["vram_arena"] = {{"capacity_MiB", static_cast<double>(arena.capacity_bytes()) / 1048576.0},
+                      {"uploads", as.uploads},
+                      {"bytes", as.bytes},
+                      {"overwrites", as.overwrites},
+                      {"copy_ms", static_cast<double>(as.copy_ns) * 1e-6}};
+  if (arena.pool()) {
+    rc["vram_arena"]["pool_pages_complete"] = run.pool_pages.size();
+    rc["vram_arena"]["pool_layers_missing"] = pool_layers_missing;  // 0 unless the arena lost an upload
+  }
+  rc["injected_faults"] = {{"io_error", inj.io_error}, {"short_read", inj.short_read}, {"checksum", inj.checksum}, {"slow", inj.slow}};
+  rc["fault_examples"] = exec.fault_examples();
+  return run;
+}
+
+}  // namespace vtsim

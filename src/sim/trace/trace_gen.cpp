@@ -1,0 +1,244 @@
+#include "sim/trace/trace_gen.h"
+
+#include <fmt/core.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "core/error.h"
+#include "sim/trace/trace_io.h"
+#include "sim/trace/trace_resample.h"
+#include "sim/trace/trace_transform.h"
+
+namespace vtsim {
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// (cos, sin) of an angle in degrees, exact at multiples of 90 degrees (a walk due north must not
+// drift east by cos(pi/2) = 6e-17 per metre) and symmetric at odd multiples of 45 (the diagonal
+// walk stays on x = y; cos(pi/4) and sin(pi/4) differ by an ulp in double).
+glm::dvec2 dir_deg(double deg) {
+  double r = std::fmod(deg, 360.0);
+  if (r < 0) r += 360.0;
+  if (r == 0.0) return {1.0, 0.0};
+  if (r == 90.0) return {0.0, 1.0};
+  if (r == 180.0) return {-1.0, 0.0};
+  if (r == 270.0) return {0.0, -1.0};
+  const double h = std::sqrt(0.5);
+  if (r == 45.0) return {h, h};
+  if (r == 135.0) return {-h, h};
+  if (r == 225.0) return {-h, -h};
+  if (r == 315.0) return {h, -h};
+  const double a = r * (kPi / 180.0);
+  return {std::cos(a), std::sin(a)};
+}
+
+void need(bool ok, const char* field, double v, std::string_view rule) {
+  if (!ok) throw InputError(field, fmt::format("{} {}", v, rule));
+}
+
+void validate(const TraceGenParams& p) {
+  need(std::isfinite(p.duration_s) && p.duration_s >= 0.0 && p.duration_s <= 1e6, "duration_s",
+       p.duration_s, "is not in [0, 1e6] s");
+  need(std::isfinite(p.fps) && p.fps > 0.0 && p.fps <= 10000.0, "fps", p.fps, "is not in (0, 10000]");
+  need(p.duration_s * p.fps + 1.0 <= static_cast<double>(kMaxTraceFrames), "duration_s",
+       p.duration_s, fmt::format("at this fps gives more than {} frames", kMaxTraceFrames));
+  need(std::isfinite(p.speed_mps) && p.speed_mps >= 0.0 && p.speed_mps <= 1e5, "speed_mps",
+       p.speed_mps, "is not in [0, 1e5] m/s");
+  need(std::isfinite(p.heading_deg), "heading_deg", p.heading_deg, "is not finite");
+  need(std::isfinite(p.height_m) && std::abs(p.height_m) <= 1e7, "height_m", p.height_m,
+       "is not in [-1e7, 1e7] m");
+  need(std::isfinite(p.pitch_deg) && std::abs(p.pitch_deg) <= 90.0, "pitch_deg", p.pitch_deg,
+       "is not in [-90, 90]");
+  need(p.vfov_deg >= kMinVfov_deg && p.vfov_deg <= kMaxVfov_deg, "vfov_deg", p.vfov_deg, "is not in [0.01, 179]");
+  for (int k = 0; k < 2; ++k)
+    need(std::isfinite(p.start_m[k]) && std::abs(p.start_m[k]) <= 1e9, "start_m", p.start_m[k],
+         "is not in [-1e9, 1e9] m");
+  need(p.image_width >= 1 && p.image_width <= kMaxImageSide, "image_width", p.image_width, "is out of range");
+  need(p.image_height >= 1 && p.image_height <= kMaxImageSide, "image_height", p.image_height,
+       "is out of range");
+  if (p.kind == TraceKind::turn) {
+    need(std::isfinite(p.turn_deg), "turn_deg", p.turn_deg, "is not finite");
+    need(std::isfinite(p.turn_s) && p.turn_s > 0.0, "turn_s", p.turn_s, "is not finite and > 0");
+  }
+  if (p.kind == TraceKind::turn || p.kind == TraceKind::teleport)
+    need(std::isfinite(p.event_s) && p.event_s >= 0.0 && p.event_s <= p.duration_s, "event_s",
+         p.event_s, "is not within [0, duration_s]");
+  if (p.kind == TraceKind::teleport) {
+    need(std::isfinite(p.jump_m) && p.jump_m >= 0.0 && p.jump_m <= 1e9, "jump_m", p.jump_m,
+         "is not in [0, 1e9] m");
+    need(std::isfinite(p.jump_heading_deg), "jump_heading_deg", p.jump_heading_deg, "is not finite");
+  }
+  if (p.kind == TraceKind::orbit)
+    need(std::isfinite(p.radius_m) && p.radius_m > 0.0 && p.radius_m <= 1e9, "radius_m", p.radius_m,
+         "is not in (0, 1e9] m");
+}
+
+// Heading (degrees) and planar position of the turn trace at time t: straight, a constant-rate
+// turn (the position integrates v * (cos psi, sin psi) in closed form), straight again.
+void turn_state(const TraceGenParams& p, double t, double& heading_deg, glm::dvec2& xy) {
+  const double v = p.speed_mps;
+  const glm::dvec2 d0 = dir_deg(p.heading_deg);
+  const double te = p.event_s, tt = p.turn_s;
+  if (t < te) {
+    heading_deg = p.heading_deg;
+    xy = p.start_m + d0 * (v * t);
+    return;
+  }
+  const glm::dvec2 pe = p.start_m + d0 * (v * te);
+  const double w = p.turn_deg * (kPi / 180.0) / tt;  // rad/s
+  const double psi0 = p.heading_deg * (kPi / 180.0);
+  const auto arc = [&](double dt) {  // displacement after dt seconds of turning
+    if (w == 0.0) return d0 * (v * dt);
+    const double psi = psi0 + w * dt;
+    return glm::dvec2(std::sin(psi) - std::sin(psi0), std::cos(psi0) - std::cos(psi)) * (v / w);
+  };
+  if (t < te + tt) {
+    heading_deg = p.heading_deg + p.turn_deg * ((t - te) / tt);
+    xy = pe + arc(t - te);
+    return;
+  }
+  heading_deg = p.heading_deg + p.turn_deg;
+  xy = pe + arc(tt) + dir_deg(heading_deg) * (v * (t - te - tt));
+}
+
+std::string describe(const TraceGenParams& p) {
+  std::string s = fmt::format("{} duration_s={} fps={} speed_mps={} heading_deg={} height_m={} ",
+                              kind_name(p.kind), p.duration_s, p.fps, p.speed_mps, p.heading_deg, p.height_m);
+  if (p.kind != TraceKind::orbit) s += fmt::format("pitch_deg={} ", p.pitch_deg);  // orbit: computed
+  s += fmt::format("vfov_deg={} start_m={},{}", p.vfov_deg, p.start_m.x, p.start_m.y);
+  if (p.kind == TraceKind::turn)
+    s += fmt::format(" turn_deg={} turn_s={} event_s={}", p.turn_deg, p.turn_s, p.event_s);
+  if (p.kind == TraceKind::teleport)
+    s += fmt::format(" jump_m={} jump_heading_deg={} event_s={}", p.jump_m, p.jump_heading_deg, p.event_s);
+  if (p.kind == TraceKind::orbit) s += fmt::format(" radius_m={}", p.radius_m);
+  return s;
+}
+
+}  // namespace
+
+std::string_view kind_name(TraceKind k) {
+  switch (k) {
+    case TraceKind::walk: return "walk";
+    case TraceKind::walk_diagonal: return "walk_diagonal";
+    case TraceKind::run: return "run";
+    case TraceKind::drive: return "drive";
+    case TraceKind::flight: return "flight";
+    case TraceKind::turn: return "turn";
+    case TraceKind::teleport: return "teleport";
+    case TraceKind::orbit: return "orbit";
+    case TraceKind::still: return "static";
+  }
+  return "?";
+}
+
+const std::vector<TraceKind>& all_trace_kinds() {
+  static const std::vector<TraceKind> kinds = {
+      TraceKind::walk, TraceKind::walk_diagonal, TraceKind::run,   TraceKind::drive, TraceKind::flight,
+      TraceKind::turn, TraceKind::teleport,      TraceKind::orbit, TraceKind::still};
+  return kinds;
+}
+
+TraceKind parse_trace_kind(std::string_view name, const std::string& where) {
+  std::string names;
+  for (TraceKind k : all_trace_kinds()) {
+    if (name == kind_name(k)) return k;
+    names += names.empty() ? "" : ", ";
+    names += kind_name(k);
+  }
+  throw InputError(where, fmt::format("unknown trace kind '{}' ({})", name, names));
+}
+
+TraceGenParams default_gen_params(TraceKind kind) {
+  TraceGenParams p;  // walk
+  p.kind = kind;
+  switch (kind) {
+    case TraceKind::walk:
+    case TraceKind::turn:
+    case TraceKind::teleport:
+      break;
+    case TraceKind::walk_diagonal:
+      p.heading_deg = 45.0;
+      break;
+    case TraceKind::run:
+      p.speed_mps = 5.0;
+      break;
+    case TraceKind::drive:
+      p.speed_mps = 20.0;
+      p.height_m = 1.5;
+      break;
+    case TraceKind::flight:
+      p.speed_mps = 100.0;
+      p.height_m = 300.0;
+      p.pitch_deg = -30.0;
+      break;
+    case TraceKind::orbit:
+      p.radius_m = 50.0;
+      p.height_m = 30.0;
+      p.speed_mps = 2.0 * kPi * p.radius_m / p.duration_s;  // one lap in the 20 s trace
+      break;
+    case TraceKind::still:
+      p.speed_mps = 0.0;
+      break;
+  }
+  return p;
+}
+
+Trace generate_trace(const TraceGenParams& p) {
+  validate(p);
+  Trace trace;
+  trace.image_width = p.image_width;
+  trace.image_height = p.image_height;
+  trace.name = describe(p);
+  const auto last = static_cast<std::int64_t>(std::floor(p.duration_s * p.fps + 1e-6));
+  trace.poses.reserve(static_cast<std::size_t>(last + 1));
+  const glm::dvec2 d = dir_deg(p.heading_deg);
+  const glm::dquat q_fixed = yaw_pitch_quat(p.heading_deg, p.pitch_deg);
+  const glm::dvec2 jump = dir_deg(p.jump_heading_deg) * p.jump_m;
+  for (std::int64_t i = 0; i <= last; ++i) {
+    Pose pose;
+    pose.t_s = static_cast<double>(i) / p.fps;
+    pose.vfov_deg = p.vfov_deg;
+    const double t = pose.t_s;
+    glm::dvec2 xy;
+    switch (p.kind) {
+      case TraceKind::walk:
+      case TraceKind::walk_diagonal:
+      case TraceKind::run:
+      case TraceKind::drive:
+      case TraceKind::flight:
+      case TraceKind::still:
+        xy = p.start_m + d * (p.speed_mps * t);
+        pose.q = q_fixed;
+        break;
+      case TraceKind::teleport:
+        xy = p.start_m + d * (p.speed_mps * t);
+        if (t >= p.event_s) xy += jump;
+        pose.q = q_fixed;
+        break;
+      case TraceKind::turn: {
+        double heading = 0.0;
+        turn_state(p, t, heading, xy);
+        pose.q = yaw_pitch_quat(heading, p.pitch_deg);
+        break;
+      }
+      case TraceKind::orbit: {
+        // theta: angle of the camera around the centre; the view points back at the centre.
+        const double theta = (p.heading_deg + 180.0) * (kPi / 180.0) + (p.speed_mps / p.radius_m) * t;
+        xy = p.start_m + glm::dvec2(std::cos(theta), std::sin(theta)) * p.radius_m;
+        const double yaw_deg = theta * (180.0 / kPi) + 180.0;
+        const double pitch_deg = -std::atan2(p.height_m, p.radius_m) * (180.0 / kPi);
+        pose.q = yaw_pitch_quat(yaw_deg, pitch_deg);
+        break;
+      }
+    }
+    pose.pos_m = glm::dvec3(xy, p.height_m);
+    trace.poses.push_back(pose);
+  }
+  validate_trace(trace, "generate_trace");
+  return trace;
+}
+
+}  // namespace vtsim

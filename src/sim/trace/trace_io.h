@@ -1,0 +1,79 @@
+#pragma once
+// The native trace format (read + write) and the checks every trace passes (docs/traces.md).
+//
+//   # vtsim-trace v1 image_width=1920 image_height=1080
+//   # name: walk speed=1.5 heading=0 ...
+//   t_s,x_m,y_m,z_m,qw,qx,qy,qz,vfov_deg
+//   0,4096,4096,1.7,0.99144486137381038,0,0.13052619222005157,0,60
+//
+// Doubles are written in their shortest round-trip form, so save -> load is bit-exact.
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "core/trace.h"
+
+namespace vtsim {
+
+// Sanity limits for untrusted trace files. The defaults leave room for a day at 60 Hz (5.2 M
+// lines, about 0.6 GB of native CSV) while refusing a 64 KiB line or a runaway file.
+struct TraceReadLimits {
+  std::uint64_t max_file_bytes = std::uint64_t{1} << 30;  // bytes (1 GiB)
+  std::size_t max_line_bytes = 64 * 1024;                 // bytes, without the line terminator
+};
+
+// Documented repairs a reader made instead of failing; each is counted (and each is an error
+// under TraceReadOptions::strict).
+struct TraceRepairs {
+  std::int64_t quats_renormalised = 0;       // | |q| - 1 | <= 1e-3 but more than 1e-6 and more than
+                                             // the rounding of the printed digits explains: q / |q| used
+  std::int64_t duplicate_times_dropped = 0;  // a pose with the same time as the one before: dropped
+  std::int64_t rotations_orthonormalised = 0;  // KITTI 3x3 block off orthonormal by (1e-6, 1e-3]
+  std::int64_t total() const {
+    return quats_renormalised + duplicate_times_dropped + rotations_orthonormalised;
+  }
+};
+
+struct TraceReadOptions {
+  TraceReadLimits limits;
+  bool strict = false;  // turn every repair into an InputError
+};
+
+// What a reader saw, for `trace info` and the import summary.
+struct TraceLoadReport {
+  std::string format;        // "native", "tum", "euroc", "kitti"
+  std::int64_t lines = 0;    // lines read, including comments and blank lines
+  std::int64_t poses = 0;    // poses kept
+  TraceRepairs repairs;
+};
+
+// Tolerances shared by all readers and by validate_trace.
+inline constexpr double kQuatUnitTolerance = 1e-9;   // what validate_trace accepts as unit; readers
+                                                     // keep such a q bit-exact (round trips)
+inline constexpr double kQuatNormSilent = 1e-6;      // up to this (or to what the rounding of the
+                                                     // printed digits explains), not counted
+inline constexpr double kQuatNormTolerance = 1e-3;   // beyond this a quaternion is an error
+inline constexpr double kMaxAbsCoordinate_m = 1e10;  // ~1500 Earth radii: keeps squared distances
+                                                     // finite and planet-scale worlds legal
+inline constexpr double kMaxAbsTime_s = 4e9;         // ~127 years: int64 nanosecond ticks reach 9.2e9 s, and a
+                                                     // replay adds latencies and its pacing on top
+
+// Reads a native trace. Throws InputError("path:line", ...) on any malformed input; repairs per
+// TraceRepairs (counted in *report when given).
+Trace load_trace(const std::string& path, const TraceReadOptions& options = {},
+                 TraceLoadReport* report = nullptr);
+
+// The native text of a trace (validate_trace first). Shortest round-trip doubles.
+std::string format_trace(const Trace& trace);
+
+// Writes format_trace(trace) to path ("-" = stdout). Throws InputError(path, ...) if the trace
+// is invalid or the file cannot be written.
+void save_trace(const Trace& trace, const std::string& path);
+
+// Checks the invariants every consumer may rely on: at least one pose; finite values; times
+// strictly increasing and |t| <= kMaxAbsTime_s; |coordinates| <= kMaxAbsCoordinate_m;
+// | |q| - 1 | <= kQuatUnitTolerance; vfov in [kMinVfov_deg, kMaxVfov_deg]; image sides in [1, kMaxImageSide].
+// Throws InputError(where + " pose i", ...) naming the first offending pose (0-based).
+void validate_trace(const Trace& trace, const std::string& where);
+
+}  // namespace vtsim

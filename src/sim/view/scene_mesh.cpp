@@ -1,0 +1,975 @@
+#include "sim/view/scene_mesh.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <string>
+
+#include <glm/geometric.hpp>
+
+#include "core/error.h"
+#include "sim/view/render_util.h"
+#include "sim/view/simd.h"
+#include "sim/view/span_build.h"
+
+namespace vtsim {
+
+namespace {
+
+constexpr std::uint32_t kNoTri = 0xffffffffu;
+constexpr std::uint32_t kBackBit = 0x80000000u;
+// Triangles per culling box: the town replay ran fastest at 16 (8 the same, 64 15 % slower).
+// Chunk tests are linear in the chunk count: a very large mesh would want a hierarchy.
+constexpr std::uint32_t kChunkSize = 16;
+// The part of a triangle between view depth near/1024 and near is rasterised only to tell
+// "clipped" from "sky" in the counters; nearer than that it is ignored (projection blows up).
+constexpr double kNearFlagFraction = 1.0 / 1024.0;
+// Relative margin of the occlusion test: a triangle's rasterised 1/z exceeds the exact bound of
+// its chunk's box only by rounding (a few ulps, far more for a sliver whose plane equation
+// cancels); 2^-20 leaves 2^32 ulps.
+constexpr double kOccludeMargin = 0x1p-20;
+
+std::uint32_t spread_bits10(std::uint32_t x) {  // 10 bits -> every third bit (Morton)
+  x &= 0x3ffu;
+  x = (x | (x << 16)) & 0x030000ffu;
+  x = (x | (x << 8)) & 0x0300f00fu;
+  x = (x | (x << 4)) & 0x030c30c3u;
+  x = (x | (x << 2)) & 0x09249249u;
+  return x;
+}
+
+// Camera-space vertex: x right, y up, z view depth.
+struct CV {
+  double x, y, z;
+};
+// Projected vertex: full-resolution pixel position and 1/z.
+struct PV {
+  double X, Y, iz;
+};
+
+bool lex_less(const CV& a, const CV& b) {
+  if (a.x != b.x) return a.x < b.x;
+  if (a.y != b.y) return a.y < b.y;
+  return a.z < b.z;
+}
+
+// Point of segment ab at depth zc, computed from the endpoints in a canonical order so that two
+// triangles sharing the edge get bit-identical points (no cracks along clipped shared edges).
+CV clip_point(CV a, CV b, double zc) {
+  if (lex_less(b, a)) std::swap(a, b);
+  const double t = (zc - a.z) / (b.z - a.z);
+  return CV{a.x + t * (b.x - a.x), a.y + t * (b.y - a.y), zc};
+}
+
+// Sutherland–Hodgman against one depth plane: keep z >= zc (keep_above) or z < zc.
+int clip_poly(const CV* in, int n, double zc, bool keep_above, CV* out) {
+  int m = 0;
+  for (int k = 0; k < n; ++k) {
+    const CV& a = in[k];
+    const CV& b = in[(k + 1) % n];
+    const bool ain = keep_above ? a.z >= zc : a.z < zc;
+    const bool bin = keep_above ? b.z >= zc : b.z < zc;
+    if (ain) out[m++] = a;
+    if (ain != bin) out[m++] = clip_point(a, b, zc);
+  }
+  return m;
+}
+
+// Edge equation E(s) = A·sx + (B·sy + C) of edge p→q, positive on its left in pixel coordinates
+// (y down). Built from the lexicographically smaller endpoint and negated when the edge runs the
+// other way, so the neighbour triangle that walks q→p gets exactly −E at every sample: no sample
+// on a shared edge is lost or drawn twice (with the ownership rule below).
+struct Edge {
+  double A, B, C;
+  bool own;  // samples with E == 0 belong to this triangle
+};
+inline Edge make_edge(const PV& p, const PV& q) {
+  const bool swap = q.X < p.X || (q.X == p.X && q.Y < p.Y);
+  const PV& a = swap ? q : p;
+  const PV& b = swap ? p : q;
+  Edge e;
+  e.A = -(b.Y - a.Y);
+  e.B = b.X - a.X;
+  e.C = -(e.A * a.X + e.B * a.Y);
+  if (swap) {
+    e.A = -e.A;
+    e.B = -e.B;
+    e.C = -e.C;
+  }
+  // Ownership (top-left style): the two triangles sharing an edge walk it in opposite directions.
+  const double dy = q.Y - p.Y, dx = q.X - p.X;
+  e.own = dy > 0.0 || (dy == 0.0 && dx < 0.0);
+  return e;
+}
+
+// Hierarchical depth: the buffer in tiles of kTile × kTile samples, each with the least 1/z of
+// its samples (the farthest surface; 0 while any sample is empty), recomputed lazily when a write
+// made it stale. A surface nearer than nothing in a tile cannot win any of its samples.
+constexpr int kTileShift = 3;
+constexpr int kTile = 1 << kTileShift;
+
+// One row run of a front face in the resolve: with x the sample's full-resolution column,
+// d·n = dn0 + dnx·x (<0 for a front face), t = −kn/(d·n), gu·d = gu0 + gux·x (likewise v), and the
+// texel derivatives per pixel step along x and y (the ray-differential terms of lod.h).
+struct ShadeRow {
+  double dn0, dnx, dny, gu0, gux, guy, gv0, gvx, gvy, kn, cu, cv, inv_a2;
+  double far_iz, W, H, bias;  // 1/far; the texture extent, texels (<= kMaxVectorExtent); LOD bias
+};
+constexpr int kShadeBatch = 64;  // samples per batch: arrays stay in L1
+// What a resolved sample is (ViewCounters' reasons, checked in the order of the scalar resolve).
+constexpr std::int64_t kSample = 0, kClipped = 1, kBackfacing = 2, kOutside = 3;
+struct ShadeBatch {
+  alignas(32) std::int64_t cls[kShadeBatch + 4];  // kSample ... kOutside
+  alignas(32) std::int64_t u[kShadeBatch + 4];    // texel_index of the texel coordinates (kSample)
+  alignas(32) std::int64_t v[kShadeBatch + 4];
+  alignas(32) float lod[kShadeBatch + 4];
+};
+// The batch's texel index needs floor(t) exact as t + 2^52 − 2^52, so t < 2^52: the constructor
+// rejects wider textures (configs stop at 2^34, TileKey's range).
+constexpr double kMaxVectorExtent = 0x1p52;
+
+// The resolve's arithmetic of the four samples at px[0..3] (full-resolution columns) with depth
+// buffer values iz[0..3]: d·n, the continuous texel coordinates and the clamped squared footprint q
+// of the LOD rule.
+struct ShadeLanes {
+  simd::v4d iz, dn, tu, tv, q;
+};
+template <bool kAniso>
+[[gnu::always_inline]] inline void shade_lanes(const ShadeRow& k, const double* px, const double* iz, ShadeLanes& o) {
+  using simd::v4d;
+  v4d x;
+  simd::load4(px, x);
+  simd::load4(iz, o.iz);
+  const v4d dn = k.dn0 + k.dnx * x;
+  const v4d inv_dn = 1.0 / dn;
+  const v4d tt = -k.kn * inv_dn;
+  const v4d gdu = k.gu0 + k.gux * x, gdv = k.gv0 + k.gvx * x;
+  const v4d ru = gdu * inv_dn, rv = gdv * inv_dn;
+  const v4d ux = tt * (k.gux - k.dnx * ru), vx = tt * (k.gvx - k.dnx * rv);
+  const v4d uy = tt * (k.guy - k.dny * ru), vy = tt * (k.gvy - k.dny * rv);
+  const v4d lx2 = ux * ux + vx * vx, ly2 = uy * uy + vy * vy;
+  v4d q;
+  if constexpr (!kAniso) {  // lod_from_lengths2, lane for lane
+    q = lx2 > ly2 ? lx2 : ly2;
+  } else {
+    const v4d major = lx2 > ly2 ? lx2 : ly2, minor = lx2 > ly2 ? ly2 : lx2, am = major * k.inv_a2;
+    q = minor > am ? minor : am;
+  }
+  const v4d qmin = v4d{} + kMinFootprint2, qmax = v4d{} + kMaxFootprint2;
+  q = q >= qmin ? q : qmin;  // also NaN -> min
+  o.q = q > qmax ? qmax : q;
+  o.dn = dn;
+  o.tu = k.cu + tt * gdu;
+  o.tv = k.cv + tt * gdv;
+}
+
+// Every lane computes exactly the scalar resolve's IEEE operations (texel_index, fast_log2,
+// lod_from_lengths2), so the samples are bit-identical to the per-sample code.
+template <bool kAniso>
+[[gnu::always_inline]] inline void shade_batch_t(const ShadeRow& k, const double* px, const double* iz, int n,
+                                                  ShadeBatch& b) {
+  using simd::v4d;
+  using simd::v4i;
+  typedef float v4f __attribute__((vector_size(16)));
+  constexpr double two52 = 0x1p52;
+  constexpr std::int64_t two52_bits = 0x4330000000000000;
+  constexpr double c1 = detail::kLog2C1, c2 = detail::kLog2C2, c3 = detail::kLog2C3, c4 = detail::kLog2C4;
+  const auto& tab = detail::kLog2Table;
+  for (int j = 0; j < n; j += 4) {
+    ShadeLanes l;
+    shade_lanes<kAniso>(k, px + j, iz + j, l);
+    const v4d izv = l.iz, dn = l.dn, q = l.q, tu = l.tu, tv = l.tv;
+    // Classification, in the scalar order: clipped, then edge-on, then outside the texture.
+    const v4i in_u = (tu >= 0.0) & (tu < k.W), in_v = (tv >= 0.0) & (tv < k.H);
+    v4i cls = (in_u & in_v) ? v4i{} + kSample : v4i{} + kOutside;
+    cls = dn < 0.0 ? cls : v4i{} + kBackfacing;
+    cls = izv < k.far_iz ? v4i{} + kClipped : cls;
+    // texel_index: floor(t) for 0 <= t < 2^52 — t + 2^52 rounds to the nearest integer (ulp 1
+    // there), one less where that rounded up; the integer is then the low bits of y + 2^52.
+    const auto floor_index = [&](const v4d& t, v4i& out) [[gnu::always_inline]] {
+      v4d y = (t + two52) - two52;
+      y = y > t ? y - 1.0 : y;
+      out = __builtin_bit_cast(v4i, y + two52) - two52_bits;
+    };
+    // fast_log2(q), lane for lane (q is normal and positive after the clamp).
+    const v4i bits = __builtin_bit_cast(v4i, q);
+    const v4i ebits = ((bits >> 52) & 0x7ff) | two52_bits;
+    const v4d e = __builtin_bit_cast(v4d, ebits) - (two52 + 1023.0);  // exponent − 1023, exact
+    const v4i frac = bits & 0x000fffffffffffff;
+    const v4i i = frac >> (52 - detail::kLog2TableBits);
+    const v4i mbits = frac | 0x3ff0000000000000, ibits = i | two52_bits;
+    const v4d m = __builtin_bit_cast(v4d, mbits);
+    const v4d mi = 1.0 + (__builtin_bit_cast(v4d, ibits) - two52) * (1.0 / (1 << detail::kLog2TableBits));
+    const v4d inv_mi = {tab.inv_mi[i[0]], tab.inv_mi[i[1]], tab.inv_mi[i[2]], tab.inv_mi[i[3]]};
+    const v4d log2_mi = {tab.log2_mi[i[0]], tab.log2_mi[i[1]], tab.log2_mi[i[2]], tab.log2_mi[i[3]]};
+    const v4d r = (m - mi) * inv_mi;
+    const v4d r2 = r * r;
+    const v4d lg = e + log2_mi + (r * (c1 + r * c2) + r2 * r * (c3 + r * c4));
+    const v4d lod = 0.5 * lg + k.bias;
+    const v4f lodf = __builtin_convertvector(lod, v4f);
+    v4i u, v;
+    // Only a sample's coordinates are used, but every lane is converted: a lane outside the
+    // texture (negative, beyond 2^52 or NaN) converts 0 instead, or the integer subtraction
+    // overflows (UBSan: a uv of −7e9 on a 2^20 texture).
+    floor_index(in_u ? tu : v4d{}, u);
+    floor_index(in_v ? tv : v4d{}, v);
+    __builtin_memcpy(b.cls + j, &cls, sizeof cls);
+    __builtin_memcpy(b.u + j, &u, sizeof u);
+    __builtin_memcpy(b.v + j, &v, sizeof v);
+    __builtin_memcpy(b.lod + j, &lodf, sizeof lodf);
+  }
+}
+// Reads px[0 .. ceil(n/4)·4) and iz[0 .. ceil(n/4)·4).
+VTSIM_CLONES_AVX2 void shade_batch(const ShadeRow& k, const double* px, const double* iz, int n, bool aniso,
+                                   ShadeBatch& b) {
+  if (aniso) shade_batch_t<true>(k, px, iz, n, b);
+  else shade_batch_t<false>(k, px, iz, n, b);
+}
+
+// Where the mesh's render_spans writes: the spans so far and the row's open span, which runs of
+// different faces continue while their samples stay in its level and block.
+struct MeshSpanOut {
+  std::vector<ViewSpan>* spans;
+  ViewCounters& c;
+  const detail::LevelCuts* cuts;
+  int levels, block_shift;
+  double tw, th;                // texture extent, texels
+  std::uint32_t n_samples = 0;  // samples so far: the next span's `first`
+  int last_level = 0;
+  bool open = false;            // spans.back() may take the next pixel
+  detail::SpanBounds k{};       // its test
+};
+
+// One row run of a front face in render_spans (n samples from buffer pixel pix0; px and iz padded
+// to whole lanes): the arithmetic of shade_batch four lanes at a time, then the open span's test on
+// all four (as the plane's span_row). A group whose four samples all stay in the span only widens
+// its running box; any other group goes lane by lane with render()'s classification, and a sample
+// that leaves the span opens the next one, its level located among the cuts (no logarithm). The
+// samples and counters are render()'s: same lanes, same classification order, level and block
+// compared as double bounds equivalent to desired_level and the texel index (span_build.h).
+template <bool kAniso>
+[[gnu::always_inline]] inline void span_run_t(const ShadeRow& k, const double* px, const double* iz, int n,
+                                               std::uint32_t pix0, MeshSpanOut& o) {
+  detail::RunBox box;
+  const auto fold = [&]() __attribute__((always_inline)) {
+    if (box.run != 0) o.n_samples += box.fold(o.spans->back());
+  };
+  for (int j = 0; j < n; j += 4) {
+    ShadeLanes l;
+    shade_lanes<kAniso>(k, px + j, iz + j, l);
+    if (o.open && n - j >= 4 && detail::all_in_span(o.k, l.q, l.tu, l.tv, ((l.iz < k.far_iz) == 0) & (l.dn < 0.0))) {
+      box.add(l.tu, l.tv);
+      continue;
+    }
+    fold();
+    const int m = n - j < 4 ? n - j : 4;
+    for (int i = 0; i < m; ++i) {
+      const double dn = l.dn[i], tu = l.tu[i], tv = l.tv[i], q = l.q[i];
+      // render()'s classification order: clipped, edge-on, outside the texture.
+      if (l.iz[i] < k.far_iz) {
+        ++o.c.clipped;
+        o.open = false;
+        continue;
+      }
+      if (!(dn < 0.0)) {
+        ++o.c.backfacing;
+        o.open = false;
+        continue;
+      }
+      const detail::SpanBounds& b = o.k;
+      if (o.open && q >= b.q_lo && q < b.q_hi && tu >= b.u_lo && tu < b.u_hi && tv >= b.v_lo && tv < b.v_hi) {
+        const std::int64_t u = static_cast<std::int64_t>(tu), v = static_cast<std::int64_t>(tv);  // floors: tu, tv >= 0
+        detail::widen(o.spans->back(), u, u, v, v, 1);
+        ++o.n_samples;
+        continue;
+      }
+      if (!(tu >= 0.0 && tu < k.W && tv >= 0.0 && tv < k.H)) {
+        ++o.c.outside_texture;
+        o.open = false;
+        continue;
+      }
+      const std::int64_t u = static_cast<std::int64_t>(tu), v = static_cast<std::int64_t>(tv);
+      const int level = detail::cut_level(*o.cuts, q, o.last_level, o.levels);
+      o.last_level = level;
+      o.spans->push_back(ViewSpan{u, u, v, v, pix0 + static_cast<std::uint32_t>(j + i), 1, o.n_samples, level});
+      ++o.n_samples;
+      o.k = detail::span_bounds(*o.cuts, level, u, v, o.block_shift, o.tw, o.th);
+      o.open = true;
+    }
+  }
+  fold();
+}
+// Reads px[0 .. ceil(n/4)·4) and iz[0 .. ceil(n/4)·4).
+VTSIM_CLONES_AVX2 void span_run(const ShadeRow& k, const double* px, const double* iz, int n, std::uint32_t pix0,
+                                bool aniso, MeshSpanOut& o) {
+  if (aniso) span_run_t<true>(k, px, iz, n, pix0, o);
+  else span_run_t<false>(k, px, iz, n, pix0, o);
+}
+
+// A triangle's resolve coefficients for one frame: functions affine in the full-resolution pixel
+// (px, py) stored as (constant, ∂/∂px, ∂/∂py).
+struct Shade {
+  glm::dvec3 dn;        // ray · normal
+  glm::dvec3 gdu, gdv;  // ray · gu, ray · gv
+  double kn = 0.0;      // (camera − p0) · normal
+  double cu = 0.0, cv = 0.0;  // texel coordinates of the camera position on the plane's map
+};
+
+// The coefficients of triangle t for camera `cam` (its ray d = D0 + px·ddx + py·ddy).
+template <class Tri>
+void shade_of(const Tri& t, const Camera& cam, Shade& h) {
+  const glm::dvec3 o = cam.pos_m, ddx = -cam.left, ddy = -cam.up;
+  const glm::dvec3 D0 = cam.ray_dir(0.0, 0.0);
+  const glm::dvec3 op = o - t.p[0];
+  h.dn = {glm::dot(D0, t.n), glm::dot(ddx, t.n), glm::dot(ddy, t.n)};
+  h.kn = glm::dot(op, t.n);
+  h.gdu = {glm::dot(D0, t.gu), glm::dot(ddx, t.gu), glm::dot(ddy, t.gu)};
+  h.gdv = {glm::dot(D0, t.gv), glm::dot(ddx, t.gv), glm::dot(ddy, t.gv)};
+  h.cu = t.tu0 + glm::dot(t.gu, op);
+  h.cv = t.tv0 + glm::dot(t.gv, op);
+}
+
+// A row's resolve constants of a face with coefficients h at full-resolution row py.
+ShadeRow shade_row(const Shade& h, double py, const LodRule& rule, double far_iz, TextureExtent extent) {
+  ShadeRow k;
+  k.dn0 = h.dn.x + h.dn.z * py;
+  k.gu0 = h.gdu.x + h.gdu.z * py;
+  k.gv0 = h.gdv.x + h.gdv.z * py;
+  k.dnx = h.dn.y;
+  k.dny = h.dn.z;
+  k.gux = h.gdu.y;
+  k.guy = h.gdu.z;
+  k.gvx = h.gdv.y;
+  k.gvy = h.gdv.z;
+  k.kn = h.kn;
+  k.cu = h.cu;
+  k.cv = h.cv;
+  k.inv_a2 = rule.inv_aniso2;
+  k.far_iz = far_iz;
+  k.W = static_cast<double>(extent.width);
+  k.H = static_cast<double>(extent.height);
+  k.bias = rule.bias;
+  return k;
+}
+
+struct Scratch {
+  std::vector<double> invz;          // 1/view depth of the nearest surface, 0 = none
+  std::vector<std::uint32_t> id;     // triangle index | kBackBit, or kNoTri
+  std::vector<std::uint8_t> near_cut;  // covered only by geometry the near plane cut away
+  std::vector<double> sx, sy;        // sample positions of buffer columns / rows, full-res pixels
+                                     // (sx padded by 4 for shade_batch's last lanes)
+  ShadeBatch batch;
+  std::vector<double> tile_min;      // least invz of the tile's samples, valid unless stale
+  std::vector<std::uint8_t> tile_stale;
+  int bw = 0, bh = 0, tw = 0;        // buffer size, samples; tiles per row
+  std::vector<Shade> shade;          // per triangle, valid where shade_stamp == frame
+  std::vector<std::uint64_t> shade_stamp;
+  std::vector<std::uint64_t> drawn_stamp;  // == frame: drawn by the warm start this frame
+  std::vector<std::uint64_t> hint_stamp;   // == frame: already in `hint`
+  std::vector<std::uint32_t> hint;   // triangles owning a sample in the last render (< size)
+  std::uint64_t frame = 0;           // renders by this thread: stamps never repeat
+  MeshScene::RenderStats stats;      // of the render under way, then the last one
+
+  double tile_least(int tx, int ty) {
+    const std::size_t t = static_cast<std::size_t>(ty) * static_cast<std::size_t>(tw) + static_cast<std::size_t>(tx);
+    if (tile_stale[t]) {
+      double m = INFINITY;
+      const int x0 = tx << kTileShift, x1 = std::min(bw, x0 + kTile);
+      const int y0 = ty << kTileShift, y1 = std::min(bh, y0 + kTile);
+      for (int y = y0; y < y1; ++y) {
+        const double* row = invz.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(bw);
+        for (int x = x0; x < x1; ++x) m = std::min(m, row[x]);
+      }
+      tile_min[t] = m;
+      tile_stale[t] = 0;
+    }
+    return tile_min[t];
+  }
+
+  // Columns [x0, x1] of row y were written: their tiles' least 1/z is recomputed when next asked.
+  void mark_stale(int y, int x0, int x1) {
+    std::uint8_t* row = tile_stale.data() + static_cast<std::size_t>(y >> kTileShift) * static_cast<std::size_t>(tw);
+    for (int t = x0 >> kTileShift; t <= x1 >> kTileShift; ++t) row[t] = 1;
+  }
+
+  // True when every sample in columns [x0, x1] × rows [y0, y1] holds a surface with 1/z > bound
+  // (also when the range is empty): tiles first, the samples of a tile only where its least 1/z
+  // does not decide.
+  bool all_nearer(int x0, int x1, int y0, int y1, double bound) {
+    for (int ty = y0 >> kTileShift; ty <= y1 >> kTileShift; ++ty)
+      for (int tx = x0 >> kTileShift; tx <= x1 >> kTileShift; ++tx) {
+        if (tile_least(tx, ty) > bound) continue;
+        const int xa = std::max(x0, tx << kTileShift), xb = std::min(x1, (tx << kTileShift) + kTile - 1);
+        const int ya = std::max(y0, ty << kTileShift), yb = std::min(y1, (ty << kTileShift) + kTile - 1);
+        for (int y = ya; y <= yb; ++y) {
+          const double* row = invz.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(bw);
+          for (int x = xa; x <= xb; ++x)
+            if (!(row[x] > bound)) return false;
+        }
+      }
+    return true;
+  }
+};
+
+// The render scratch of this thread (reused: no allocation after warm-up).
+Scratch& scratch() {
+  thread_local Scratch s;
+  return s;
+}
+
+// Buffer columns whose sample position may lie in [lo, hi] (a superset; the edge test decides).
+// Called per rasterised row, so inlined, with 1/div hoisted by the caller's loop and floor/ceil
+// by conversion (the x86-64 baseline has no roundsd: std::floor is a libm call). The reciprocal's
+// rounding moves a quotient by an ulp, far inside the one-column margin on each side.
+[[gnu::always_inline]] inline void sample_range(double lo, double hi, int div, int n, int& b0, int& b1) {
+  if (!std::isfinite(lo) || !std::isfinite(hi)) {
+    b0 = 0;
+    b1 = -1;
+    return;
+  }
+  const double off = static_cast<double>(div / 2) + 0.5, inv = 1.0 / static_cast<double>(div);
+  const double lim = static_cast<double>(n) + 4.0;  // clamped first: the conversions stay exact
+  const double ta = std::clamp((lo - off) * inv, -4.0, lim), tb = std::clamp((hi - off) * inv, -4.0, lim);
+  int a = static_cast<int>(ta), b = static_cast<int>(tb);  // toward zero, then to floor / ceil
+  a -= static_cast<double>(a) > ta;
+  b += static_cast<double>(b) < tb;
+  b0 = std::clamp(a - 1, 0, n - 1);
+  b1 = std::clamp(b + 1, -1, n - 1);
+}
+
+// Rasterises a convex polygon (fan) at the buffer's samples. Depth mode: nearest 1/z wins and
+// writes `tag`; flag mode (depth == false): marks near_cut only. Every quantity at a sample is
+// evaluated from the sample's own position (no incremental stepping), so coverage and depth at a
+// full-resolution pixel do not depend on the divisor.
+void raster_poly(const PV* v, int n, std::uint32_t tag, bool depth, int div, int bw, int bh, Scratch& s) {
+  for (int k = 1; k + 1 < n; ++k) {
+    PV a = v[0], b = v[k], c = v[k + 1];
+    double area = (b.X - a.X) * (c.Y - a.Y) - (b.Y - a.Y) * (c.X - a.X);
+    if (!(area != 0.0) || !std::isfinite(area)) continue;
+    // Orient so that the inside is where all three edge functions are positive.
+    if (area < 0.0) std::swap(b, c);
+    int x0, x1, y0, y1;
+    sample_range(std::min({a.X, b.X, c.X}), std::max({a.X, b.X, c.X}), div, bw, x0, x1);
+    if (x0 > x1) continue;
+    sample_range(std::min({a.Y, b.Y, c.Y}), std::max({a.Y, b.Y, c.Y}), div, bh, y0, y1);
+    if (y0 > y1) continue;
+    const Edge e0 = make_edge(a, b), e1 = make_edge(b, c), e2 = make_edge(c, a);
+    // 1/z is affine in the pixel position: iz = (E_bc·iz_a + E_ca·iz_b + E_ab·iz_c) / (2·area).
+    const double sum = e1.A * a.X + e1.B * a.Y + e1.C;  // E_bc at a = twice the area
+    if (!(sum > 0.0)) continue;
+    const double inv = 1.0 / sum;
+    const double P = (e1.A * a.iz + e2.A * b.iz + e0.A * c.iz) * inv;
+    const double Q = (e1.B * a.iz + e2.B * b.iz + e0.B * c.iz) * inv;
+    const double R = (e1.C * a.iz + e2.C * b.iz + e0.C * c.iz) * inv;
+    // Per row, the columns between the edges' crossings of the row (each edge bounds x from one
+    // side where A != 0): a superset (sample_range's margin) of the covered samples, which the
+    // exact test below then decides. Large triangles test ~1/3 of their bounding box this way.
+    const double ia0 = e0.A != 0.0 ? -1.0 / e0.A : 0.0, ia1 = e1.A != 0.0 ? -1.0 / e1.A : 0.0,
+                 ia2 = e2.A != 0.0 ? -1.0 / e2.A : 0.0;
+    const double bx0 = std::min({a.X, b.X, c.X}), bx1 = std::max({a.X, b.X, c.X});
+    // Sample inside: E > 0 for all three edges, or E == 0 on an edge this triangle owns (NaN: out).
+    const auto inside = [&](double f0, double f1, double f2) {
+      return (f0 > 0.0 || (f0 == 0.0 && e0.own)) && (f1 > 0.0 || (f1 == 0.0 && e1.own)) &&
+             (f2 > 0.0 || (f2 == 0.0 && e2.own));
+    };
+    // Locals, not members: the scratch is thread_local and byte stores could alias its members.
+    const double* const sxp = s.sx.data();
+    double* const invz = s.invz.data();
+    std::uint32_t* const ids = s.id.data();
+    std::uint8_t* const near_cut = s.near_cut.data();
+    const std::uint32_t tid = tag & ~kBackBit;
+    // Nearest wins; an exact tie goes to the smaller triangle index, which is what drawing in
+    // index order gave, so the chunks may be drawn in any order (nearest first, below).
+    const auto depth_write = [&](std::size_t idx, double iz) {
+      if (!(iz > invz[idx] || (iz == invz[idx] && tid < (ids[idx] & ~kBackBit)))) return false;
+      invz[idx] = iz;
+      ids[idx] = tag;
+      return true;
+    };
+    for (int y = y0; y <= y1; ++y) {
+      const double sy = s.sy[static_cast<std::size_t>(y)];
+      const double r0 = e0.B * sy + e0.C, r1 = e1.B * sy + e1.C, r2 = e2.B * sy + e2.C, rz = Q * sy + R;
+      double lo = bx0, hi = bx1;
+      const auto bound = [&](double A, double ia, double r) {
+        if (A == 0.0) return;
+        const double xc = r * ia;  // E = A·x + r crosses zero here (NaN/inf: no bound)
+        if (A > 0.0) {
+          if (xc > lo) lo = xc;
+        } else if (xc < hi) {
+          hi = xc;
+        }
+      };
+      bound(e0.A, ia0, r0);
+      bound(e1.A, ia1, r1);
+      bound(e2.A, ia2, r2);
+      int xa, xb;  // lo > hi by rounding (a vertex on a sample) still gets the margin
+      sample_range(lo, hi, div, bw, xa, xb);
+      xa = std::max(xa, x0);
+      xb = std::min(xb, x1);
+      const std::size_t rowi = static_cast<std::size_t>(y) * static_cast<std::size_t>(bw);
+      if (depth) {
+        ++s.stats.raster_rows;
+        s.stats.depth_tests += static_cast<std::uint64_t>(std::max(0, xb - xa + 1));
+      }
+      if (!depth) {
+        for (int x = xa; x <= xb; ++x) {
+          const double sx = sxp[x];
+          const double f0 = e0.A * sx + r0, f1 = e1.A * sx + r1, f2 = e2.A * sx + r2;
+          if (inside(f0, f1, f2)) near_cut[rowi + static_cast<std::size_t>(x)] = 1;
+        }
+        continue;
+      }
+      if (std::isfinite(r0) && std::isfinite(r1) && std::isfinite(r2)) {
+        // The covered columns of the row are one interval, found from its two ends: along the
+        // row each edge's computed E = fl(fl(A·sx) + r) is monotone in sx (rounding is monotone,
+        // sample positions increase, r is finite so no inf − inf), so each edge's "inside" test
+        // holds on a prefix or a suffix of the columns and all three on an interval. Between its
+        // ends no sample needs an edge test — the same samples as testing each one.
+        const auto in = [&](int x) {
+          const double sx = sxp[x];
+          return inside(e0.A * sx + r0, e1.A * sx + r1, e2.A * sx + r2);
+        };
+        while (xa <= xb && !in(xa)) ++xa;
+        while (xb > xa && !in(xb)) --xb;
+        bool wrote = false;
+        for (int x = xa; x <= xb; ++x) wrote |= depth_write(rowi + static_cast<std::size_t>(x), P * sxp[x] + rz);
+        if (wrote) s.mark_stale(y, xa, xb);  // a superset of the tiles written: only lazier
+        continue;
+      }
+      int wx0 = bw, wx1 = -1;  // columns written in this row
+      for (int x = xa; x <= xb; ++x) {
+        const double sx = sxp[x];
+        if (!inside(e0.A * sx + r0, e1.A * sx + r1, e2.A * sx + r2)) continue;
+        if (depth_write(rowi + static_cast<std::size_t>(x), P * sx + rz)) {
+          wx0 = std::min(wx0, x);
+          wx1 = std::max(wx1, x);
+        }
+      }
+      if (wx1 >= 0) s.mark_stale(y, wx0, wx1);
+    }
+  }
+}
+
+}  // namespace
+
+MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
+  if (extent.width < 1 || extent.height < 1) throw InputError("texture", "extent must be at least 1×1");
+  if (static_cast<double>(extent.width) > kMaxVectorExtent || static_cast<double>(extent.height) > kMaxVectorExtent)
+    throw InputError("texture", "extent must be at most 2^52 texels a side");
+  if (mesh.tris.empty()) throw InputError("mesh", "no triangles");
+  if (mesh.tris.size() >= kBackBit) throw InputError("mesh", "more than 2^31 − 1 triangles");
+  const double W = static_cast<double>(extent.width), H = static_cast<double>(extent.height);
+  std::vector<Tri> tris;
+  tris.reserve(mesh.tris.size());
+  for (std::size_t k = 0; k < mesh.tris.size(); ++k) {
+    const Mesh::Tri& mt = mesh.tris[k];
+    const std::string where = "mesh triangle " + std::to_string(k);
+    Tri t;
+    for (int c = 0; c < 3; ++c) {
+      if (mt.p[c] >= mesh.positions.size()) throw InputError(where, "vertex index out of range");
+      t.p[c] = mesh.positions[mt.p[c]];
+      if (!std::isfinite(t.p[c].x) || !std::isfinite(t.p[c].y) || !std::isfinite(t.p[c].z))
+        throw InputError(where, "vertex is not finite");
+    }
+    const glm::dvec3 e1 = t.p[1] - t.p[0], e2 = t.p[2] - t.p[0];
+    t.n = glm::cross(e1, e2);
+    const double a2 = glm::dot(t.n, t.n);
+    if (!(a2 > 0.0) || !std::isfinite(a2)) throw InputError(where, "zero-area or non-finite triangle");
+    t.textured = mt.t[0] >= 0;
+    if (t.textured) {
+      glm::dvec2 uv[3];
+      for (int c = 0; c < 3; ++c) {
+        if (mt.t[c] < 0 || static_cast<std::size_t>(mt.t[c]) >= mesh.uvs.size())
+          throw InputError(where, "texture coordinate index out of range");
+        uv[c] = mesh.uvs[static_cast<std::size_t>(mt.t[c])];
+        if (!std::isfinite(uv[c].x) || !std::isfinite(uv[c].y)) throw InputError(where, "uv is not finite");
+      }
+      // Gradient g of an affine attribute on the triangle's plane from g·e1 = Δ1, g·e2 = Δ2,
+      // g·n = 0: g = (Δ1·(e2 × n) + Δ2·(n × e1)) / |n|².
+      const glm::dvec3 a = glm::cross(e2, t.n) / a2, b = glm::cross(t.n, e1) / a2;
+      t.gu = ((uv[1].x - uv[0].x) * W) * a + ((uv[2].x - uv[0].x) * W) * b;
+      t.gv = ((uv[1].y - uv[0].y) * H) * a + ((uv[2].y - uv[0].y) * H) * b;
+      t.tu0 = uv[0].x * W;
+      t.tv0 = uv[0].y * H;
+    }
+    tris.push_back(t);
+  }
+  for (std::size_t k = 0; k < mesh.solids.size(); ++k) {
+    const Mesh::Box& b = mesh.solids[k];
+    if (!(b.lo.x <= b.hi.x && b.lo.y <= b.hi.y && b.lo.z <= b.hi.z))
+      throw InputError("mesh solid " + std::to_string(k), "bounds are NaN or lo > hi");
+  }
+  solids_ = mesh.solids;
+  // Spatial order (Morton code of the centroid in the mesh's box) so that chunks are compact.
+  glm::dvec3 lo = tris[0].p[0], hi = lo;
+  for (const Tri& t : tris)
+    for (const auto& p : t.p) {
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+    }
+  const glm::dvec3 ext = glm::max(hi - lo, glm::dvec3(1e-300));
+  std::vector<std::uint32_t> code(tris.size());
+  for (std::size_t k = 0; k < tris.size(); ++k) {
+    const glm::dvec3 cen = (tris[k].p[0] + tris[k].p[1] + tris[k].p[2]) / 3.0;
+    const glm::dvec3 q = glm::clamp((cen - lo) / ext, 0.0, 1.0) * 1023.0;
+    code[k] = spread_bits10(static_cast<std::uint32_t>(q.x)) | (spread_bits10(static_cast<std::uint32_t>(q.y)) << 1) |
+              (spread_bits10(static_cast<std::uint32_t>(q.z)) << 2);
+  }
+  std::vector<std::uint32_t> order(tris.size());
+  std::iota(order.begin(), order.end(), 0u);
+  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return code[a] < code[b]; });
+  tris_.reserve(tris.size());
+  for (std::uint32_t k : order) tris_.push_back(tris[k]);
+  for (std::uint32_t first = 0; first < tris_.size(); first += kChunkSize) {
+    Chunk ch;
+    ch.first = first;
+    ch.count = std::min<std::uint32_t>(kChunkSize, static_cast<std::uint32_t>(tris_.size()) - first);
+    ch.lo = ch.hi = tris_[first].p[0];
+    for (std::uint32_t k = first; k < first + ch.count; ++k)
+      for (const auto& p : tris_[k].p) {
+        ch.lo = glm::min(ch.lo, p);
+        ch.hi = glm::max(ch.hi, p);
+      }
+    chunks_.push_back(ch);
+  }
+}
+
+// Along any ray from outside the solids a front face comes first (Mesh::solids), so back faces can
+// be skipped when the part of every pixel's ray that is cut away (up to the near plane) lies
+// outside the solids too: no solid comes within the distance of the near plane's farthest corner.
+// The 2^-20 covers the rounding of that distance. O(solids), ~2 µs for the town's 1,537.
+bool MeshScene::skips_back_faces(const Camera& cam, const ViewParams& p) const {
+  if (!occlusion_culling_ || solids_.empty()) return false;
+  const double ax = std::max(cam.cx, cam.width - cam.cx) / cam.focal_px;
+  const double ay = std::max(cam.cy, cam.height - cam.cy) / cam.focal_px;
+  const double reach = p.near_m * std::sqrt(1.0 + ax * ax + ay * ay) * (1.0 + 0x1p-20);
+  const double r2 = reach * reach;
+  for (const Mesh::Box& b : solids_) {
+    // Distance to the box; 0 inside it, also for infinite bounds (the camera is finite).
+    const glm::dvec3 d = glm::max(glm::max(b.lo - cam.pos_m, cam.pos_m - b.hi), glm::dvec3(0.0));
+    if (!(glm::dot(d, d) > r2)) return false;
+  }
+  return true;
+}
+
+MeshScene::RenderStats MeshScene::last_render_stats() { return scratch().stats; }
+
+void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) const {
+  detail::begin_frame(cam, p, out);
+  render_impl(cam, p, &out, nullptr);
+}
+
+void MeshScene::render_spans(const Camera& cam, const ViewParams& p, SpanBuffer& out) const {
+  validate_view_params(p);
+  const int levels = mip_level_count(extent_);
+  // The per-sample buffer is wanted anyway, or the level cuts are not trustworthy: derive the
+  // spans from render()'s samples.
+  if (out.keep_samples || !detail::level_cuts(detail::lod_rule(p).bias, levels).ok) {
+    IScene::render_spans(cam, p, out);
+    return;
+  }
+  if (out.block_shift < 0 || out.block_shift > 62) throw std::invalid_argument("spans: block_shift must be in [0, 62]");
+  out.width = buffer_extent(cam.width, p.divisor);
+  out.height = buffer_extent(cam.height, p.divisor);
+  out.divisor = p.divisor;
+  out.levels = levels;
+  out.spans.clear();
+  out.has_samples = false;
+  out.view.samples.clear();
+  out.scene = this;
+  out.cam = cam;
+  out.params = p;
+  render_impl(cam, p, nullptr, &out);
+}
+
+void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* view, SpanBuffer* spans) const {
+  const bool to_spans = spans != nullptr;
+  const LodRule rule = detail::lod_rule(p);
+  const int div = p.divisor, bw = to_spans ? spans->width : view->width, bh = to_spans ? spans->height : view->height;
+  const std::size_t npix = static_cast<std::size_t>(bw) * static_cast<std::size_t>(bh);
+  Scratch& s = scratch();
+  s.stats = RenderStats{};
+  s.stats.chunks = static_cast<std::uint32_t>(chunks_.size());
+  s.invz.assign(npix + 4, 0.0);  // + 4: shade_batch reads whole lanes
+  s.id.assign(npix, kNoTri);
+  s.near_cut.assign(npix, 0);
+  s.bw = bw;
+  s.bh = bh;
+  s.tw = (bw + kTile - 1) >> kTileShift;
+  const std::size_t ntiles = static_cast<std::size_t>(s.tw) * static_cast<std::size_t>((bh + kTile - 1) >> kTileShift);
+  s.tile_min.assign(ntiles, 0.0);
+  s.tile_stale.assign(ntiles, 0);
+  s.sx.resize(static_cast<std::size_t>(bw) + 4);
+  s.sy.resize(static_cast<std::size_t>(bh));
+  for (int x = 0; x < bw; ++x) s.sx[static_cast<std::size_t>(x)] = sample_pos(x, div, cam.width);
+  for (int x = bw; x < bw + 4; ++x) s.sx[static_cast<std::size_t>(x)] = s.sx[static_cast<std::size_t>(bw - 1)];
+  for (int y = 0; y < bh; ++y) s.sy[static_cast<std::size_t>(y)] = sample_pos(y, div, cam.height);
+
+  const glm::dvec3 o = cam.pos_m, F = cam.fwd, R = -cam.left, U = cam.up;
+  const double f = cam.focal_px, near = p.near_m, zflag = near * kNearFlagFraction;
+  // Frustum side planes through the camera centre (inward normals), at the image border.
+  const glm::dvec3 planes[5] = {
+      F,                                        // in front of the camera
+      R + (cam.cx / f) * F,                     // right of the left border: x >= −(cx/f)·z
+      -R + ((cam.width - cam.cx) / f) * F,      // left of the right border
+      -U + (cam.cy / f) * F,                    // below the top border: y <= (cy/f)·z
+      U + ((cam.height - cam.cy) / f) * F,      // above the bottom border
+  };
+  const bool skip_back = skips_back_faces(cam, p);
+  CV cv[3], clip_a[4], clip_b[5], tmp[4];
+  PV pv[5];
+  // Chunks in the frustum, nearest first by the least view depth of their box (a linear function
+  // is least at a corner). Drawn front to back, a chunk whose box lies wholly beyond near and,
+  // at every sample its projection can cover, behind what is already drawn there, is skipped:
+  // none of its triangles could win a sample (occlusion culling). The margin kOccludeMargin
+  // covers the rounding of the rasteriser's interpolated 1/z against the box's exact bound.
+  thread_local std::vector<std::pair<double, std::uint32_t>> order;
+  order.clear();
+  for (std::uint32_t ci = 0; ci < chunks_.size(); ++ci) {
+    const Chunk& ch = chunks_[ci];
+    bool outside = false;
+    for (const glm::dvec3& pl : planes) {
+      const glm::dvec3 corner(pl.x >= 0.0 ? ch.hi.x : ch.lo.x, pl.y >= 0.0 ? ch.hi.y : ch.lo.y,
+                              pl.z >= 0.0 ? ch.hi.z : ch.lo.z);
+      if (glm::dot(corner - o, pl) < 0.0) {
+        outside = true;
+        break;
+      }
+    }
+    if (outside) continue;
+    ++s.stats.chunks_in_frustum;
+    const glm::dvec3 nearest(F.x >= 0.0 ? ch.lo.x : ch.hi.x, F.y >= 0.0 ? ch.lo.y : ch.hi.y, F.z >= 0.0 ? ch.lo.z : ch.hi.z);
+    order.emplace_back(glm::dot(nearest - o, F), ci);
+  }
+  if (occlusion_culling_) std::sort(order.begin(), order.end());
+  const auto occluded = [&](const Chunk& ch, double zmin) {
+    double X0 = INFINITY, X1 = -INFINITY, Y0 = INFINITY, Y1 = -INFINITY;
+    for (int c = 0; c < 8; ++c) {
+      const glm::dvec3 q = glm::dvec3(c & 1 ? ch.hi.x : ch.lo.x, c & 2 ? ch.hi.y : ch.lo.y, c & 4 ? ch.hi.z : ch.lo.z) - o;
+      const double iz = 1.0 / glm::dot(q, F);
+      const double X = cam.cx + f * glm::dot(q, R) * iz, Y = cam.cy - f * glm::dot(q, U) * iz;
+      X0 = std::min(X0, X);
+      X1 = std::max(X1, X);
+      Y0 = std::min(Y0, Y);
+      Y1 = std::max(Y1, Y);
+    }
+    int x0, x1, y0, y1;
+    sample_range(X0, X1, div, bw, x0, x1);
+    sample_range(Y0, Y1, div, bh, y0, y1);
+    // True also when the projection covers no sample at all.
+    return s.all_nearer(x0, x1, y0, y1, (1.0 / zmin) * (1.0 + kOccludeMargin));
+  };
+  // One triangle: clip at near, project, occlusion-test, rasterise.
+  const auto draw_tri = [&](std::uint32_t k) {
+    const Tri& t = tris_[k];
+    ++s.stats.triangles_visited;
+    const bool front = glm::dot(o - t.p[0], t.n) > 0.0;
+    if (!front && skip_back) {
+      ++s.stats.back_faces_skipped;
+      return;
+    }
+    bool all_near = true, any_flag = false;
+    for (int c = 0; c < 3; ++c) {
+      const glm::dvec3 q = t.p[c] - o;
+      cv[c] = CV{glm::dot(q, R), glm::dot(q, U), glm::dot(q, F)};
+      all_near = all_near && cv[c].z >= near;
+      any_flag = any_flag || cv[c].z >= zflag;
+    }
+    if (!any_flag) return;  // wholly behind the camera or nearer than near/1024
+    const std::uint32_t tag = front ? k : (k | kBackBit);
+    const auto project = [&](const CV* poly, int n) {
+      for (int c = 0; c < n; ++c) {
+        const double iz = 1.0 / poly[c].z;
+        pv[c] = PV{cam.cx + f * poly[c].x * iz, cam.cy - f * poly[c].y * iz, iz};
+      }
+    };
+    if (all_near) {
+      project(cv, 3);
+      if (occlusion_culling_) {
+        // The chunk test at triangle granularity (same bound and margin): of the ~3,700
+        // triangles in the chunks a street-level town view draws, ~40 win a sample.
+        int x0, x1, y0, y1;
+        sample_range(std::min({pv[0].X, pv[1].X, pv[2].X}), std::max({pv[0].X, pv[1].X, pv[2].X}), div, bw, x0, x1);
+        sample_range(std::min({pv[0].Y, pv[1].Y, pv[2].Y}), std::max({pv[0].Y, pv[1].Y, pv[2].Y}), div, bh, y0, y1);
+        const double tz = std::min({cv[0].z, cv[1].z, cv[2].z});
+        if (s.all_nearer(x0, x1, y0, y1, (1.0 / tz) * (1.0 + kOccludeMargin))) {
+          ++s.stats.triangles_occluded;
+          return;
+        }
+      }
+      ++s.stats.triangles_rasterised;
+      raster_poly(pv, 3, tag, true, div, bw, bh, s);
+      return;
+    }
+    const int na = clip_poly(cv, 3, near, true, clip_a);
+    if (na >= 3) {
+      ++s.stats.triangles_rasterised;
+      project(clip_a, na);
+      raster_poly(pv, na, tag, true, div, bw, bh, s);
+    }
+    const int nt = clip_poly(cv, 3, near, false, tmp);
+    const int nb = nt >= 3 ? clip_poly(tmp, nt, zflag, true, clip_b) : 0;
+    if (nb >= 3) {
+      project(clip_b, nb);
+      raster_poly(pv, nb, 0, false, div, bw, bh, s);
+    }
+  };
+  // Warm start: last frame's visible triangles first (this thread's previous render of a scene
+  // of this size — a hint only: any triangle may be drawn in any order, the tie rule makes the
+  // buffer the same). At 60 Hz they cover nearly the same samples again, so the depth is close
+  // to final before the chunks start and most chunks fail the occlusion test at once.
+  if (s.drawn_stamp.size() != tris_.size()) {
+    s.drawn_stamp.assign(tris_.size(), 0);
+    s.hint_stamp.assign(tris_.size(), 0);
+    s.shade_stamp.assign(tris_.size(), 0);
+    s.shade.resize(tris_.size());
+    s.hint.clear();
+  }
+  const std::uint64_t stamp = ++s.frame;
+  if (occlusion_culling_)
+    for (const std::uint32_t k : s.hint) {
+      s.drawn_stamp[k] = stamp;
+      draw_tri(k);
+    }
+  for (const auto& [zmin, ci] : order) {
+    const Chunk& ch = chunks_[ci];
+    if (occlusion_culling_ && zmin > near && occluded(ch, zmin)) {
+      ++s.stats.chunks_occluded;
+      continue;
+    }
+    for (std::uint32_t k = ch.first; k < ch.first + ch.count; ++k)
+      if (s.drawn_stamp[k] != stamp) draw_tri(k);
+  }
+
+  // Resolve: classify every buffer pixel and shade the visible front faces exactly. The ray of
+  // full-resolution pixel (px, py) is d = D0 + px·ddx + py·ddy (Camera::ray_dir); on a triangle's
+  // plane everything a sample needs is a ratio of functions affine in (px, py), so each triangle
+  // that owns a sample gets its coefficients once per frame and a sample costs one division:
+  //   d·n = a0 + a1·px + a2·py,  ray parameter t = −((o − p0)·n) / (d·n),
+  //   texel u = tu0 + gu·(o − p0) + t·(gu·d)   (the hit point is o + t·d; gu·d is affine too),
+  //   dT/dx (Igehy's ray differential, lod.h): t·(gu·ddx − (ddx·n)(gu·d)/(d·n)), likewise v, y.
+  // Algebraically the ray-plane intersection and plane_footprint_lod; the rounding differs by ulps.
+  const double far_iz = 1.0 / p.far_m;
+  s.hint.clear();  // this frame's visible triangles, for the next frame's warm start
+  const auto seen = [&](std::uint32_t k) {
+    if (s.hint_stamp[k] != stamp) {
+      s.hint_stamp[k] = stamp;
+      s.hint.push_back(k);
+    }
+  };
+  ViewCounters c;
+  [[maybe_unused]] MeshSpanOut so{to_spans ? &spans->spans : nullptr, c,
+                                  to_spans ? &detail::level_cuts(rule.bias, spans->levels) : nullptr, to_spans ? spans->levels : 1,
+                                  to_spans ? spans->block_shift : 0, static_cast<double>(extent_.width),
+                                  static_cast<double>(extent_.height)};
+  for (int y = 0; y < bh; ++y) {
+    const double py = s.sy[static_cast<std::size_t>(y)];
+    const std::size_t row = static_cast<std::size_t>(y) * static_cast<std::size_t>(bw);
+    if (to_spans) so.open = false;  // spans stay in a row
+    for (int x = 0; x < bw;) {
+      const std::size_t idx = row + static_cast<std::size_t>(x);
+      const std::uint32_t id = s.id[idx];
+      if (id == kNoTri || (id & kBackBit) || !tris_[id].textured) {
+        if (id == kNoTri) {
+          if (s.near_cut[idx]) ++c.clipped;
+          else ++c.sky;
+        } else {
+          seen(id & ~kBackBit);
+          if (s.invz[idx] < far_iz) ++c.clipped;
+          else if (id & kBackBit) ++c.backfacing;
+          else ++c.untextured;
+        }
+        if (to_spans) so.open = false;
+        ++x;
+        continue;
+      }
+      seen(id);
+      Shade& h = s.shade[id];
+      if (s.shade_stamp[id] != stamp) {
+        s.shade_stamp[id] = stamp;
+        shade_of(tris_[id], cam, h);
+      }
+      // The run of this row's samples the same front face owns, four lanes at a time.
+      int xe = x + 1;
+      while (xe < bw && s.id[row + static_cast<std::size_t>(xe)] == id) ++xe;
+      const ShadeRow k = shade_row(h, py, rule, far_iz, extent_);
+      ++s.stats.resolve_runs;
+      s.stats.resolve_samples += static_cast<std::uint64_t>(xe - x);
+      if (to_spans) {
+        span_run(k, s.sx.data() + x, s.invz.data() + idx, xe - x, static_cast<std::uint32_t>(idx), rule.anisotropic, so);
+      } else {
+        for (int xb = x; xb < xe; xb += kShadeBatch) {
+          const int n = std::min(kShadeBatch, xe - xb);
+          const std::size_t pix0 = row + static_cast<std::size_t>(xb);
+          shade_batch(k, s.sx.data() + xb, s.invz.data() + pix0, n, rule.anisotropic, s.batch);
+          for (int j = 0; j < n; ++j) {
+            switch (s.batch.cls[j]) {
+              case kSample: {
+                const auto pix = static_cast<std::uint32_t>(pix0 + static_cast<std::size_t>(j));
+                view->samples.push_back(ViewSample{s.batch.u[j], s.batch.v[j], s.batch.lod[j], pix});
+                break;
+              }
+              case kClipped: ++c.clipped; break;
+              case kBackfacing: ++c.backfacing; break;
+              default: ++c.outside_texture; break;
+            }
+          }
+        }
+      }
+      x = xe;
+    }
+  }
+  s.stats.visible_triangles = static_cast<std::uint32_t>(s.hint.size());
+  if (to_spans) {
+    spans->counters = c;
+    spans->samples = so.n_samples;
+    // render_pixels shades a span's pixels again from their faces; the swap keeps both buffers'
+    // storage (no allocation after warm-up).
+    spans->surface = s.id;
+  } else {
+    view->counters = c;
+  }
+}
+
+void MeshScene::render_pixels(const SpanBuffer& sb, std::uint32_t pixel, std::uint32_t count,
+                              std::vector<ViewSample>& out) const {
+  const std::uint32_t bw = static_cast<std::uint32_t>(sb.width);
+  if (bw == 0 || pixel / bw >= static_cast<std::uint32_t>(sb.height) || pixel % bw + count > bw)
+    throw std::invalid_argument("render_pixels: the pixels are not within one buffer row");
+  if (sb.surface.size() != static_cast<std::size_t>(bw) * static_cast<std::size_t>(sb.height))
+    throw std::logic_error("render_pixels: the span buffer holds no faces of a mesh render");
+  const Camera& cam = sb.cam;
+  const ViewParams& p = sb.params;
+  const LodRule rule = detail::lod_rule(p);
+  const double far_iz = 1.0 / p.far_m;
+  const int y = static_cast<int>(pixel / bw), x0 = static_cast<int>(pixel % bw);
+  const double py = sample_pos(y, p.divisor, cam.height);
+  thread_local std::vector<double> px, iz;
+  thread_local ShadeBatch batch;
+  // A span's pixels are samples, so none was clipped: 1/z = +inf passes the far test.
+  px.resize(static_cast<std::size_t>(count) + 4);
+  iz.assign(static_cast<std::size_t>(count) + 4, INFINITY);
+  for (std::uint32_t i = 0; i < count + 4; ++i)
+    px[i] = sample_pos(x0 + static_cast<int>(std::min(i, count - 1)), p.divisor, cam.width);
+  for (std::uint32_t a = 0; a < count;) {
+    const std::uint32_t id = sb.surface[pixel + a];
+    std::uint32_t e = a + 1;
+    while (e < count && sb.surface[pixel + e] == id) ++e;
+    if (id == kNoTri || (id & kBackBit) || id >= tris_.size() || !tris_[id].textured)
+      throw std::logic_error("render_pixels: a pixel of the span is not a sample");
+    Shade h;
+    shade_of(tris_[id], cam, h);
+    const ShadeRow k = shade_row(h, py, rule, far_iz, extent_);
+    for (std::uint32_t b = a; b < e; b += kShadeBatch) {
+      const int n = static_cast<int>(std::min<std::uint32_t>(kShadeBatch, e - b));
+      shade_batch(k, px.data() + b, iz.data() + b, n, rule.anisotropic, batch);
+      for (int j = 0; j < n; ++j) {
+        if (batch.cls[j] != kSample) throw std::logic_error("render_pixels: a pixel of the span is not a sample");
+        out.push_back(ViewSample{batch.u[j], batch.v[j], batch.lod[j], pixel + b + static_cast<std::uint32_t>(j)});
+      }
+    }
+    a = e;
+  }
+}
+
+}  // namespace vtsim

@@ -1,0 +1,112 @@
+#pragma once
+// Mesh scene: triangles with unique UVs into one virtual texture, rasterised at the feedback
+// buffer's sample positions with a depth buffer (docs/view.md). Visibility comes from the
+// rasteriser (near-plane clipping, 1/z depth test, back faces kept as occluders); each visible
+// sample is then shaded exactly: its ray meets the triangle's plane, whose affine texel map gives
+// the texel and, through ray differentials, dT/dx and dT/dy per full-resolution pixel.
+#include <cstdint>
+#include <vector>
+
+#include "sim/view/mesh.h"
+#include "sim/view/scene.h"
+
+namespace vtsim {
+
+// Render cost O(visible chunks' triangles + covered samples); chunks of 16 spatially sorted
+// triangles are frustum-culled by their bounding boxes and, drawn nearest first, occlusion-culled
+// against the depth drawn so far, and so is each triangle of a drawn chunk (a hierarchical depth
+// buffer of 8×8-sample tiles answers most tests without reading samples). Drawing starts with
+// the triangles that owned samples in this thread's previous render (a warm start: at 60 Hz they
+// fill nearly the same depth), which never changes the result, only how much is culled. The depth buffer is per-thread scratch
+// (thread_local, reused, so no allocation after warm-up): render is thread-safe.
+// Back faces (seen from behind, per triangle: the camera is behind its plane) are rasterised as
+// occluders and never sampled: a camera inside a closed wall sees nothing, as on a solid. When the
+// mesh promises solids (Mesh::solids) and none comes within the near plane's reach of the camera,
+// no back face can be the nearest surface, and they are skipped (~60 % of the triangles a town
+// street view draws).
+class MeshScene final : public IScene {
+ public:
+  // texel = floor(uv · (W, H)) for the texture extent; throws InputError("mesh", ...) for an empty
+  // mesh, indices out of range, non-finite data or more than 2^31 − 1 triangles, and
+  // InputError("texture", ...) for an extent below 1 or above 2^52 texels a side.
+  MeshScene(const Mesh& mesh, TextureExtent extent);
+  TextureExtent texture() const override { return extent_; }
+  void render(const Camera& cam, const ViewParams& params, ViewBuffer& out) const override;
+  // Spans without materialising samples: the same rasterisation, then per row run of a front face
+  // the resolve's arithmetic four samples at a time and the open span's test as double
+  // comparisons (level cuts instead of the logarithm, span_build.h); only a span's first sample is
+  // classified one by one. Keeps the buffer's faces (SpanBuffer::surface) for render_pixels.
+  // keep_samples falls back to render() + spans.
+  void render_spans(const Camera& cam, const ViewParams& params, SpanBuffer& out) const override;
+  void render_pixels(const SpanBuffer& sb, std::uint32_t pixel, std::uint32_t count,
+                     std::vector<ViewSample>& out) const override;
+
+  std::size_t triangle_count() const { return tris_.size(); }
+  // What this thread's last render or render_spans of a mesh did: where the culling stopped each
+  // triangle and how many samples the rasteriser and the resolve touched (bench_vt prints it per
+  // frame; docs/vt.md "Speed"). Counted per chunk, triangle and row, never per sample.
+  struct RenderStats {
+    std::uint32_t chunks = 0;               // in the mesh
+    std::uint32_t chunks_in_frustum = 0;
+    std::uint32_t chunks_occluded = 0;      // in the frustum, skipped by the occlusion test
+    std::uint32_t triangles_visited = 0;    // reached by the warm start or a drawn chunk
+    std::uint32_t back_faces_skipped = 0;   // of those, back faces skipped (skips_back_faces)
+    std::uint32_t triangles_occluded = 0;   // skipped by the per-triangle occlusion test
+    std::uint32_t triangles_rasterised = 0; // depth-rasterised (near-clipped parts count once)
+    std::uint64_t raster_rows = 0;          // rows those triangles spanned
+    std::uint64_t depth_tests = 0;          // samples tested against the depth buffer
+    std::uint32_t visible_triangles = 0;    // owning a sample after the resolve
+    std::uint32_t resolve_runs = 0;         // row runs of one front face shaded
+    std::uint64_t resolve_samples = 0;      // samples in those runs
+    // Sums the counts of several renders (chunks, the mesh's, stays the larger).
+    RenderStats& operator+=(const RenderStats& o) {
+      chunks = chunks > o.chunks ? chunks : o.chunks;
+      chunks_in_frustum += o.chunks_in_frustum;
+      chunks_occluded += o.chunks_occluded;
+      triangles_visited += o.triangles_visited;
+      back_faces_skipped += o.back_faces_skipped;
+      triangles_occluded += o.triangles_occluded;
+      triangles_rasterised += o.triangles_rasterised;
+      raster_rows += o.raster_rows;
+      depth_tests += o.depth_tests;
+      visible_triangles += o.visible_triangles;
+      resolve_runs += o.resolve_runs;
+      resolve_samples += o.resolve_samples;
+      return *this;
+    }
+  };
+  static RenderStats last_render_stats();
+  // Occlusion culling (on by default): chunks drawn nearest first, those hidden behind what is
+  // drawn skipped, and back faces skipped where the solids allow. Off: every chunk in the
+  // frustum, in index order, every back face — the reference the tests compare with. Not to be
+  // changed while another thread renders.
+  void set_occlusion_culling(bool on) { occlusion_culling_ = on; }
+  // Whether a render from this camera skips back faces: culling is on, the mesh has solids, and
+  // none of them holds the camera or reaches the near plane (then no back face is the nearest
+  // surface anywhere, and the buffer is what drawing them gives).
+  bool skips_back_faces(const Camera& cam, const ViewParams& params) const;
+
+ private:
+  struct Tri {
+    glm::dvec3 p[3];      // corners, world metres
+    glm::dvec3 n;         // (p1 − p0) × (p2 − p0): the front side
+    glm::dvec3 gu, gv;    // gradients of the level-0 texel coordinates, texels per metre
+    double tu0 = 0.0, tv0 = 0.0;  // texel coordinates at p[0]
+    bool textured = false;
+  };
+  struct Chunk {
+    glm::dvec3 lo, hi;    // bounding box, world metres
+    std::uint32_t first = 0, count = 0;
+  };
+  // render (view: the begun per-sample buffer) and render_spans (spans: its fields set but the
+  // spans'): rasterise, then resolve into samples or spans.
+  void render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* view, SpanBuffer* spans) const;
+
+  TextureExtent extent_;
+  std::vector<Tri> tris_;
+  std::vector<Chunk> chunks_;
+  std::vector<Mesh::Box> solids_;
+  bool occlusion_culling_ = true;
+};
+
+}  // namespace vtsim

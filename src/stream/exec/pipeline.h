@@ -1,0 +1,170 @@
+#pragma once
+// The request manager: one state machine per tile on its way disk -> RAM -> VRAM, the same for
+// the simulated and the real clock (only the IExecutor differs). docs/pipeline.md.
+//
+//   needed -> queued -> submitted (reading -> decoding, inside the executor) -> in RAM
+//          -> waiting_upload -> uploaded (resident; the record ends)
+//   no longer needed: queued -> dropped (no cost); submitted -> executor.cancel(): not started ->
+//          dropped (no cost), under way -> cancelling (result discarded or kept in RAM);
+//          waiting_upload -> dropped (the tile stays in the RAM cache)
+//   fault -> retried after a backoff, up to max_retries, then failed (not requested again for
+//          failed_retry_s); the screen keeps the coarser level meanwhile.
+//
+// Per frame, in this order: begin_frame(t) (collect completions), set_needs(...) (diff against
+// what is in flight; RAM hits skip IO and decode), dispatch() (submit queued work by priority up
+// to the executor's capacity, then collect zero-time completions), take_uploads() (choose by
+// priority within the upload budget; the caller commits them to VRAM).
+//
+// Complexity per frame: O(R + N log N) for R live requests and N needs; nothing when nothing is
+// needed or in flight. Thread-safety: single-threaded (the frame loop); the executor may have
+// threads of its own behind its interface.
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <unordered_map>
+#include <vector>
+
+#include "cache/lru_cache.h"
+#include "cache/need.h"
+#include "core/tile_key.h"
+#include "core/time.h"
+#include "stream/exec/i_executor.h"
+
+namespace vtsim {
+
+struct PipelineConfig {
+  std::uint64_t ram_bytes = 256ull << 20;  // RAM cache capacity, bytes of decoded tiles
+  int max_retries = 2;                     // retries of a faulted tile before it is marked failed
+  int retry_backoff_frames = 2;            // frames to wait before a retry
+  double failed_retry_s = 0.0;             // failed tiles are not requested again for this long; 0 = never
+  bool cache_prefetched_on_cancel = true;  // a cancelled tile whose decode finished still enters RAM
+  int thrash_frames = 60;                  // a miss within this many frames of an eviction is thrash
+};
+
+// Sizes of a tile: what crosses the disk and what decode produces (RAM and VRAM bytes).
+struct TileSizes {
+  std::uint64_t disk_bytes = 0;
+  std::uint64_t decoded_bytes = 0;
+};
+using TileSizer = std::function<TileSizes(TileKey)>;
+
+// A tile ready for upload this frame, with its history for latency metrics.
+struct UploadItem {
+  TileKey key;
+  std::uint64_t bytes = 0;           // decoded bytes uploaded
+  int needed_frame = 0;              // first frame that needed it
+  Ticks needed_time = 0;
+  Ticks queue_ticks = 0;             // needed -> read start (pipeline queue + executor queue)
+  Ticks io_ticks = 0;                // read start -> read end
+  Ticks decode_wait_ticks = 0;       // read end -> decode start
+  Ticks decode_ticks = 0;            // decode start -> decode end
+  Ticks ram_ticks = 0;               // in RAM -> chosen for upload (waiting for upload budget)
+  bool ram_hit = false;              // came from the RAM cache: no IO, no decode
+  bool prefetched = false;           // the RAM entry was brought in by look-ahead prefetch
+  std::shared_ptr<const TileData> data;  // real clock: the decoded tile to copy into VRAM
+};
+
+struct UploadBudget {
+  std::uint64_t bytes = 0;  // 0 = unlimited
+  int tiles = 0;            // 0 = unlimited
+};
+
+// Counters, cumulative over the run (bytes and tiles).
+struct PipelineCounters {
+  std::uint64_t needs = 0;               // (tile, frame) demands seen by set_needs
+  std::uint64_t requests = 0;            // demand requests created (first need of a non-resident tile)
+  std::uint64_t ram_hits = 0, ram_misses = 0;  // at request creation
+  std::uint64_t prefetch_requests = 0;
+  std::uint64_t prefetch_hits = 0;       // demand requests served by a prefetched RAM entry
+  std::uint64_t submitted = 0;           // jobs given to the executor
+  std::uint64_t disk_bytes = 0, disk_reads = 0;          // all reads completed (incl. wasted)
+  std::uint64_t prefetch_disk_bytes = 0;                  // of which look-ahead prefetch
+  std::uint64_t decoded_bytes = 0, decodes = 0;
+  std::uint64_t cancelled_queued = 0;    // dropped before any IO (pipeline or executor queue)
+  std::uint64_t cancelled_after_read = 0;   // read paid, decode skipped or result unused
+  std::uint64_t wasted_read_bytes = 0;   // disk bytes of reads whose tile was no longer needed
+  std::uint64_t dropped_before_upload = 0;  // in RAM, no longer needed before its upload
+  std::uint64_t uploads = 0, upload_bytes = 0;
+  std::uint64_t faults = 0, retries = 0, failed_tiles = 0;
+  std::uint64_t ram_evictions = 0, ram_evicted_bytes = 0;
+  std::uint64_t fault_by_kind[8] = {};
+  std::uint64_t ram_thrash = 0;          // RAM misses on tiles evicted within thrash_frames
+  std::uint64_t disk_bytes_by_level[TileKey::kMaxLevels] = {};
+};
+
+// What a throttling policy may read: the backlog by level (bytes not yet resident).
+struct Backlog {
+  std::vector<std::uint64_t> bytes_by_level;   // queued + in flight + waiting upload, demand only
+  std::vector<std::uint32_t> tiles_by_level;
+};
+
+// What the RAM cache holds per tile: the decoded data (real clock; null when simulated).
+struct RamEntry {
+  std::shared_ptr<const TileData> data;
+  bool prefetched = false;  // brought in by look-ahead prefetch and not used since
+};
+
+class Pipeline {
+ public:
+  Pipeline(const PipelineConfig& cfg, IExecutor& exec, TileSizer sizer);
+
+  void begin_frame(int frame, Ticks now);
+  // `needs` is the complete list of tiles needed and not resident this frame (any order).
+  void set_needs(const std::vector<Need>& needs);
+  void dispatch();
+  // Chooses uploads by priority within the budget (and removes them from the pipeline).
+  void take_uploads(const UploadBudget& budget, std::vector<UploadItem>& out);
+
+  // The caller evicted a resident tile from VRAM: nothing to do here (the RAM copy, if any, stays).
+  bool in_ram(TileKey key) const { return ram_.contains(key); }
+  bool is_failed(TileKey key) const;
+
+  const PipelineCounters& counters() const { return counters_; }
+  std::size_t live_requests() const { return requests_.size(); }
+  std::size_t queued() const;  // requests waiting in the pipeline's own queue (diagnostics; O(R))
+  Backlog backlog(int num_levels) const;
+  std::uint64_t ram_bytes_used() const { return ram_.bytes(); }
+  int frame() const { return frame_; }
+  Ticks now() const { return now_; }
+
+ private:
+  enum class State : std::uint8_t { queued, submitted, cancelling, waiting_upload, backoff };
+  struct Request {
+    RequestId id = 0;
+    TileKey key;
+    State state = State::queued;
+    bool prefetch = false;
+    bool needed = false;        // needed in the current frame (set_needs marks)
+    bool revived = false;       // cancelling, then needed again
+    bool ram_hit = false, prefetched_entry = false;
+    std::uint64_t priority = 0;
+    TileSizes sizes;
+    int needed_frame = 0;
+    Ticks needed_time = 0;
+    Ticks in_ram_time = 0;
+    int attempts = 0;
+    int retry_frame = 0;
+    JobResult timing;
+    std::shared_ptr<const TileData> data;
+  };
+  void on_result(JobResult& r);
+  void to_ram(Request& q, const std::shared_ptr<const TileData>& data, bool prefetched);
+  void drop(TileKey key);
+
+  PipelineConfig cfg_;
+  IExecutor& exec_;
+  TileSizer sizer_;
+  LruCache<RamEntry> ram_;
+  std::unordered_map<TileKey, Request, TileKeyHash> requests_;
+  std::unordered_map<RequestId, TileKey> by_id_;
+  std::unordered_map<TileKey, Ticks, TileKeyHash> failed_;  // key -> time it failed
+  std::unordered_map<TileKey, int, TileKeyHash> ram_evicted_at_;  // key -> frame of its RAM eviction
+  PipelineCounters counters_;
+  RequestId next_id_ = 1;
+  int frame_ = 0;
+  Ticks now_ = 0;
+  std::vector<JobResult> results_;
+  std::vector<Request*> scratch_;
+};
+
+}  // namespace vtsim

@@ -1,0 +1,71 @@
+#pragma once
+// The clipmap as a streaming system: windows follow the camera's ground point, needs are the
+// non-resident tiles of the active levels' windows (pyramid first: coarse before fine), screen
+// importance comes from the feedback, and look-ahead prefetch fetches the band the windows will
+// enter (seed 000 §4-2). docs/clipmap.md.
+#include <unordered_map>
+
+#include "cache/clipmap.h"
+#include "stream/system/feedback.h"
+#include "stream/system/i_system.h"
+
+namespace vtsim {
+
+struct ClipmapSystemParams {
+  ClipmapParams clipmap;
+  double texels_per_m = 128.0;           // ground texel density, level 0
+  double origin_x_m = 0.0, origin_y_m = 0.0;  // world position of texel (0, 0)
+  std::uint64_t tile_bytes_all_layers = 0;    // decoded bytes of one tile, all layers summed
+  double prefetch_lookahead_s = 0.0;     // 0 = off
+  int thrash_frames = 60;
+};
+
+class ClipmapSystem final : public IStreamingSystem {
+ public:
+  explicit ClipmapSystem(const ClipmapSystemParams& p);
+
+  int num_levels() const override { return cm_.num_levels(); }
+  int resident_level(std::int64_t u, std::int64_t v, int desired_level) const override {
+    return cm_.resident_level(u, v, desired_level);
+  }
+  void resident_levels(const ViewSample* s, std::size_t n, std::int8_t* out) const override {
+    cm_.resident_levels(s, n, out);
+  }
+  void span_resident_levels(const ViewSpan* s, std::size_t n, std::int8_t* out) const override {
+    cm_.span_resident_levels(s, n, out);
+  }
+  bool uses_spans() const override { return true; }
+  void begin_frame(const SystemFrame& f) override;
+  void missing_bytes_by_level(std::vector<std::uint64_t>& out) const override;
+  int coarsest_clamp() const override { return cm_.first_pyramid_level(); }
+  void apply_throttle(const ThrottleDecision& d) override { cm_.set_clamp(d.clamp); }
+  void emit_needs(std::vector<Need>& out) override;
+  std::uint32_t throttled_needs() const override { return throttled_; }
+  bool commit(TileKey key, int frame) override;
+  void set_mark_sampled(bool on) override { cm_.set_mark_sampled(on); }
+  nlohmann::json stats_json() const override;
+  std::uint64_t vram_evictions() const override { return cm_.stats().vram_evictions; }
+  std::uint64_t vram_thrash() const override { return thrash_; }
+  std::uint64_t evicted_unsampled_bytes() const override;
+
+  const Clipmap& clipmap() const { return cm_; }
+  // Level-0 ground texel under a world position (floor; exact for positions relative to the origin).
+  std::int64_t ground_u(double x_m) const;
+  std::int64_t ground_v(double y_m) const;
+
+ private:
+  std::uint64_t importance(int level, std::int64_t x, std::int64_t y) const;
+
+  ClipmapSystemParams p_;
+  Clipmap cm_;
+  std::int64_t gu_ = 0, gv_ = 0, fu_ = 0, fv_ = 0;
+  bool prefetch_ = false;
+  int finest_active_ = 0;
+  int frame_ = 0;
+  std::uint32_t throttled_ = 0;
+  std::vector<TileUse> uses_;  // this frame's feedback at the clipmap's tile size, sorted by key
+  std::unordered_map<std::uint64_t, int> evicted_at_;  // (level, x, y) -> frame its slot was overwritten
+  std::uint64_t thrash_ = 0;
+};
+
+}  // namespace vtsim

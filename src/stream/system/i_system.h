@@ -1,0 +1,78 @@
+#pragma once
+// A streaming system decides what must be resident (clipmap windows, VT feedback pages) and holds
+// VRAM residency; the pipeline moves tiles; the frame loop (sim/run/replay.h) joins them. Clipmap and
+// virtual texturing implement this interface and share everything else.
+#include <array>
+#include <cstdint>
+#include <glm/vec3.hpp>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "cache/i_residency.h"
+#include "cache/need.h"
+#include "core/time.h"
+#include "core/trace.h"
+#include "core/view.h"
+#include "core/view_spans.h"
+#include "stream/throttle/i_throttle.h"
+
+namespace vtsim {
+
+// Per-frame counters a streaming system adds to the per-frame CSV (names from
+// IStreamingSystem::frame_counter_names; unused entries stay 0).
+inline constexpr std::size_t kSystemCounters = 12;
+using SystemCounters = std::array<double, kSystemCounters>;
+
+struct SystemFrame {
+  int frame = 0;
+  Ticks now = 0;
+  const Pose* pose = nullptr;
+  glm::dvec3 velocity_mps{0.0};    // camera velocity (zero across a cut)
+  const ViewBuffer* view = nullptr;  // feedback of this frame (may be an earlier frame's, see view.feedback_every)
+  int finest_needed = 0;           // finest desired level of any sample (num_levels: nothing visible)
+  const SpanBuffer* spans = nullptr;  // the same feedback in run-length form (systems that use_spans)
+};
+
+class IStreamingSystem : public IResidency {
+ public:
+  // Per frame, in this order.
+  virtual void begin_frame(const SystemFrame& f) = 0;
+  virtual void missing_bytes_by_level(std::vector<std::uint64_t>& out) const = 0;
+  virtual int coarsest_clamp() const = 0;   // the clamp that means "coarsest fallback only"
+  virtual void apply_throttle(const ThrottleDecision& d) = 0;
+  virtual void emit_needs(std::vector<Need>& out) = 0;  // demand and prefetch, not resident
+  // Counts tiles the clamp kept from being needed in the last emit_needs.
+  virtual std::uint32_t throttled_needs() const = 0;
+  // An uploaded tile becomes resident; false if it is no longer wanted (stale).
+  virtual bool commit(TileKey key, int frame) = 0;
+  // Where a tile that commit() just accepted lives in VRAM: its physical pool slot (virtual
+  // texturing: every layer of a page shares one slot), or -1 when the key alone places it (the
+  // clipmap's toroidal windows). The real clock copies the tile's texels there.
+  virtual std::int64_t vram_slot(TileKey) const { return -1; }
+  virtual void set_mark_sampled(bool on) = 0;
+  // True when the system reads SystemFrame::spans and resolves spans (span_resident_levels); the
+  // frame loop then renders spans only. Otherwise it also passes the per-sample buffer (`view`).
+  virtual bool uses_spans() const { return false; }
+  // True when the next begin_frame will read every sample although the system uses spans (a VT
+  // feedback bias): the frame loop then materialises the span buffer's samples once
+  // (materialise_samples) and passes them as `view`, and every later expansion is a copy.
+  virtual bool wants_samples() const { return false; }
+  virtual double pool_occupancy() const { return 0.0; }
+  virtual double pool_pressure() const { return 0.0; }
+  // Virtual texturing: pages wanted per level and pool slots (ThrottleInput); clipmaps: none.
+  virtual void pool_demand(std::vector<std::uint64_t>& pages_by_level, std::uint64_t& slots) const {
+    pages_by_level.clear();
+    slots = 0;
+  }
+  // System-specific per-frame counters for the per-frame CSV (names once, values every frame).
+  virtual std::vector<std::string> frame_counter_names() const { return {}; }
+  virtual void frame_counters(SystemCounters& out) const { out.fill(0.0); }
+  // System-specific counters for the summary ("clipmap" or "vt" section), and the VRAM totals.
+  virtual nlohmann::json stats_json() const = 0;
+  virtual std::uint64_t vram_evictions() const = 0;
+  virtual std::uint64_t vram_thrash() const = 0;
+  virtual std::uint64_t evicted_unsampled_bytes() const = 0;
+};
+
+}  // namespace vtsim

@@ -1,0 +1,492 @@
+#include "stream/system/vt_system.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <stdexcept>
+
+namespace vtsim {
+
+namespace {
+
+int lock_from(const VtGeometry& g, int locked_levels) { return g.levels() - std::max(0, locked_levels); }
+
+}  // namespace
+
+VtSystem::VtSystem(const VtSystemParams& p)
+    : p_(p),
+      geo_(p.extent, p.page_size, p.border),
+      pt_(geo_),
+      pool_(p.pool_pages, p.layers, lock_from(geo_, p.locked_levels)),
+      memo_(kMemo) {
+  if (p.locked_levels < 0 || p.locked_levels > geo_.levels())
+    throw std::invalid_argument("vt: locked levels must be in [0, levels]");
+  if (geo_.coarsest_pages(p.locked_levels) > p.pool_pages)
+    throw std::invalid_argument("vt: the pool is smaller than the locked levels");
+  if (p.prefetch_finer_levels < 0 || p.prefetch_finer_levels > 2)
+    throw std::invalid_argument("vt: prefetch_finer_levels must be 0, 1 or 2");
+  if (p.residency_window_frames < 1) throw std::invalid_argument("vt: residency window must be >= 1 frame");
+  pool_.set_hook([this](const PagePool::Removed& r) { on_removed(r); });
+  by_level_.resize(static_cast<std::size_t>(geo_.levels()));
+  demand_by_level_.assign(static_cast<std::size_t>(geo_.levels()), 0);
+  missing_by_level_.assign(static_cast<std::size_t>(geo_.levels()), 0);
+}
+
+void VtSystem::on_removed(const PagePool::Removed& r) {
+  const auto layers = static_cast<std::uint64_t>(std::popcount(r.mask));
+  if (r.complete) pt_.unmap(r.page);
+  if (r.reason == PagePool::Removal::kEvicted) {
+    evicted_layers_ += layers;
+    if (!r.sampled) evicted_unsampled_layers_ += layers;
+    evicted_at_.put(r.page.bits, frame_);
+    if (evicted_at_.size() > 65536) {  // forget evictions too old to count as thrash
+      scratch_keys_.clear();
+      evicted_at_.for_each([&](std::uint64_t k, int f) {
+        if (frame_ - f > p_.thrash_frames) scratch_keys_.push_back(k);
+      });
+      for (std::uint64_t k : scratch_keys_) evicted_at_.erase(k);
+    }
+  } else {
+    evicted_unsampled_layers_ += layers;  // uploaded, never complete, never sampled
+  }
+}
+
+int VtSystem::coarsest_clamp() const { return geo_.levels() - std::max(1, p_.locked_levels); }
+
+// The wanted set: every sample's page at floor(lod + bias), every coarser ancestor, the locked
+// levels. Built level by level from the finest: a level's pages are sorted and merged (samples
+// summed), then their parents join the next level.
+void VtSystem::build_wanted() {
+  const int n = geo_.levels();
+  for (auto& v : by_level_) v.clear();
+  const float bias = static_cast<float>(bias_);
+  if (spans_ || view_) {
+    // Aggregate samples into desired pages: a run of samples on one page costs one hash lookup.
+    agg_.clear();
+    std::uint64_t run_key = PageMap<int>::kEmpty;
+    std::uint32_t run = 0;
+    const auto flush = [&] {
+      if (run == 0) return;
+      const auto lvl = static_cast<std::size_t>((run_key >> 54) & 63u);
+      if (std::uint32_t* idx = agg_.find(run_key)) {
+        by_level_[lvl][*idx].samples += run;
+      } else {
+        agg_.put(run_key, static_cast<std::uint32_t>(by_level_[lvl].size()));
+        Wanted w;
+        w.page.bits = run_key;
+        w.samples = run;
+        w.desired = true;
+        by_level_[lvl].push_back(w);
+      }
+    };
+    const std::int64_t W = geo_.extent().width, H = geo_.extent().height;
+    const auto add_sample = [&](const ViewSample& s) {
+      const int l = desired_level(s.lod + bias, n);
+      const std::int64_t u = std::clamp<std::int64_t>(s.u, 0, W - 1), v = std::clamp<std::int64_t>(s.v, 0, H - 1);
+      const std::uint64_t key = page_key(l, geo_.page_of(u >> l), geo_.page_of(v >> l)).bits;
+      if (key == run_key) {
+        ++run;
+        return;
+      }
+      flush();
+      run_key = key;
+      run = 1;
+    };
+    // Spans (one page of one level each when cut at pages) stand for their samples when the bias
+    // is zero: desired_level(lod + 0, n) = min(span.level, n − 1). Same runs, same order. A span
+    // across a page edge goes sample by sample (expand_span).
+    if (bias == 0.0f && spans_ && spans_->levels >= n) {
+      for (const ViewSpan& sp : spans_->spans) {
+        const int l = std::min(sp.level, n - 1);
+        const std::int64_t u0 = std::clamp<std::int64_t>(sp.u_lo, 0, W - 1), u1 = std::clamp<std::int64_t>(sp.u_hi, 0, W - 1);
+        const std::int64_t v0 = std::clamp<std::int64_t>(sp.v_lo, 0, H - 1), v1 = std::clamp<std::int64_t>(sp.v_hi, 0, H - 1);
+        const std::int64_t px = geo_.page_of(u0 >> l), py = geo_.page_of(v0 >> l);
+        if (px != geo_.page_of(u1 >> l) || py != geo_.page_of(v1 >> l)) {
+          expanded_.clear();
+          expand_span(*spans_, sp, expanded_);
+          for (const ViewSample& s : expanded_) add_sample(s);
+          continue;
+        }
+        const std::uint64_t key = page_key(l, px, py).bits;
+        if (key != run_key) {
+          flush();
+          run_key = key;
+          run = 0;
+        }
+        run += sp.count;
+      }
+    } else {
+      // A biased LOD moves levels inside spans: per sample. The frame loop materialises them
+      // while wants_samples(); on the frame the bias turns on they are expanded here.
+      const std::vector<ViewSample>* all = view_ ? &view_->samples : nullptr;
+      if (!all) {
+        expanded_.clear();
+        expand_spans(*spans_, 0, spans_->spans.size(), expanded_);
+        all = &expanded_;
+      }
+      for (const ViewSample& s : *all) add_sample(s);
+    }
+    flush();
+  }
+  // Locked levels are always wanted.
+  for (int l = std::max(0, n - p_.locked_levels); l < n; ++l) {
+    const VtLevel& L = geo_.level(l);
+    for (std::int64_t y = 0; y < L.pages_y; ++y)
+      for (std::int64_t x = 0; x < L.pages_x; ++x) by_level_[static_cast<std::size_t>(l)].push_back(Wanted{page_key(l, x, y), 0, false});
+  }
+  for (int l = 0; l < n; ++l) {
+    auto& v = by_level_[static_cast<std::size_t>(l)];
+    std::sort(v.begin(), v.end(), [](const Wanted& a, const Wanted& b) { return a.page < b.page; });
+    std::size_t o = 0;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (o > 0 && v[o - 1].page == v[i].page) {
+        v[o - 1].samples += v[i].samples;
+        v[o - 1].desired = v[o - 1].desired || v[i].desired;
+      } else {
+        v[o++] = v[i];
+      }
+    }
+    v.resize(o);
+    demand_by_level_[static_cast<std::size_t>(l)] = o;
+    if (l + 1 < n) {
+      auto& up = by_level_[static_cast<std::size_t>(l + 1)];
+      for (const Wanted& w : v) up.push_back(Wanted{parent_page(w.page), w.samples, false});
+    }
+  }
+  wanted_.clear();
+  for (int l = n - 1; l >= 0; --l) {
+    const auto& v = by_level_[static_cast<std::size_t>(l)];
+    wanted_.insert(wanted_.end(), v.begin(), v.end());
+  }
+  built_bias_ = bias_;
+}
+
+void VtSystem::begin_frame(const SystemFrame& f) {
+  // Close the previous frame's page-table update count.
+  const double baked_prev = static_cast<double>(pt_.counters().texels_written_baked - frame_start_baked_);
+  max_baked_frame_ = std::max(max_baked_frame_, baked_prev);
+  frame_ = f.frame;
+  view_ = f.view;
+  spans_ = f.spans;
+  frame_start_mapped_ = pages_mapped_;
+  frame_start_evictions_ = pool_.stats().evictions;
+  frame_start_baked_ = pt_.counters().texels_written_baked;
+  frame_start_rescues_ = pool_.stats().rescues;
+  build_wanted();
+  const auto slots = static_cast<double>(pool_.slots());
+  pressure_ = static_cast<double>(wanted_.size()) / slots;
+  // Visible residency (Unreal): pages used in the window of frames before this one.
+  occupancy_ = static_cast<double>(pool_.used_within(frame_ - 1, p_.residency_window_frames)) / slots;
+  std::fill(missing_by_level_.begin(), missing_by_level_.end(), 0);
+  const auto per_layer = p_.page_bytes_all_layers / static_cast<std::uint64_t>(p_.layers);
+  for (const Wanted& w : wanted_) {
+    const std::uint32_t have = pool_.resident_mask(w.page);
+    const int missing = p_.layers - std::popcount(have);
+    if (missing > 0) missing_by_level_[w.page.level()] += per_layer * static_cast<std::uint64_t>(missing);
+  }
+}
+
+void VtSystem::missing_bytes_by_level(std::vector<std::uint64_t>& out) const { out = missing_by_level_; }
+
+void VtSystem::pool_demand(std::vector<std::uint64_t>& pages_by_level, std::uint64_t& slots) const {
+  pages_by_level = demand_by_level_;
+  slots = pool_.slots();
+}
+
+void VtSystem::apply_throttle(const ThrottleDecision& d) {
+  const int clamp = std::clamp(d.clamp, 0, coarsest_clamp());
+  const double bias = std::clamp(std::isfinite(d.bias) ? d.bias : 0.0, 0.0, 63.0);
+  const double sb = std::clamp(std::isfinite(d.sample_bias) ? d.sample_bias : 0.0, 0.0, 63.0);
+  // The screen samples floor(lod + sb); with only the desired level floor(lod) at hand the shift is
+  // rounded (docs/vt.md: the sampling bias is exact at whole levels).
+  const int shift = static_cast<int>(std::floor(sb + 0.5));
+  if (clamp != clamp_ || sb != sample_bias_) ++settings_gen_;
+  clamp_ = clamp;
+  sample_shift_ = shift;
+  sample_bias_ = sb;
+  bias_ = bias;
+}
+
+std::uint64_t VtSystem::page_priority(const Wanted& w) const {
+  // RAGE: coarse first; within a level, the bigger the gap between the desired level and the
+  // finest resident ancestor and the more samples wait for the page, the sooner.
+  const int l = static_cast<int>(w.page.level());
+  const PageTable::Resolved r = pt_.resolve(l, w.page.x(), w.page.y());
+  const auto gap = static_cast<std::uint64_t>(r.level - l);
+  return make_priority(static_cast<std::uint32_t>(l), (static_cast<std::uint64_t>(w.samples) + 1) * gap);
+}
+
+void VtSystem::emit_needs(std::vector<Need>& out) {
+  if (built_bias_ != bias_) build_wanted();
+  fc_ = FrameCounts{};
+  throttled_tiles_ = 0;
+  const auto layers = static_cast<std::uint32_t>(p_.layers);
+
+  // 1. Mark the wanted pages in the pool used (rescuing pending victims); collect the others.
+  wanted_set_.clear();
+  candidates_.clear();
+  std::uint32_t desired = 0;
+  for (const Wanted& w : wanted_) {
+    const int l = static_cast<int>(w.page.level());
+    if (l < clamp_) {
+      if (!pool_.resident(w.page)) {
+        ++fc_.throttled_pages;
+        throttled_tiles_ += layers - static_cast<std::uint32_t>(std::popcount(pool_.resident_mask(w.page)));
+      }
+      continue;
+    }
+    desired += w.desired;
+    wanted_set_.put(w.page.bits, 1);
+    ++fc_.visible_pages;
+    pool_.touch(w.page, frame_);
+    if (pool_.resident(w.page)) {
+      ++fc_.visible_resident;
+      continue;
+    }
+    candidates_.push_back(Candidate{page_priority(w), w.page});
+  }
+  fc_.rescues = static_cast<std::uint32_t>(pool_.stats().rescues - frame_start_rescues_);
+
+  // 2. Reservations of pages no longer wanted (or now below the clamp) are released.
+  scratch_keys_.clear();
+  requested_.for_each([&](std::uint64_t k, std::uint8_t) {
+    TileKey t;
+    t.bits = k;
+    if (!wanted_set_.contains(k) || !pool_.reserved(t)) scratch_keys_.push_back(k);
+  });
+  std::sort(scratch_keys_.begin(), scratch_keys_.end());  // deterministic release order
+  for (std::uint64_t k : scratch_keys_) {
+    TileKey t;
+    t.bits = k;
+    pool_.release(t);
+    requested_.erase(k);
+  }
+
+  // 3. Slots in priority order; a page that finds none may take the reservation of a lower one
+  // (not one already filling: its uploaded layers would be wasted).
+  std::sort(candidates_.begin(), candidates_.end(), [](const Candidate& a, const Candidate& b) {
+    return a.priority != b.priority ? a.priority < b.priority : a.page < b.page;
+  });
+  std::size_t lowest = candidates_.size();  // candidates_[lowest..] were offered for stealing
+  got_slot_.assign(candidates_.size(), 0);
+  for (std::size_t i = 0; i < candidates_.size(); ++i) {
+    const TileKey page = candidates_[i].page;
+    std::uint32_t slot = pool_.reserve(page, frame_);
+    while (slot == PagePool::kNoSlot && lowest > i + 1) {
+      const TileKey low = candidates_[--lowest].page;  // not processed yet this frame
+      if (!pool_.reserved(low) || pool_.resident_mask(low) != 0) continue;
+      pool_.release(low);
+      requested_.erase(low.bits);
+      slot = pool_.reserve(page, frame_);
+    }
+    if (slot == PagePool::kNoSlot) continue;
+    got_slot_[i] = 1;
+    requested_.put(page.bits, 1);
+  }
+  for (std::size_t i = 0; i < candidates_.size(); ++i) {
+    const TileKey page = candidates_[i].page;
+    const std::uint32_t have = pool_.resident_mask(page);
+    if (!got_slot_[i] || !pool_.reserved(page)) {
+      ++fc_.throttled_pages;
+      throttled_tiles_ += layers - static_cast<std::uint32_t>(std::popcount(have));
+      continue;
+    }
+    ++fc_.requested_pages;
+    for (std::uint32_t layer = 0; layer < layers; ++layer)
+      if (!(have & (1u << layer)))
+        out.push_back(Need{TileKey(layer, page.level(), page.x(), page.y()), candidates_[i].priority, false});
+  }
+
+  // 4. Prefetch (Unreal): pages one or two levels finer than a sample's own page, into RAM only.
+  if (p_.prefetch_finer_levels > 0) {
+    for (const Wanted& w : wanted_) {
+      if (!w.desired) continue;
+      const int l = static_cast<int>(w.page.level());
+      for (int d = 1; d <= p_.prefetch_finer_levels && l - d >= std::max(0, clamp_); ++d) {
+        const std::int64_t n = std::int64_t{1} << d;
+        for (std::int64_t cy = w.page.y() * n; cy < (w.page.y() + 1) * n; ++cy)
+          for (std::int64_t cx = w.page.x() * n; cx < (w.page.x() + 1) * n; ++cx) {
+            if (!geo_.valid(l - d, cx, cy)) continue;
+            const TileKey child = page_key(l - d, cx, cy);
+            if (pool_.slot_of(child) != PagePool::kNoSlot) continue;
+            ++fc_.prefetch_pages;
+            const std::uint64_t prio = make_priority(static_cast<std::uint32_t>(l - d), w.samples);
+            for (std::uint32_t layer = 0; layer < layers; ++layer)
+              out.push_back(Need{TileKey(layer, child.level(), cx, cy), prio, true});
+          }
+      }
+    }
+  }
+
+  // Per-frame series for the summary.
+  ++frames_;
+  s_visible_.add(fc_.visible_pages);
+  s_visible_resident_.add(fc_.visible_pages ? static_cast<double>(fc_.visible_resident) / fc_.visible_pages : 1.0);
+  s_throttled_.add(fc_.throttled_pages);
+  s_pending_.add(static_cast<double>(requested_.size()));
+  s_occupancy_.add(occupancy_);
+  s_pressure_.add(pressure_);
+  s_bias_.add(bias_);
+  s_desired_.add(desired);
+  peak_sparse_bytes_ = std::max<std::uint64_t>(peak_sparse_bytes_, pt_.sparse_bytes());
+}
+
+bool VtSystem::commit(TileKey key, int frame) {
+  const TileKey page = page_key(static_cast<int>(key.level()), key.x(), key.y());
+  const PagePool::Commit c = pool_.commit(page, static_cast<int>(key.layer()), frame);
+  if (c.slot == PagePool::kNoSlot) {
+    ++stale_commits_;
+    return false;
+  }
+  ++layer_commits_;
+  if (c.first_layer) {
+    if (int* at = evicted_at_.find(page.bits)) {
+      if (frame - *at <= p_.thrash_frames) ++thrash_;
+      evicted_at_.erase(page.bits);
+    }
+  }
+  if (c.complete) {
+    pt_.map(page, c.slot);
+    requested_.erase(page.bits);
+    ++pages_mapped_;
+    peak_occupied_ = std::max<std::uint64_t>(peak_occupied_, pool_.occupied());
+  }
+  return true;
+}
+
+std::int64_t VtSystem::vram_slot(TileKey key) const {
+  const std::uint32_t slot = pool_.slot_of(page_key(static_cast<int>(key.level()), key.x(), key.y()));
+  return slot == PagePool::kNoSlot ? -1 : static_cast<std::int64_t>(slot);
+}
+
+int VtSystem::resolve_from(int from, std::int64_t u, std::int64_t v) const {
+  u = std::clamp<std::int64_t>(u, 0, geo_.extent().width - 1);
+  v = std::clamp<std::int64_t>(v, 0, geo_.extent().height - 1);
+  const std::int64_t px = geo_.page_of(u >> from), py = geo_.page_of(v >> from);
+  const std::uint64_t key = page_key(from, px, py).bits;
+  const std::uint64_t gen = (pt_.generation() << 20) ^ settings_gen_;
+  // Neighbouring samples mostly share a page: the last lookup answers them without hashing.
+  if (key != last_.key || gen != last_.gen) {
+    Memo& m = memo_[mix64(key) & (kMemo - 1)];
+    if (m.key != key || m.gen != gen) {
+      const PageTable::Resolved r = pt_.resolve(from, px, py);
+      m.key = key;
+      m.gen = gen;
+      m.level = r.level;
+      m.slot = r.slot;
+    }
+    last_ = m;
+  }
+  if (mark_sampled_ && last_.slot != PageTable::kNoSlot) pool_.mark_sampled(last_.slot);
+  return last_.level;
+}
+
+int VtSystem::resident_level(std::int64_t u, std::int64_t v, int desired_level) const {
+  // Only floor(lod) is known here: a fractional sampling bias is rounded (resident_levels below,
+  // which sees each sample's lod, is exact).
+  const int n = geo_.levels();
+  return resolve_from(std::min(std::max(desired_level + sample_shift_, clamp_), n - 1), u, v);
+}
+
+void VtSystem::resident_levels(const ViewSample* s, std::size_t count, std::int8_t* out) const {
+  // The screen samples floor(lod + sampling bias), no finer than the clamp (seed 000 §4-4), and the
+  // page table falls back from there to the finest resident ancestor (seed 001 §3.2).
+  const int n = geo_.levels();
+  const auto sb = static_cast<float>(sample_bias_);
+  for (std::size_t i = 0; i < count; ++i) {
+    const int from = std::max(desired_level(s[i].lod + sb, n), std::min(clamp_, n - 1));
+    out[i] = static_cast<std::int8_t>(resolve_from(from, s[i].u, s[i].v));
+  }
+}
+
+void VtSystem::span_resident_levels(const ViewSpan* s, std::size_t count, std::int8_t* out) const {
+  const int n = geo_.levels();
+  const std::int64_t W = geo_.extent().width, H = geo_.extent().height;
+  for (std::size_t i = 0; i < count; ++i) {
+    out[i] = -1;
+    if (sample_bias_ != 0.0) continue;  // floor(lod + bias) may differ within the span
+    const int from = std::max(std::min(s[i].level, n - 1), std::min(clamp_, n - 1));
+    const std::int64_t u0 = std::clamp<std::int64_t>(s[i].u_lo, 0, W - 1), u1 = std::clamp<std::int64_t>(s[i].u_hi, 0, W - 1);
+    const std::int64_t v0 = std::clamp<std::int64_t>(s[i].v_lo, 0, H - 1), v1 = std::clamp<std::int64_t>(s[i].v_hi, 0, H - 1);
+    if (geo_.page_of(u0 >> from) != geo_.page_of(u1 >> from) || geo_.page_of(v0 >> from) != geo_.page_of(v1 >> from))
+      continue;
+    out[i] = static_cast<std::int8_t>(resolve_from(from, u0, v0));  // marks the page sampled, as each sample would
+  }
+}
+
+std::uint64_t VtSystem::evicted_unsampled_bytes() const {
+  return evicted_unsampled_layers_ * (p_.page_bytes_all_layers / static_cast<std::uint64_t>(p_.layers));
+}
+
+std::vector<std::string> VtSystem::frame_counter_names() const {
+  return {"vt_visible_pages", "vt_visible_resident", "vt_pending", "vt_throttled_pages", "vt_pages_mapped",
+          "vt_evictions",     "vt_rescues",          "vt_pool_occupancy", "vt_pool_pressure", "vt_pt_texels_baked"};
+}
+
+void VtSystem::frame_counters(SystemCounters& out) const {
+  out.fill(0.0);
+  out[0] = fc_.visible_pages;
+  out[1] = fc_.visible_resident;
+  out[2] = static_cast<double>(requested_.size());
+  out[3] = fc_.throttled_pages;
+  out[4] = static_cast<double>(pages_mapped_ - frame_start_mapped_);
+  out[5] = static_cast<double>(pool_.stats().evictions - frame_start_evictions_);
+  out[6] = fc_.rescues;
+  out[7] = occupancy_;
+  out[8] = pressure_;
+  out[9] = static_cast<double>(pt_.counters().texels_written_baked - frame_start_baked_);
+}
+
+nlohmann::json VtSystem::stats_json() const {
+  const double f = frames_ ? static_cast<double>(frames_) : 1.0;
+  const auto series = [&](const Series& s) { return nlohmann::json{{"mean", s.sum / f}, {"max", s.max}}; };
+  const auto& pc = pt_.counters();
+  const auto& ps = pool_.stats();
+  const double baked_last = static_cast<double>(pc.texels_written_baked - frame_start_baked_);
+  return {{"levels", geo_.levels()},
+          {"page_size", geo_.page_size()},
+          {"border", geo_.border()},
+          {"page_bytes", p_.page_bytes_all_layers},
+          {"pool_pages", pool_.slots()},
+          {"pool_bytes", static_cast<std::uint64_t>(pool_.slots()) * p_.page_bytes_all_layers},
+          {"locked_levels", p_.locked_levels},
+          {"locked_pages", geo_.coarsest_pages(p_.locked_levels)},
+          {"page_table",
+           {{"dense_entries", pt_.dense_entries()},
+            {"dense_bytes", pt_.dense_bytes()},
+            {"level0_entries", pt_.level0_entries()},
+            {"sparse_bytes_peak", peak_sparse_bytes_},
+            {"mapped_pages", pt_.mapped_pages()},
+            {"maps", pc.maps},
+            {"unmaps", pc.unmaps},
+            {"entries_written", pc.entries_written},
+            {"texels_written_baked", pc.texels_written_baked},
+            {"texels_written_baked_per_frame", {{"mean", static_cast<double>(pc.texels_written_baked) / f},
+                                                {"max", std::max(max_baked_frame_, baked_last)}}}}},
+          {"pool",
+           {{"evictions", ps.evictions},
+            {"evicted_unsampled", ps.evicted_unsampled},
+            {"rescues", ps.rescues},
+            {"released_victims", ps.released_victims},
+            {"partial_released", ps.partial_released},
+            {"reservations", ps.reservations},
+            {"reserve_failures", ps.reserve_failures},
+            {"peak_occupied", peak_occupied_},
+            {"resident_pages", pool_.resident_pages()}}},
+          {"per_frame",
+           {{"desired_pages", series(s_desired_)},
+            {"visible_pages", series(s_visible_)},
+            {"visible_resident_fraction", series(s_visible_resident_)},
+            {"pending", series(s_pending_)},
+            {"throttled_pages", series(s_throttled_)},
+            {"pool_occupancy", series(s_occupancy_)},
+            {"pool_pressure", series(s_pressure_)},
+            {"bias", series(s_bias_)}}},
+          {"layer_commits", layer_commits_},
+          {"pages_mapped", pages_mapped_},
+          {"stale_commits", stale_commits_},
+          {"vram_evictions", evicted_layers_},
+          {"vram_thrash", thrash_}};
+}
+
+}  // namespace vtsim
