@@ -41,7 +41,7 @@ using namespace vtsim;
 namespace {
 
 constexpr int kDivisors[] = {1, 2, 4, 8, 16};
-constexpr int kTileSize = 128;  // texels, seed 001's page size
+constexpr int kTileSize = 128;  // texels, Yao 2011's page size
 constexpr double kFps = 60.0;
 
 // Ground height under (x, y) for placing cameras "at 1.7 m".

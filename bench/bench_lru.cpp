@@ -127,7 +127,7 @@ class Zipf {
 
 // A clipmap-like moving window: each frame requests every tile of a w x w window around the
 // camera at each of `levels` levels and each of 3 layers; the camera moves `speed` level-0 tiles
-// per frame along a gently curving path (seed 000 §2: the clip stack follows the camera).
+// per frame along a gently curving path (Yao 2007 §2: the clip stack follows the camera).
 std::vector<TileKey> window_stream(std::size_t n, int w, int levels, double speed) {
   std::vector<TileKey> out;
   out.reserve(n);

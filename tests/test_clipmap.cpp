@@ -143,7 +143,7 @@ TEST_CASE("clipmap: level selection uses the finest valid level even when finer 
   cm.update_windows(4096, 4096, 0);
   std::vector<Need> needs;
   cm.emit_needs(0, [](int, std::int64_t, std::int64_t) { return 0u; }, needs);
-  // Commit level 0 only: seed 003's shader counted containing layers and would pick a wrong level.
+  // Commit level 0 only: Unity Clipmap's shader counted containing layers and would pick a wrong level.
   for (const Need& n : needs)
     if (n.key.level() == 0) cm.commit(n.key);
   CHECK(cm.resident_level(4096, 4096, 0) == 0);
@@ -220,7 +220,7 @@ TEST_CASE("clipmap: missing bytes count the band that enters when the window mov
   CHECK(missing[1] == 0);  // level 1: 4416 >> 1 = 2208 is within its threshold
 }
 
-TEST_CASE("clipmap memory: the seed 000 §2-3 formula 4^m (n - m + 4/3) - 1/3, and the full mip chain") {
+TEST_CASE("clipmap memory: the Yao 2007 §2-3 formula 4^m (n - m + 4/3) - 1/3, and the full mip chain") {
   for (int n = 9; n <= 26; ++n)
     for (int m = 9; m <= 11 && m <= n; ++m) {
       const ClipmapMemory mem = clipmap_memory({std::int64_t{1} << n, std::int64_t{1} << n}, 128, 1 << m);

@@ -61,7 +61,7 @@ std::int64_t texel(double x_m) { return static_cast<std::int64_t>(std::floor(x_m
 }  // namespace
 
 TEST_CASE("closed form: a straight axis-aligned walk reads n tiles per window step per stack level, exactly") {
-  // 65536² texels (512 m at 128 texels/m), N = 1024, T = 128: 6 stack levels as in seed 000 §5-1.
+  // 65536² texels (512 m at 128 texels/m), N = 1024, T = 128: 6 stack levels as in Yao 2007 §5-1.
   auto sets = unconstrained();
   sets.insert(sets.end(), {"texture.width=65536", "texture.height=65536"});
   const Trace t = straight(256.0, 256.0, 1.5, 0.0, 20.0, 0.0);

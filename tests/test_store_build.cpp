@@ -146,7 +146,7 @@ TEST_CASE("odd sizes, border 0 and a coarsest level other than 1x1 build correct
   }
 }
 
-TEST_CASE("bilinear sampling inside one tile, border included, matches the full level image: no bleeding (seed 004)") {
+TEST_CASE("bilinear sampling inside one tile, border included, matches the full level image: no bleeding (crazii 2017)") {
   test::TempDir dir;
   const Image8 img = test::make_image(300, 200, 3, 9);
   write_image8(dir.file("in.png"), img);

@@ -1,6 +1,6 @@
 // VT geometry and page table: levels down to one page, partial edge pages, fallback to the finest
 // resident ancestor, sparseness at planet scale, the GPU page-table cost model against a brute
-// force, and the capacity formulas with seed 001's figures.
+// force, and the capacity formulas with Yao 2011's figures.
 #include <doctest/doctest.h>
 
 #include <map>
@@ -170,7 +170,7 @@ TEST_CASE("page map: insert, overwrite, erase with backward shift, growth") {
   CHECK_THROWS_AS(m.put(PageMap<std::uint32_t>::kEmpty, 1), std::invalid_argument);
 }
 
-TEST_CASE("vt capacity: RAGE's 128K texture and seed 001's arithmetic") {
+TEST_CASE("vt capacity: RAGE's 128K texture and Yao 2011's arithmetic") {
   VtCapacityInput in;
   in.extent = {131072, 131072};
   in.page_size = 128;
@@ -183,18 +183,18 @@ TEST_CASE("vt capacity: RAGE's 128K texture and seed 001's arithmetic") {
   in.redundancy = 6.0;
   in.texels_per_pixel = 1.0;
   const VtCapacity c = vt_capacity(in);
-  // Seed 001 §3.2: 1024 × 1024 pages at the finest level, so a 1024² page table.
+  // Yao 2011 §3.2: 1024 × 1024 pages at the finest level, so a 1024² page table.
   CHECK(c.page_table_level0_side_x == 1024);
   CHECK(c.pages_level0 == 1024 * 1024);
   CHECK(c.levels == 11);  // 1024 pages a side down to 1: 11 levels
   CHECK(c.page_table_entries == (std::uint64_t{1} << 20) + (1 << 18) + (1 << 16) + (1 << 14) + (1 << 12) + (1 << 10) + 256 + 64 + 16 + 4 + 1);
-  // Seed 001 §2: 6 screens × 3 overdraw × 1680 × 1050 × 4 B = 127,008,000 B (121.1 MiB; the seed
+  // Yao 2011 §2: 6 screens × 3 overdraw × 1680 × 1050 × 4 B = 127,008,000 B (121.1 MiB; the seed
   // says "120MB").
   CHECK(c.screen_texels == doctest::Approx(6.0 * 3.0 * 1680 * 1050));
   CHECK(c.pool_pages == 1938);  // ceil(31,752,000 / 16384)
   CHECK(c.pool_bytes == doctest::Approx(1938.0 * 16384 * 4));
 
-  // Seed 001 §5: 512-texel pages and a 4096² page table address 4096 × 512 = 2,097,152 texels a
+  // Yao 2011 §5: 512-texel pages and a 4096² page table address 4096 × 512 = 2,097,152 texels a
   // side; 2^42 texels ("4096 G" is texels) = 16 TiB at 4 bytes per texel, 21.3 TiB with its mip levels.
   VtCapacityInput s5 = in;
   s5.extent = {2097152, 2097152};

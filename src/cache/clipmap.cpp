@@ -96,7 +96,7 @@ void Clipmap::set_window(Level& L, std::int64_t ox, std::int64_t oy) {
   L.sx0 = floor_mod(ox, L.wx);
   L.sy0 = floor_mod(oy, L.wy);
   const std::int64_t T = p_.tile_size, b = L.stack ? p_.invalid_border_tiles : 0;
-  // The invalid border (seed 000 §4-6) lies along window edges that can move; an edge on the
+  // The invalid border (Yao 2007 §4-6) lies along window edges that can move; an edge on the
   // texture's edge never receives new tiles.
   const std::int64_t tx0 = ox + (ox > 0 ? b : 0), tx1 = ox + L.wx - (ox + L.wx < L.tiles_x ? b : 0);
   const std::int64_t ty0 = oy + (oy > 0 ? b : 0), ty1 = oy + L.wy - (oy + L.wy < L.tiles_y ? b : 0);

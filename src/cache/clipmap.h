@@ -1,6 +1,6 @@
 #pragma once
 // The clipmap's VRAM: a clip stack of N×N windows (whole tiles) over a static clip pyramid
-// (Tanner, Migdal & Jones, "The Clipmap: A Virtual Mipmap", SIGGRAPH 1998; seed 000 §2-2, §3-2,
+// (Tanner, Migdal & Jones, "The Clipmap: A Virtual Mipmap", SIGGRAPH 1998; Yao 2007 §2-2, §3-2,
 // §4-6, §4-7). docs/clipmap.md.
 //
 // Geometry. Level l of a W×H texture is ceil(W/2^l) × ceil(H/2^l) texels, cut into T×T tiles.
@@ -8,19 +8,19 @@
 // n = N/T tiles a side (fewer along a side shorter than N) centred on the camera's ground point;
 // the rest are the *pyramid*, whose window is the whole level: loaded once, never moved.
 //
-// Toroidal addressing (seed 000 §3-2). Tile (x, y) of a level lives in slot (x mod wx, y mod wy):
+// Toroidal addressing (Yao 2007 §3-2). Tile (x, y) of a level lives in slot (x mod wx, y mod wy):
 // when a window moves, only tiles that entered need loading; each overwrites the slot of a tile
 // that left. A slot remembers which tile it holds and which layers of it are resident.
 //
 // Hysteresis. A stack window recentres on an axis only when the camera's ground texel is more
-// than T/2 + threshold·T texels from the centre of the window's centre tile (seed 003's
+// than T/2 + threshold·T texels from the centre of the window's centre tile (Unity Clipmap's
 // UpdateThreshold), so a camera dithering across a tile edge does not ping-pong.
 //
-// World edges (seed 000 §4-7). A window is clamped inside its level: near an edge the camera is
-// off-centre but all N×N texels are real texture (no dummy blocks, unlike seed 003). A camera
+// World edges (Yao 2007 §4-7). A window is clamped inside its level: near an edge the camera is
+// off-centre but all N×N texels are real texture (no dummy blocks, unlike Unity Clipmap). A camera
 // outside the texture pulls the windows to the nearest edge.
 //
-// Level selection (the fix for seed 003's shader, which counted containing layers): a sample at
+// Level selection (the fix for Unity Clipmap's shader, which counted containing layers): a sample at
 // level-0 texel (u, v) with desired level d uses the finest level l >= max(d, clamp) whose valid
 // region contains its filter footprint: every texel within `filter_margin` of (u>>l, v>>l) lies in
 // a tile that is in the window, outside the invalid border, and resident in all layers. So a finer
@@ -50,7 +50,7 @@ struct ClipmapParams {
   int filter_margin_texels = 1;           // footprint half-width that must be valid (bilinear: 1)
 };
 
-// VRAM bytes of a clipmap (seed 000 §2-3): the stack's windows and the pyramid's full levels.
+// VRAM bytes of a clipmap (Yao 2007 §2-3): the stack's windows and the pyramid's full levels.
 struct ClipmapMemory {
   int levels = 0, stack_levels = 0, pyramid_levels = 0;
   std::uint64_t stack_texels = 0;    // sum of window areas (whole tiles), all stack levels
@@ -68,13 +68,13 @@ class Clipmap final : public IResidency {
   int window_tiles() const { return n_; }
   const ClipmapParams& params() const { return p_; }
 
-  // MaxTextureLOD (seed 000 §4-4): the finest level sampled and requested, 0 = none.
+  // MaxTextureLOD (Yao 2007 §4-4): the finest level sampled and requested, 0 = none.
   void set_clamp(int clamp) { clamp_ = clamp; }
   int clamp() const { return clamp_; }
 
   // Moves the windows of stack levels >= max(finest_active, clamp) toward the camera's ground
   // texel (level-0 coordinates; may lie outside the texture). Levels finer than `finest_active`
-  // (no visible sample wants them) and finer than the clamp keep their windows (seed 000: do not
+  // (no visible sample wants them) and finer than the clamp keep their windows (Yao 2007: do not
   // update what is not sampled). Returns the number of levels whose window moved.
   int update_windows(std::int64_t gu, std::int64_t gv, int finest_active);
 
@@ -88,7 +88,7 @@ class Clipmap final : public IResidency {
   template <class Importance>
   void emit_needs(int finest_active, Importance&& importance, std::vector<Need>& out) const;
 
-  // Look-ahead (seed 000 §4-2): tiles that the windows of active levels will enter if the ground
+  // Look-ahead (Yao 2007 §4-2): tiles that the windows of active levels will enter if the ground
   // point moves to (fu, fv), not resident now — to fetch into RAM ahead of need.
   void emit_prefetch(std::int64_t fu, std::int64_t fv, int finest_active, std::vector<Need>& out) const;
 

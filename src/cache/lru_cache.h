@@ -1,6 +1,6 @@
 #pragma once
-// The RAM tier of disk -> RAM -> VRAM (seed 000 §4-2, two-level cache): decoded tiles keyed by
-// TileKey and weighted by bytes, evicted least-recently-used first under a hard byte cap (seed 003's
+// The RAM tier of disk -> RAM -> VRAM (Yao 2007 §4-2, two-level cache): decoded tiles keyed by
+// TileKey and weighted by bytes, evicted least-recently-used first under a hard byte cap (Unity Clipmap's
 // Unity package capped entries softly and overshot 20x; this one never exceeds its capacity).
 // The contract is modelled on folly's EvictingCacheMap; docs/cache.md has the design and figures.
 #include <algorithm>

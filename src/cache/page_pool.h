@@ -1,5 +1,5 @@
 #pragma once
-// The physical page pool of virtual texturing (seed 001 §3.2 "显存贴图", the physical page
+// The physical page pool of virtual texturing (Yao 2011 §3.2 "显存贴图", the physical page
 // texture): M slots, each holding one virtual page in every layer. docs/vt.md "Page pool".
 //
 // Lifecycle of a slot:

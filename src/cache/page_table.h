@@ -1,7 +1,7 @@
 #pragma once
-// Virtual texturing (seed 001, id Tech 5 / RAGE): the geometry of a virtual texture cut into
+// Virtual texturing (Yao 2011, id Tech 5 / RAGE): the geometry of a virtual texture cut into
 // pages per mip level, and the page table that maps virtual pages to physical pool slots with
-// fallback to the finest resident ancestor (seed 001 §3.2 "页表贴图"). docs/vt.md.
+// fallback to the finest resident ancestor (Yao 2011 §3.2 "页表贴图"). docs/vt.md.
 //
 // Geometry. Level l of a W×H texture is ceil(W/2^l) × ceil(H/2^l) texels (docs/architecture.md),
 // cut into pages of P×P payload texels (stored (P+2B)² with a border of B texels for filtering);
@@ -132,7 +132,7 @@ class PageTable {
   Counters counters_;
 };
 
-// What a virtual texture costs on disk and in page tables, and seed 001 §2's estimate of the
+// What a virtual texture costs on disk and in page tables, and Yao 2011 §2's estimate of the
 // physical pool a screen needs (`vtsim capacity --system vt`; formulas in docs/vt.md "Capacity").
 struct VtCapacityInput {
   TextureExtent extent{1 << 20, 1 << 20};  // level-0 texels
@@ -141,9 +141,9 @@ struct VtCapacityInput {
   double bytes_per_texel = 4.0;            // decoded (VRAM), all layers summed
   double disk_bytes_per_texel = 4.0;       // on disk, all layers summed (after compression)
   int screen_w = 1920, screen_h = 1080;    // pixels
-  double overdraw = 3.0;                   // surfaces drawn per pixel (seed 001 §2: 3)
-  double redundancy = 1.0;                 // screen-sized textures of cache slack (seed 001 §2: 6)
-  double texels_per_pixel = 1.0;           // at the desired level (seed 001 §2: 1)
+  double overdraw = 3.0;                   // surfaces drawn per pixel (Yao 2011 §2: 3)
+  double redundancy = 1.0;                 // screen-sized textures of cache slack (Yao 2011 §2: 6)
+  double texels_per_pixel = 1.0;           // at the desired level (Yao 2011 §2: 1)
 };
 struct VtCapacity {
   int levels = 0;

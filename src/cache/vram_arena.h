@@ -1,7 +1,7 @@
 #pragma once
 // The VRAM arena: host memory standing in for the GPU's texture memory in the real clock. The
 // upload stage copies each decoded tile chosen within the frame's upload budget into it — the
-// memcpy a driver's staging upload would do. Layout mirrors the clipmap's textures (seed 000
+// memcpy a driver's staging upload would do. Layout mirrors the clipmap's textures (Yao 2007
 // §3-2): per level a window of wx × wy tile slots addressed toroidally, (x mod wx, y mod wy), one
 // slot per layer, so a tile overwrites exactly the slot of the tile that left its window. Or the
 // physical page pool of virtual texturing (for_pool): M slots of one stored page (P + 2B texels a

@@ -1,6 +1,6 @@
 // vtsim capacity: memory of a clipmap (stack + pyramid, per layer) against a full mip chain, and
-// seed 000 §2-3's table recomputed (docs/clipmap.md); for --system vt, a virtual texture's disk
-// size, page-table size and the physical pool a screen needs, and seed 001's arithmetic checked
+// Yao 2007 §2-3's table recomputed (docs/clipmap.md); for --system vt, a virtual texture's disk
+// size, page-table size and the physical pool a screen needs, and Yao 2011's arithmetic checked
 // (docs/vt.md "Capacity").
 #include <fmt/format.h>
 
@@ -48,30 +48,30 @@ std::string decimal_bytes(double b) {
   return fmt::format("{:.{}f} {}", b, u == 0 ? 0 : 2, units[u]);
 }
 
-// Seed 001's figures, each recomputed (docs/vt.md "Seed 001 arithmetic").
+// Yao 2011's figures, each recomputed (docs/vt.md "Yao 2011 arithmetic").
 void print_seed001_checks() {
-  fmt::print("seed 001 arithmetic, recomputed (MB = 10^6 B, MiB = 2^20 B)\n");
+  fmt::print("Yao 2011 arithmetic, recomputed (MB = 10^6 B, MiB = 2^20 B)\n");
   const double s2a = 1680.0 * 1050.0 * 3.0;
-  fmt::print("  §2  one screen of texels, 1680×1050 × 3 B         = {} B = {:.2f} MB = {:.2f} MiB   (seed: \"5MB\"; agrees)\n",
+  fmt::print("  §2  one screen of texels, 1680×1050 × 3 B         = {} B = {:.2f} MB = {:.2f} MiB   (Yao 2011: \"5MB\"; agrees)\n",
              with_commas(static_cast<std::uint64_t>(s2a)), s2a / 1e6, s2a / 1048576.0);
   const double s2b = 6.0 * 3.0 * 1680.0 * 1050.0 * 4.0;
-  fmt::print("  §2  6 screens × 3 overdraw × 1680×1050 × 4 B      = {} B = {:.1f} MB = {:.1f} MiB   (seed: \"120MB\": "
+  fmt::print("  §2  6 screens × 3 overdraw × 1680×1050 × 4 B      = {} B = {:.1f} MB = {:.1f} MiB   (Yao 2011: \"120MB\": "
              "121.1 MiB rounded down; 127.0 in decimal MB)\n",
              with_commas(static_cast<std::uint64_t>(s2b)), s2b / 1e6, s2b / 1048576.0);
-  fmt::print("  §3.1 1680×1080 feedback pixels                    = {}   (seed: 1814400; agrees, though §2's screen was "
+  fmt::print("  §3.1 1680×1080 feedback pixels                    = {}   (Yao 2011: 1814400; agrees, though §2's screen was "
              "1680×1050 = {})\n",
              with_commas(1680ull * 1080ull), with_commas(1680ull * 1050ull));
-  fmt::print("  §3.2 128K² texture, 128-texel pages               = {}×{} pages at level 0 = a {}² page table (seed: "
+  fmt::print("  §3.2 128K² texture, 128-texel pages               = {}×{} pages at level 0 = a {}² page table (Yao 2011: "
              "1024×1024; agrees)\n",
              131072 / 128, 131072 / 128, 131072 / 128);
   const std::uint64_t side = 4096ull * 512ull;
   const double texels = static_cast<double>(side) * static_cast<double>(side);
-  fmt::print("  §5  4096² page table × 512-texel pages            = {} texels a side (seed: 2097152; agrees)\n",
+  fmt::print("  §5  4096² page table × 512-texel pages            = {} texels a side (Yao 2011: 2097152; agrees)\n",
              with_commas(side));
-  fmt::print("  §5  {}² texels                             = 2^42 = {:.0f} Gi texels: the seed's \"4096 G\" counts texels\n",
+  fmt::print("  §5  {}² texels                             = 2^42 = {:.0f} Gi texels: the article's \"4096 G\" counts texels\n",
              with_commas(side), texels / 1073741824.0);
   fmt::print("      × 4 B/texel                                   = 2^44 B = {:.1f} TB = {:.0f} TiB (not 4096 GB = 4 TiB: the "
-             "seed dropped the 4 bytes)\n",
+             "article dropped the 4 bytes)\n",
              texels * 4.0 / 1e12, texels * 4.0 / 1099511627776.0);
   fmt::print("      with its mip levels (× (1 − 4^-13)/(1 − 1/4) ≈ 4/3, down to one 512² page) = {:.1f} TiB\n",
              (texels * 4.0 * 4.0 / 3.0 - 4.0 * 512.0 * 512.0 / 3.0) / 1099511627776.0);
@@ -173,7 +173,7 @@ void run_vt_capacity(const CapacityArgs& a) {
              a.tile, with_commas(c.pool_pages), side, in.bytes_per_texel, decimal_bytes(c.pool_bytes), human_bytes(c.pool_bytes));
 }
 
-// Seed 000 §2-3's table: texture sides × clipsizes, in bytes at 2 bytes per texel (the unit that
+// Yao 2007 §2-3's table: texture sides × clipsizes, in bytes at 2 bytes per texel (the unit that
 // reproduces its "Full Mipmap" row: 682 KB for a 512² chain = 349,525 texels × 2 B).
 void print_seed_table() {
   const std::int64_t sides[] = {512, 1024, 4096, 32768, 67108864};
@@ -183,7 +183,7 @@ void print_seed_table() {
                             {"682KB", "2.7MB", "18.7MB", "42.7MB", "131.7MB"}};
   const char* rows[] = {"Full Mipmap", "512 Clipmap", "1024 Clipmap", "2048 Clipmap"};
   const int clips[] = {0, 512, 1024, 2048};
-  fmt::print("seed 000 §2-3 recomputed at 2 bytes/texel (binary units; the seed's figure in brackets)\n");
+  fmt::print("Yao 2007 §2-3 recomputed at 2 bytes/texel (binary units; the article's figure in brackets)\n");
   fmt::print("{:<14}", "type / side");
   for (auto s : sides) fmt::print("{:>24}", s);
   fmt::print("\n");
@@ -274,13 +274,13 @@ void register_capacity_commands(CLI::App& app) {
   c->add_option("--tile", a->tile, "tile size T, texels (N must be a multiple)")->capture_default_str();
   c->add_option("--layers", a->layers, "layers name:format[:ratio],... (rgba8, rgb8, rg8, r8, rgba16f, bc1..bc7)")->capture_default_str();
   c->add_flag("--json", a->json, "print JSON");
-  c->add_flag("--seed-table", a->seed_table, "recompute seed 000 §2-3's memory table and show the seed's figures");
+  c->add_flag("--seed-table", a->seed_table, "recompute Yao 2007 §2-3's memory table and show the article's figures");
   c->add_option("--border", a->border, "vt: page border B, texels (stored P+2B)")->capture_default_str();
   c->add_option("--screen", a->screen, "vt: screen WxH, pixels")->capture_default_str();
-  c->add_option("--overdraw", a->overdraw, "vt: surfaces drawn per pixel (seed 001 §2: 3)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
-  c->add_option("--redundancy", a->redundancy, "vt: screen-sized textures of cache slack (seed 001 §2: 6)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
-  c->add_option("--texels-per-pixel", a->texels_per_pixel, "vt: texels per pixel at the desired level (seed 001 §2: 1)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
-  c->add_flag("--seed-check", a->seed_check, "vt: recompute seed 001's arithmetic (§2, §3, §5)");
+  c->add_option("--overdraw", a->overdraw, "vt: surfaces drawn per pixel (Yao 2011 §2: 3)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
+  c->add_option("--redundancy", a->redundancy, "vt: screen-sized textures of cache slack (Yao 2011 §2: 6)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
+  c->add_option("--texels-per-pixel", a->texels_per_pixel, "vt: texels per pixel at the desired level (Yao 2011 §2: 1)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
+  c->add_flag("--seed-check", a->seed_check, "vt: recompute Yao 2011's arithmetic (§2, §3, §5)");
   c->callback([a] { run_capacity(*a); });
 }
 

@@ -1,7 +1,7 @@
 #pragma once
 // Tile identity: (layer, level, x, y) packed into 64 bits — layer 4 bits, level 6 bits, x and y
 // 27 bits each (up to 2^27 tiles a side per level: a 2^34-texel texture at 128-texel tiles).
-// Integral all the way: tile and texel coordinates are never floats (seed 003's float32 global
+// Integral all the way: tile and texel coordinates are never floats (Unity Clipmap's float32 global
 // UVs stop resolving texels near 2^23).
 #include <cstdint>
 #include <functional>

@@ -19,7 +19,7 @@ int mip_level_count(TextureExtent e);
 struct ViewParams {
   int divisor = 8;             // feedback buffer = ceil(image / divisor) per axis; the main speed/error knob
   float lod_bias = 0.0f;       // added to every desired LOD (negative sharpens)
-  bool anisotropic = false;    // false: Heckbert max of lengths (seed 000 §2-2-3); true: anisotropic LOD
+  bool anisotropic = false;    // false: Heckbert max of lengths (Yao 2007 §2-2-3); true: anisotropic LOD
   float max_aniso = 16.0f;     // anisotropy clamp for the anisotropic rule
   double near_m = 0.05;        // samples nearer than this are clipped
   double far_m = 1.0e7;        // samples farther than this are clipped

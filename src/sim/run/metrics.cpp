@@ -86,7 +86,7 @@ nlohmann::json MetricsCollector::popin_json(double sharp_margin) const {
   // at or after the blurriest frame of the kPeakHorizon_s following the event, whose blurry
   // fraction is back within `sharp_margin` of the second before the event. Searching from the
   // peak matters for turns: the view is still sharp when the turn starts and blurs as it sweeps
-  // over pages that are not resident (seed 001 §4), so the first frame alone would read "0 s".
+  // over pages that are not resident (Yao 2011 §4), so the first frame alone would read "0 s".
   constexpr double kPeakHorizon_s = 3.0;  // a blur starting later is not this event's
   const auto bf_of = [](const FrameRow& r) { return r.samples ? static_cast<double>(r.blurry) / r.samples : 0.0; };
   std::vector<double> tts;

@@ -119,9 +119,9 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
         .add(cfg::real<C>("view.far_m", &C::far_m, 1e-3, 1e12, "far clip, m"))
         .add(cfg::integer<C>("clipmap.clipsize", &C::clipsize, 1, 1 << 20, "N: clip stack window side, texels (multiple of the tile)"))
         .add(cfg::real<C>("clipmap.update_threshold_tiles", &C::update_threshold_tiles, 0.0, 64.0,
-                          "hysteresis before a window recentres, tiles (seed 003 UpdateThreshold)"))
+                          "hysteresis before a window recentres, tiles (Unity Clipmap UpdateThreshold)"))
         .add(cfg::integer<C>("clipmap.invalid_border_tiles", &C::invalid_border_tiles, 0, 1 << 10,
-                             "window edge tiles excluded from sampling (seed 000 §4-6)"))
+                             "window edge tiles excluded from sampling (Yao 2007 §4-6)"))
         .add(cfg::integer<C>("clipmap.filter_margin_texels", &C::filter_margin_texels, 0, 64,
                              "footprint half-width that must be valid (bilinear: 1)"))
         .add(cfg::integer<C>("vt.pool_pages", &C::vt_pool_pages, 1, std::int64_t{1} << 24,
@@ -134,7 +134,7 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
                              "a page used within this many frames counts as visible (pool occupancy)"))
         .add(cfg::real<C>("ram.capacity_MiB", &C::ram_MiB, 0.0, 1e9, "RAM cache of decoded tiles, MiB (hard cap)"))
         .add(cfg::real<C>("prefetch.lookahead_s", &C::prefetch_lookahead_s, 0.0, 3600.0,
-                          "look-ahead along the motion (seed 000 §4-2), s; 0 = off"))
+                          "look-ahead along the motion (Yao 2007 §4-2), s; 0 = off"))
         .add(cfg::text<C>("disk.preset", &C::disk_preset,
                           [](const std::string& v) {
                             if (!find_disk_preset(v)) check_one_of(v, {"hdd", "sata_ssd", "nvme", "optical", "unconstrained"});
@@ -156,8 +156,8 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
         .add(cfg::integer<C>("io.max_retries", &C::max_retries, 0, 100, "retries of a faulted tile before it fails"))
         .add(cfg::integer<C>("io.retry_backoff_frames", &C::retry_backoff_frames, 0, 100000, "frames before a retry"))
         .add(cfg::integer<C>("io.threads", &C::io_threads, 1, 256,
-                             "real clock: IO pool threads, = reads in flight at once (seed 000 §4-3)"))
-        .add(cfg::boolean<C>("io.direct", &C::io_direct, "real clock: unbuffered O_DIRECT reads (seed 000 §4-3); false = page cache"))
+                             "real clock: IO pool threads, = reads in flight at once (Yao 2007 §4-3)"))
+        .add(cfg::boolean<C>("io.direct", &C::io_direct, "real clock: unbuffered O_DIRECT reads (Yao 2007 §4-3); false = page cache"))
         .add(cfg::real<C>("io.fault_rate", &C::fault_rate, 0.0, 1.0, "probability that a read fails with EIO (injected, both clocks)"))
         .add(cfg::integer<C>("io.fault_seed", &C::fault_seed, 0, std::numeric_limits<std::int64_t>::max(),
                              "seed of the injected fault pattern (per tile and attempt)"))

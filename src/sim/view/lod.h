@@ -1,5 +1,5 @@
 #pragma once
-// Level of detail from screen-space texture-coordinate derivatives (seed 000 §2-2-3: Heckbert's
+// Level of detail from screen-space texture-coordinate derivatives (Yao 2007 §2-2-3: Heckbert's
 // rule, LOD = log2 of the larger of the two footprint lengths) and the ray-differential footprint
 // of a ray hitting a plane. Header-only: these run once per feedback sample and must inline.
 #include <bit>

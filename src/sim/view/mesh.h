@@ -1,5 +1,5 @@
 #pragma once
-// Triangle meshes with unique UVs into one virtual texture (seed 001: every surface owns its own
+// Triangle meshes with unique UVs into one virtual texture (Yao 2011: every surface owns its own
 // region of the megatexture), from a Wavefront OBJ file or the test-town generator.
 #include <cstdint>
 #include <string>

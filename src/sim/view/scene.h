@@ -1,6 +1,6 @@
 #pragma once
 // Scenes the feedback renderer draws (docs/view.md): a flat ground plane, a heightfield, an OBJ
-// mesh with unique UVs (seed 001's megatexture case) and a generated test town. Every scene is
+// mesh with unique UVs (Yao 2011's megatexture case) and a generated test town. Every scene is
 // parameterised into one virtual texture and renders a ViewBuffer: one ViewSample per feedback
 // pixel whose nearest surface within [near, far] faces the camera and lies inside the texture.
 #include <cstdint>
@@ -46,7 +46,7 @@ struct SceneConfig {
   SceneKind kind = SceneKind::plane;
 
   // The terrain and its texture. Defaults: 8192 m × 8192 m at 128 texels/m = a 2^20 × 2^20
-  // virtual texture, the megatexture scale of seed 001 (RAGE: 128k², here 8× larger a side).
+  // virtual texture, the megatexture scale of Yao 2011 (RAGE: 128k², here 8× larger a side).
   double size_x_m = 8192.0;        // terrain extent along world x, metres
   double size_y_m = 8192.0;        // along world y
   double texels_per_m = 128.0;     // level-0 texel density on the ground (0.78 cm texels)

@@ -12,7 +12,7 @@ namespace vtsim {
 
 namespace {
 
-constexpr std::int64_t kGapTexels = 4;   // between packed faces: one compressed block (seed 004)
+constexpr std::int64_t kGapTexels = 4;   // between packed faces: one compressed block (crazii 2017)
 constexpr double kMinHeightM = 6.0;      // two storeys
 constexpr double kWallHeightM = 3.0;     // garden wall: hides the street behind it at eye level
 constexpr double kWallThickM = 0.4;

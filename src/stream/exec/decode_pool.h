@@ -1,5 +1,5 @@
 #pragma once
-// The decode stage (seed 000 §4-3: decompression off the main thread): std::thread workers, separate
+// The decode stage (Yao 2007 §4-3: decompression off the main thread): std::thread workers, separate
 // from the IO pool's, check each record's XXH64 checksum (unless the IO pool already did: `verify`)
 // and decode it with the tile's codec into a TileData, in priority order (lower first, then
 // submission order). Decoded tiles' buffers are recycled (TileBufferPool), so a warm pool neither

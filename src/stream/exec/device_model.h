@@ -33,7 +33,7 @@ struct DecodeModel {
 // link bandwidth x frame period.
 struct UploadModel {
   std::uint64_t bytes_per_frame = 0;  // budget, bytes per frame; 0 = unlimited
-  int tiles_per_frame = 16;           // budget, tiles per frame; 0 = unlimited (seed 003: MaxUploadsPerFrame)
+  int tiles_per_frame = 16;           // budget, tiles per frame; 0 = unlimited (Unity Clipmap: MaxUploadsPerFrame)
   double link_MBps = 12000.0;         // host -> VRAM link bandwidth, MB/s; 0 = unlimited (~PCIe 3.0 x16)
 };
 

@@ -1,5 +1,5 @@
 #pragma once
-// The IO thread pool (seed 000 §4-3: disk IO off the main thread, unbuffered, cluster-aligned):
+// The IO thread pool (Yao 2007 §4-3: disk IO off the main thread, unbuffered, cluster-aligned):
 // std::thread workers read tile records from a TileStore's file with pread on a descriptor opened
 // with O_DIRECT, into 4 KiB-aligned buffers, at the store's 4 KiB-aligned offsets, for the
 // store's 4 KiB-rounded read sizes — so every read is legal under O_DIRECT. docs/real-engine.md.

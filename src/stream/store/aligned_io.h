@@ -1,5 +1,5 @@
 #pragma once
-// Building blocks for unbuffered reads (seed 000 §4-3): a 4 KiB-aligned buffer and a file opened
+// Building blocks for unbuffered reads (Yao 2007 §4-3): a 4 KiB-aligned buffer and a file opened
 // with O_DIRECT where the filesystem accepts it. The IO pool reads tile records with pread into
 // AlignedBuffers; TileStore's offsets and read sizes are multiples of 4096, so every read is legal
 // under O_DIRECT.

@@ -27,7 +27,7 @@ struct StoreLayerSpec {
 struct StoreSpec {
   std::uint64_t width = 0, height = 0;  // level 0, texels
   std::uint32_t tile = 128;             // payload side T, texels
-  std::uint32_t border = 4;             // B, texels (seed 004: 4 = one compressed block)
+  std::uint32_t border = 4;             // B, texels (crazii 2017: 4 = one compressed block)
   std::uint32_t levels = 0;             // 0 = down to 1 x 1
   std::vector<StoreLayerSpec> layers;
 };

@@ -3,7 +3,7 @@
 //
 // A store is one file: a 4 KiB header block, an index with one fixed 32-byte entry per tile, then
 // tile records each starting at a 4 KiB-aligned offset and padded with zeros to the next 4 KiB
-// boundary, so a tile is exactly one aligned O_DIRECT read (seed 000 §4-3: unbuffered async IO,
+// boundary, so a tile is exactly one aligned O_DIRECT read (Yao 2007 §4-3: unbuffered async IO,
 // files laid out in whole disk clusters). Everything is little-endian with fixed-width fields at
 // explicit offsets; nothing is memcpy'd from a struct.
 //

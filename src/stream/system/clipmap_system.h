@@ -2,7 +2,7 @@
 // The clipmap as a streaming system: windows follow the camera's ground point, needs are the
 // non-resident tiles of the active levels' windows (pyramid first: coarse before fine), screen
 // importance comes from the feedback, and look-ahead prefetch fetches the band the windows will
-// enter (seed 000 §4-2). docs/clipmap.md.
+// enter (Yao 2007 §4-2). docs/clipmap.md.
 #include <unordered_map>
 
 #include "cache/clipmap.h"

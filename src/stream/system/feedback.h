@@ -1,5 +1,5 @@
 #pragma once
-// Feedback aggregation (seed 001 §3.1): the set of tiles a frame's samples touch, per mip level,
+// Feedback aggregation (Yao 2011 §3.1): the set of tiles a frame's samples touch, per mip level,
 // with how many samples touched each — what a virtual-texturing system requests and a clipmap
 // uses to decide which levels are needed.
 #include <cstdint>

@@ -389,8 +389,8 @@ int VtSystem::resident_level(std::int64_t u, std::int64_t v, int desired_level) 
 }
 
 void VtSystem::resident_levels(const ViewSample* s, std::size_t count, std::int8_t* out) const {
-  // The screen samples floor(lod + sampling bias), no finer than the clamp (seed 000 §4-4), and the
-  // page table falls back from there to the finest resident ancestor (seed 001 §3.2).
+  // The screen samples floor(lod + sampling bias), no finer than the clamp (Yao 2007 §4-4), and the
+  // page table falls back from there to the finest resident ancestor (Yao 2011 §3.2).
   const int n = geo_.levels();
   const auto sb = static_cast<float>(sample_bias_);
   for (std::size_t i = 0; i < count; ++i) {

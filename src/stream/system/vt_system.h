@@ -1,10 +1,10 @@
 #pragma once
-// Sparse virtual texturing as a streaming system (seed 001: id Tech 5 / RAGE; issue 5), the
+// Sparse virtual texturing as a streaming system (Yao 2011: id Tech 5 / RAGE; issue 5), the
 // clipmap's sibling behind IStreamingSystem. docs/vt.md.
 //
 // Per frame:
 //  1. begin_frame: the feedback buffer's samples give each a desired page at level
-//     floor(lod + bias) (only visible, unoccluded samples exist: seed 001 §3.1); the wanted set is
+//     floor(lod + bias) (only visible, unoccluded samples exist: Yao 2011 §3.1); the wanted set is
 //     those pages plus every coarser ancestor (the fallback chain a sample needs) plus the locked
 //     coarsest levels. Demand per level, pool pressure and occupancy are measured for the policy.
 //  2. apply_throttle: the residency policy's clamp (finest level requested and sampled), feedback

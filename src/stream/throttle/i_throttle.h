@@ -1,6 +1,6 @@
 #pragma once
 // Throttling / residency policies: given the backlog and what the device can serve, decide the
-// MaxTextureLOD clamp (the finest level requested and sampled; seed 000 §4-4) and, for virtual
+// MaxTextureLOD clamp (the finest level requested and sampled; Yao 2007 §4-4) and, for virtual
 // textures, a feedback LOD bias. One policy per file in stream/throttle/impl/, registered in one table
 // (stream/throttle/throttle_registry.cpp). docs/pipeline.md, "MaxTextureLOD throttling".
 #include <cstdint>

@@ -13,7 +13,7 @@ std::unique_ptr<IThrottlePolicy> make_throttle_rage_watermarks(const ThrottlePar
 const std::vector<ThrottlePolicyInfo>& throttle_policies() {
   static const std::vector<ThrottlePolicyInfo> table = {
       {"none", "never clamp: every level requested and sampled", make_throttle_none},
-      {"deadline", "MaxTextureLOD (seed 000 §4-4): clamp levels whose backlog misses the deadline", make_throttle_deadline},
+      {"deadline", "MaxTextureLOD (Yao 2007 §4-4): clamp levels whose backlog misses the deadline", make_throttle_deadline},
       {"vt_clamp", "VT MaxTextureLOD: the deadline clamp, or coarser until the wanted pages fit the pool", make_throttle_vt_clamp},
       {"unreal_bias", "VT: Unreal's residency mip bias, proportional to visible residency beyond its bounds", make_throttle_unreal_bias},
       {"rage_watermarks", "VT: RAGE's global feedback bias, stepped at high/low water marks of pool pressure", make_throttle_rage_watermarks},

@@ -1,5 +1,5 @@
 // jpeg: lossy, 1 or 3 channels (JPEG has no alpha or two-channel form), through OpenImageIO in
-// memory. Parameter: quality 1..100 (default 90). The real-work decode of seed 000 §4-3 ("JPEG
+// memory. Parameter: quality 1..100 (default 90). The real-work decode of Yao 2007 §4-3 ("JPEG
 // read per block and decompressed in real time on multi-core systems").
 #include "core/error.h"
 #include "stream/store/i_codec.h"

@@ -1,4 +1,4 @@
-// MaxTextureLOD by deadline (seed 000 §4-4: "when the camera outruns updates, clamp the finest
+// MaxTextureLOD by deadline (Yao 2007 §4-4: "when the camera outruns updates, clamp the finest
 // level used — for uploads and sampling; in the extreme use the pyramid only, so any speed stays
 // smooth").
 //

@@ -1,7 +1,7 @@
 // RAGE / id Tech 5's global feedback LOD bias with high and low water marks (van Waveren, "id Tech
 // 5 Challenges", SIGGRAPH 2009 Beyond Programmable Shading: when the pages a view needs do not fit
 // the physical page texture, globally raise the feedback LOD bias until the working set fits;
-// seed 001 §5). The signal is the pool pressure: pages the view wants under the current bias
+// Yao 2011 §5). The signal is the pool pressure: pages the view wants under the current bias
 // (desired pages, their ancestors, the locked levels) over the pool's slots.
 //   pressure > high_water: bias += bias_step (each frame, up to max_bias)
 //   pressure < low_water for relax_frames consecutive frames: bias −= bias_step (down to 0)

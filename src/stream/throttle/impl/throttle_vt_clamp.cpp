@@ -1,4 +1,4 @@
-// MaxTextureLOD for a virtual texture's page pool (seed 000 §4-4, applied to seed 001 §5's "the
+// MaxTextureLOD for a virtual texture's page pool (Yao 2007 §4-4, applied to Yao 2011 §5's "the
 // pages a frame needs exceed the physical page texture"): clamp the finest level requested and
 // sampled, in whole levels. Two reasons to clamp; the coarser clamp wins:
 //  - the IO backlog: the deadline policy (throttle_deadline.cpp) as for the clipmap — the camera
