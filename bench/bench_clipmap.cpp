@@ -9,6 +9,7 @@
 #include "core/camera.h"
 #include "sim/run/closed_form.h"
 #include "sim/run/replay.h"
+#include "sim/run/systems.h"
 #include "sim/view/scene.h"
 #include "sim/trace/trace_gen.h"
 #include "stream/system/i_system.h"
@@ -28,7 +29,7 @@ int main(int argc, char** argv) {
     const ReplayConfig cfg = load_replay_config("", {"view.render_threads=0"});
     auto scene = make_scene_from_config(cfg);
     nlohmann::json summary;
-    bench::Case c{"walk_divisor8", bench::Metric::kMsPerRep, 1, {{"divisor", cfg.divisor}, {"frames", walk.poses.size()}}, 300.0};
+    bench::Case c{"walk_divisor8", bench::Metric::kMsPerRep, 1, {{"divisor", cfg.view.divisor}, {"frames", walk.poses.size()}}, 300.0};
     h.run_against(c, {"replay", nullptr, [&] { summary = run_replay(cfg, walk, *scene).summary; }}, "real_time",
                   walk.poses.back().t_s * 1e3 + 1e3 / 60.0);
     bench::do_not_optimize(summary);
@@ -53,11 +54,11 @@ int main(int argc, char** argv) {
     ClosedFormWalk w;
     w.speed_mps = g.speed_mps;
     w.heading_deg = g.heading_deg;
-    w.texels_per_m = cfg.texels_per_m;
-    w.clipsize = cfg.clipsize;
-    w.tile_size = cfg.tile_size;
+    w.texels_per_m = cfg.texture.texels_per_m;
+    w.clipsize = cfg.clipmap.clipsize;
+    w.tile_size = cfg.texture.tile_size;
     w.bytes_per_texel = 4.0;
-    w.stack_levels = make_system(cfg, *scene)->coarsest_clamp();
+    w.stack_levels = make_system(cfg, scene->texture())->coarsest_clamp();
     const double predicted = clipmap_walk_disk_Bps(w);
     const double err = std::fabs(measured - predicted) / predicted;
     fmt::print("  closed form {:<9} predicted {:.4f} MB/s  measured {:.4f} MB/s  error {:.3f}% (target 1%){}\n",

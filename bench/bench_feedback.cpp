@@ -212,11 +212,11 @@ void fast_paths(const Options& opt, nlohmann::json& report) {
   for (const std::string& name : {std::string("plane"), std::string("town")}) {
     if (std::find(opt.scenes.begin(), opt.scenes.end(), name) == opt.scenes.end()) continue;
     SceneConfig cfg;
-    cfg.kind = parse_scene_kind(name);
+    cfg.kind = find_scene(name).name;
     const std::unique_ptr<IScene> scene = make_scene(cfg);
     const std::unique_ptr<IScene> ref_scene = make_scene(cfg);
-    if (cfg.kind == SceneKind::town) dynamic_cast<MeshScene&>(*ref_scene).set_occlusion_culling(false);
-    const TraceSpec at = cfg.kind == SceneKind::town ? TraceSpec{{30.0, 8.0, 0.0}, 0.0} : TraceSpec{{4096.0, 4096.0, 0.0}, 30.0};
+    if (cfg.kind == "town") dynamic_cast<MeshScene&>(*ref_scene).set_occlusion_culling(false);
+    const TraceSpec at = cfg.kind == "town" ? TraceSpec{{30.0, 8.0, 0.0}, 0.0} : TraceSpec{{4096.0, 4096.0, 0.0}, 30.0};
     const std::vector<Trace> traces = standard_traces(*scene, ground_plane, at, 2.0);
     const int levels = mip_level_count(scene->texture());
     ViewParams vp;
@@ -274,11 +274,11 @@ int main(int argc, char** argv) {
   for (const std::string& name : opt.scenes) {
     if (opt.fast_only) break;
     SceneConfig cfg;
-    cfg.kind = parse_scene_kind(name);
+    cfg.kind = find_scene(name).name;
     TraceSpec at{{4096.0, 4096.0, 0.0}, 30.0};
     GroundFn ground = ground_plane;
-    if (cfg.kind == SceneKind::town) at = TraceSpec{{30.0, 8.0, 0.0}, 0.0};  // along the first street
-    if (cfg.kind == SceneKind::heightfield) ground = ground_heightfield;
+    if (cfg.kind == "town") at = TraceSpec{{30.0, 8.0, 0.0}, 0.0};  // along the first street
+    if (cfg.kind == "heightfield") ground = ground_heightfield;
     const std::unique_ptr<IScene> scene = make_scene(cfg);
     const int levels = mip_level_count(scene->texture());
     const std::vector<Trace> traces = standard_traces(*scene, ground, at, 2.0);

@@ -79,9 +79,9 @@ int main(int argc, char** argv) {
   const ReplayConfig every4 = load_replay_config("", every4_sets, "vt");
   const bench::Result* e4 = replay_case("replay_town_walk_every4", walk, every4);
   ViewParams vp;
-  vp.divisor = cfg.divisor;
+  vp.divisor = cfg.view.divisor;
   SpanBuffer sb;
-  sb.block_shift = std::bit_width(static_cast<unsigned>(cfg.tile_size)) - 1;  // as the replay
+  sb.block_shift = std::bit_width(static_cast<unsigned>(cfg.texture.tile_size)) - 1;  // as the replay
   ViewBuffer vb;
   std::vector<ViewSpan> ref_spans;
   std::size_t samples = 0;
@@ -118,7 +118,7 @@ int main(int argc, char** argv) {
   const nlohmann::json static_summary = stat ? last : nlohmann::json();
   const int static_last_active = last_active_frame;
   ReplayConfig ahead_cfg = cfg;
-  ahead_cfg.render_threads = -1;
+  ahead_cfg.view.render_threads = -1;
   const bench::Result* ahead = replay_case("replay_town_walk_render_ahead", walk, ahead_cfg);
   const int ahead_threads = ahead && !last.is_null() ? last["run"]["render_threads"].get<int>() : 0;
   if (ahead && full && !last.is_null() && !full_summary.is_null()) {

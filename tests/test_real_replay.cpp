@@ -74,17 +74,17 @@ void check_sim_reads_the_same(const ReplayConfig& cfg, const Trace& trace, const
 TEST_CASE("bind_store_texture: the texture comes from the store, and a disagreeing config is rejected naming the field") {
   const TileStore store = TileStore::open(test::small_store());
   ReplayConfig c = bound_cfg(store);
-  CHECK(c.width == 1024);
-  CHECK(c.height == 1024);
-  CHECK(c.tile_size == 64);
-  CHECK(c.border == 0);
-  REQUIRE(c.layer_specs.size() == 2);
-  CHECK(c.layer_specs[0].name == "albedo");
-  CHECK(c.layer_specs[0].format == "rgb8");
-  CHECK(c.layer_specs[1].name == "normal");
-  CHECK(c.layer_specs[0].compression_ratio > 1.5);  // zstd on terrain albedo
+  CHECK(c.texture.width == 1024);
+  CHECK(c.texture.height == 1024);
+  CHECK(c.texture.tile_size == 64);
+  CHECK(c.texture.border == 0);
+  REQUIRE(c.texture.layers.specs.size() == 2);
+  CHECK(c.texture.layers.specs[0].name == "albedo");
+  CHECK(c.texture.layers.specs[0].format == "rgb8");
+  CHECK(c.texture.layers.specs[1].name == "normal");
+  CHECK(c.texture.layers.specs[0].compression_ratio > 1.5);  // zstd on terrain albedo
   const auto totals = store.totals();
-  CHECK(c.layer_specs[1].compression_ratio ==
+  CHECK(c.texture.layers.specs[1].compression_ratio ==
         doctest::Approx(static_cast<double>(totals[1].decoded_bytes) / static_cast<double>(totals[1].stored_bytes)).epsilon(1e-3));
 
   auto reject = [&](const std::string& set, const std::string& field) {
@@ -128,7 +128,7 @@ TEST_CASE("apply_speed: the trace plays faster in both clocks, and a bad factor 
   const double last = t.poses.back().t_s;
   apply_speed(c, t, 4.0);
   CHECK(t.poses.back().t_s == doctest::Approx(last / 4));
-  CHECK(c.fps == doctest::Approx(240.0));
+  CHECK(c.run.fps == doctest::Approx(240.0));
   for (double bad : {0.0, -1.0, 5000.0}) {
     try {
       apply_speed(c, t, bad);
@@ -274,8 +274,8 @@ std::uint64_t check_pool_arena(const RealRun& run, const TileStore& store, std::
 TEST_CASE("real clock, virtual texturing: pages land byte-exact in their pool slots, and the simulated clock reads the same") {
   const TileStore store = TileStore::open(test::small_vt_store());
   const ReplayConfig cfg = bound_cfg(store, {"run.system=vt", "vt.pool_pages=64"});
-  CHECK(cfg.tile_size == 64);
-  CHECK(cfg.border == 4);  // pages stored 72² with their borders
+  CHECK(cfg.texture.tile_size == 64);
+  CHECK(cfg.texture.border == 4);  // pages stored 72² with their borders
   const Trace trace = still_trace(1.5);
   const auto scene = make_scene_from_config(cfg);
   const RealRun run = run_real_replay(cfg, trace, *scene, store);
@@ -452,9 +452,9 @@ TEST_CASE("real clock: the RAM cache's buffers and the VRAM arena must fit in me
   const std::uint64_t page = store.tile_bytes(0) + store.tile_bytes(1);
   // What start-up reserves: the RAM cache's pages plus io.max_in_flight, and the pool's slots with
   // 16 bytes of bookkeeping a slot per layer.
-  const std::uint64_t reserve = (std::uint64_t{1} << 20) / page * page + static_cast<std::uint64_t>(cfg.max_in_flight) * page;
+  const std::uint64_t reserve = (std::uint64_t{1} << 20) / page * page + static_cast<std::uint64_t>(cfg.io.max_in_flight) * page;
   ThreadedExecutorConfig xc;
-  xc.capacity = static_cast<std::size_t>(cfg.max_in_flight);
+  xc.capacity = static_cast<std::size_t>(cfg.io.max_in_flight);
   xc.tile_memory_bytes = std::uint64_t{1} << 20;
   CHECK(ThreadedExecutor::reserved_pages(store, xc) * ThreadedExecutor::page_bytes(store) == reserve);
   const std::uint64_t arena = 64 * (page + 2 * 16);

@@ -73,7 +73,7 @@ ReplayResult town_replay(const Trace& t, std::vector<std::string> sets, int thre
 
 TEST_CASE("render-ahead: every job's buffers equal the scene's own render, in order, for 1-3 workers") {
   SceneConfig sc;
-  sc.kind = SceneKind::town;
+  sc.kind = "town";
   const auto scene = make_scene(sc);
   ViewParams vp, pp;
   pp.divisor = 3;
@@ -99,7 +99,7 @@ TEST_CASE("render-ahead: every job's buffers equal the scene's own render, in or
 
 TEST_CASE("render-ahead: keep_samples switched while jobs run — the buffers equal the scene's render either way") {
   SceneConfig sc;
-  sc.kind = SceneKind::town;
+  sc.kind = "town";
   const auto scene = make_scene(sc);
   const ViewParams vp;
   SpanBuffer ref;

@@ -92,15 +92,15 @@ TEST_CASE("mutated native, TUM, EuRoC and KITTI files load validly or raise Inpu
   const std::string data = VTSIM_TEST_DATA;
   const std::string tum = head(vtsim::test::slurp(data + "/tum_fr2_desk_excerpt.txt"), 3000);
   ImportOptions tum_o;
-  tum_o.format = TraceFormat::tum;
+  tum_o.format = "tum";
   fuzz(tum, dir.file("t.txt"), 600, 3, [&](const std::string& f) { return import_trace(f, tum_o); });
   const std::string euroc = head(vtsim::test::slurp(data + "/euroc_V1_02_excerpt.csv"), 4000);
   ImportOptions euroc_o;
-  euroc_o.format = TraceFormat::euroc;
+  euroc_o.format = "euroc";
   fuzz(euroc, dir.file("e.csv"), 600, 4, [&](const std::string& f) { return import_trace(f, euroc_o); });
   const std::string kitti = vtsim::test::slurp(data + "/kitti_synthetic_poses.txt");
   ImportOptions kitti_o;
-  kitti_o.format = TraceFormat::kitti;
+  kitti_o.format = "kitti";
   kitti_o.kitti_rate_hz = 10.0;
   fuzz(kitti, dir.file("k.txt"), 600, 5, [&](const std::string& f) { return import_trace(f, kitti_o); });
 }

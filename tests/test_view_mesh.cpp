@@ -176,7 +176,7 @@ TEST_CASE("mesh: a textured ground quad renders what the plane renders") {
 
 TEST_CASE("mesh: divisor 8 reproduces divisor 1 exactly at the same full-resolution pixels") {
   SceneConfig cfg;
-  cfg.kind = SceneKind::town;
+  cfg.kind = "town";
   const auto town = make_scene(cfg);
   const Camera cam = make_camera(pose_from_angles({10, 7, 1.7}, 35, -3), 1920, 1080);
   ViewParams p1, p8;

@@ -306,10 +306,10 @@ TEST_CASE("scene config rejects bad input") {
   c.size_y_m = 1e30;  // more than 2^34 texels
   CHECK_THROWS_AS(make_scene(c), InputError);
   c = SceneConfig{};
-  c.kind = SceneKind::mesh;  // no OBJ
+  c.kind = "mesh";  // no OBJ
   CHECK_THROWS_AS(make_scene(c), InputError);
-  CHECK_THROWS_AS(parse_scene_kind("sphere"), InputError);
-  CHECK(parse_scene_kind("town") == SceneKind::town);
+  CHECK_THROWS_AS(find_scene("sphere"), InputError);
+  CHECK(find_scene("town").name == "town");
   const auto s = make_scene(SceneConfig{});
   ViewParams bad;
   bad.divisor = -1;

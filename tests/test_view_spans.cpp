@@ -57,7 +57,7 @@ RandomView random_view(std::mt19937_64& rng, double cx, double cy) {
 
 std::unique_ptr<IScene> plane_scene(double origin_x = 0.0, double origin_y = 0.0) {
   SceneConfig cfg;
-  cfg.kind = SceneKind::plane;
+  cfg.kind = "plane";
   cfg.origin_x_m = origin_x;
   cfg.origin_y_m = origin_y;
   return make_scene(cfg);
@@ -136,7 +136,7 @@ TEST_CASE("town render_spans equals spans_from_samples(render) exactly on random
   std::mt19937_64 rng(20261202);
   std::uniform_real_distribution<double> U(0.0, 1.0);
   SceneConfig cfg;
-  cfg.kind = SceneKind::town;
+  cfg.kind = "town";
   const auto scene = make_scene(cfg);
   ViewBuffer vb;
   SpanBuffer sb;

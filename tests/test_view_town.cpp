@@ -16,7 +16,7 @@ using namespace vtsim;
 
 TEST_CASE("town: deterministic / every face owns a disjoint texel rectangle inside the texture") {
   SceneConfig cfg;
-  cfg.kind = SceneKind::town;
+  cfg.kind = "town";
   const Mesh a = generate_town(cfg);
   const Mesh b = generate_town(cfg);
   CHECK(a.positions == b.positions);
@@ -64,7 +64,7 @@ TEST_CASE("town: deterministic / every face owns a disjoint texel rectangle insi
 
 TEST_CASE("town: renders ground / walls and roofs / bad parameters are rejected") {
   SceneConfig cfg;
-  cfg.kind = SceneKind::town;
+  cfg.kind = "town";
   const auto town = make_scene(cfg);
   ViewParams vp;
   ViewBuffer vb;
@@ -129,7 +129,7 @@ void check_same_counters(const ViewBuffer& a, const ViewBuffer& b) {
 
 TEST_CASE("town: occlusion culling renders exactly what drawing every chunk in index order renders, from any warm start") {
   SceneConfig cfg;
-  cfg.kind = SceneKind::town;
+  cfg.kind = "town";
   MeshScene culled(generate_town(cfg), scene_texture(cfg)), plain(generate_town(cfg), scene_texture(cfg));
   plain.set_occlusion_culling(false);
   const double S = town_size_m(cfg);
@@ -176,7 +176,7 @@ TEST_CASE("town: occlusion culling renders exactly what drawing every chunk in i
 
 TEST_CASE("town: back faces are skipped only where the solids allow it, and the buffer is the same") {
   SceneConfig cfg;
-  cfg.kind = SceneKind::town;
+  cfg.kind = "town";
   const Mesh mesh = generate_town(cfg);
   REQUIRE(mesh.solids.size() == 1u + 4u * 16u * 16u + 2u * 16u * 16u);  // below ground, buildings, walls
   MeshScene culled(mesh, scene_texture(cfg)), plain(mesh, scene_texture(cfg));
@@ -250,7 +250,7 @@ TEST_CASE("town: back faces are skipped only where the solids allow it, and the 
 
 TEST_CASE("town: render work counts add up, and culling is what removes the work") {
   SceneConfig cfg;
-  cfg.kind = SceneKind::town;
+  cfg.kind = "town";
   const Mesh mesh = generate_town(cfg);
   MeshScene culled(mesh, scene_texture(cfg)), plain(mesh, scene_texture(cfg));
   plain.set_occlusion_culling(false);

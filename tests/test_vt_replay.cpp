@@ -87,6 +87,15 @@ TEST_CASE("vt replay: the same trace and config give the same results, bit for b
   CHECK(a.summary["vt"]["pool"]["evictions"].get<std::uint64_t>() > 0);  // the run did exercise the pool
 }
 
+namespace {
+
+std::unique_ptr<vtsim::IThrottlePolicy> policy_named(const char* name, vtsim::ThrottleParams p) {
+  p.policy = name;
+  return vtsim::make_throttle_policy(p);
+}
+
+}  // namespace
+
 TEST_CASE("vt policies: each raises its bias or clamp for an oversubscribed pool, then lowers it") {
   ThrottleParams p;  // high 0.95, low 0.75, step 0.25, max 4, rate 0.2, relax 15 frames
   ThrottleInput in;
@@ -96,7 +105,7 @@ TEST_CASE("vt policies: each raises its bias or clamp for an oversubscribed pool
   in.missing_bytes_by_level.assign(6, 0);
 
   SUBCASE("rage_watermarks: steps at the water marks of pool pressure") {
-    auto pol = make_throttle_policy("rage_watermarks", p);
+    auto pol = policy_named("rage_watermarks", p);
     REQUIRE(pol);
     double bias = 0;
     for (int f = 0; f < 10; ++f) {
@@ -122,7 +131,7 @@ TEST_CASE("vt policies: each raises its bias or clamp for an oversubscribed pool
     CHECK(frames == 10 * 15);  // one step down per relax_frames frames
   }
   SUBCASE("unreal_bias: proportional to visible residency beyond its bounds, also a sampling bias") {
-    auto pol = make_throttle_policy("unreal_bias", p);
+    auto pol = policy_named("unreal_bias", p);
     REQUIRE(pol);
     in.pool_occupancy = 1.0;
     ThrottleDecision d;
@@ -137,13 +146,13 @@ TEST_CASE("vt policies: each raises its bias or clamp for an oversubscribed pool
     for (int f = 0; f < 20; ++f) d = pol->update(in);
     CHECK(d.bias == 0.0);
     p.max_bias = 0.5;
-    auto capped = make_throttle_policy("unreal_bias", p);
+    auto capped = policy_named("unreal_bias", p);
     in.pool_occupancy = 1.0;
     for (int f = 0; f < 1000; ++f) d = capped->update(in);
     CHECK(d.bias == 0.5);
   }
   SUBCASE("vt_clamp: the finest level whose wanted pages fit, relaxed level by level") {
-    auto pol = make_throttle_policy("vt_clamp", p);
+    auto pol = policy_named("vt_clamp", p);
     REQUIRE(pol);
     in.pool_demand_by_level = {1000, 250, 64, 16, 4, 1};  // fits 0.95 × 128 from level 2 (85 pages)
     ThrottleDecision d = pol->update(in);

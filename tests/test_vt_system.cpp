@@ -14,17 +14,24 @@ using namespace vtsim;
 namespace {
 
 // 4096² texels, 128-texel pages: 6 levels of 32, 16, 8, 4, 2, 1 pages a side.
-VtSystemParams small_params(std::uint32_t pool = 64, int layers = 1) {
-  VtSystemParams p;
-  p.extent = {4096, 4096};
-  p.page_size = 128;
-  p.border = 0;
-  p.layers = layers;
-  p.page_bytes_all_layers = 65536u * static_cast<std::uint64_t>(layers);
-  p.pool_pages = pool;
-  p.locked_levels = 1;
+// A system's two inputs (stream/system/i_system.h, vt_system.h).
+struct VtParams {
+  SystemSetup s;
+  VtConfig c;
+};
+VtParams small_params(std::uint32_t pool = 64, int layers = 1) {
+  VtParams p;
+  p.s.extent = {4096, 4096};
+  p.s.tile_size = 128;
+  p.s.border = 0;
+  p.s.layers = layers;
+  p.s.tile_bytes_all_layers = 65536u * static_cast<std::uint64_t>(layers);
+  p.c.pool_pages = pool;
+  p.c.locked_levels = 1;
   return p;
 }
+
+std::unique_ptr<VtSystem> make_vt(const VtParams& p) { return std::make_unique<VtSystem>(p.s, p.c); }
 
 ViewSample sample(std::int64_t u, std::int64_t v, float lod, std::uint32_t pixel = 0) {
   ViewSample s;
@@ -56,7 +63,8 @@ std::set<std::uint64_t> keys(const std::vector<Need>& needs) {
 }  // namespace
 
 TEST_CASE("vt system: the view wants its samples' pages, every ancestor and the locked level") {
-  VtSystem vt(small_params());
+  const VtParams vt_p = small_params();
+  VtSystem vt(vt_p.s, vt_p.c);
   CHECK(vt.num_levels() == 6);
   ViewBuffer vb;
   vb.samples = {sample(3 * 128 + 5, 3 * 128 + 9, 0.5f, 0), sample(3 * 128 + 100, 3 * 128 + 1, 0.9f, 1),
@@ -99,7 +107,8 @@ TEST_CASE("vt system: the view wants its samples' pages, every ancestor and the 
 }
 
 TEST_CASE("vt system: prioritised by level gap × samples within a level (RAGE)") {
-  VtSystem vt(small_params());
+  const VtParams vt_p = small_params();
+  VtSystem vt(vt_p.s, vt_p.c);
   ViewBuffer vb;
   // Two level-0 pages: (0,0) with 1 sample, (20,20) with 5 samples.
   vb.samples = {sample(10, 10, 0.0f)};
@@ -125,7 +134,8 @@ TEST_CASE("vt system: prioritised by level gap × samples within a level (RAGE)"
 }
 
 TEST_CASE("vt system: the clamp and the sampling bias apply to requests and to what the screen samples") {
-  VtSystem vt(small_params());
+  const VtParams vt_p = small_params();
+  VtSystem vt(vt_p.s, vt_p.c);
   ViewBuffer vb;
   vb.samples = {sample(100, 100, 0.0f)};
   auto needs = frame(vt, 0, &vb);
@@ -159,7 +169,8 @@ TEST_CASE("vt system: the clamp and the sampling bias apply to requests and to w
   CHECK(vt.coarsest_clamp() == 5);
 
   // A feedback bias moves the requests, not the sampling.
-  VtSystem b(small_params());
+  const VtParams b_p = small_params();
+  VtSystem b(b_p.s, b_p.c);
   ThrottleDecision fb;
   fb.bias = 1.5;  // floor(0 + 1.5) = level 1
   needs = frame(b, 0, &vb, fb);
@@ -170,7 +181,8 @@ TEST_CASE("vt system: the clamp and the sampling bias apply to requests and to w
 }
 
 TEST_CASE("vt system: a pool smaller than the view throttles the finest pages and never overflows") {
-  VtSystem vt(small_params(/*pool=*/12));
+  const VtParams vt_p = small_params(/*pool=*/12);
+  VtSystem vt(vt_p.s, vt_p.c);
   ViewBuffer vb;
   // 32 level-0 pages along a row: with ancestors 32 + 16 + 8 + 4 + 2 + 1 = 63 pages wanted.
   for (int i = 0; i < 32; ++i) vb.samples.push_back(sample(i * 128 + 1, 1, 0.0f, static_cast<std::uint32_t>(i)));
@@ -193,7 +205,8 @@ TEST_CASE("vt system: a pool smaller than the view throttles the finest pages an
 }
 
 TEST_CASE("vt system: a higher-priority page takes a lower one's reservation when the pool is short") {
-  VtSystem vt(small_params(/*pool=*/3));
+  const VtParams vt_p = small_params(/*pool=*/3);
+  VtSystem vt(vt_p.s, vt_p.c);
   ViewBuffer vb;
   vb.samples = {sample(1, 1, 5.0f)};  // only the root (level 5)
   auto needs = frame(vt, 0, &vb);
@@ -212,7 +225,8 @@ TEST_CASE("vt system: a higher-priority page takes a lower one's reservation whe
 }
 
 TEST_CASE("vt system: multi-layer pages map only when every layer is resident") {
-  VtSystem vt(small_params(16, 2));
+  const VtParams vt_p = small_params(16, 2);
+  VtSystem vt(vt_p.s, vt_p.c);
   ViewBuffer vb;
   vb.samples = {sample(1, 1, 4.0f)};
   const auto needs = frame(vt, 0, &vb);
@@ -231,17 +245,17 @@ TEST_CASE("vt system: multi-layer pages map only when every layer is resident") 
 }
 
 TEST_CASE("vt system: bad parameters are refused") {
-  CHECK_THROWS_AS(VtSystem([] { auto p = small_params(); p.page_size = 127; return p; }()), std::invalid_argument);
-  CHECK_THROWS_AS(VtSystem([] { auto p = small_params(); p.locked_levels = 7; return p; }()), std::invalid_argument);
-  CHECK_THROWS_AS(VtSystem([] { auto p = small_params(4); p.locked_levels = 2; return p; }()), std::invalid_argument);  // 5 locked pages
-  CHECK_NOTHROW(VtSystem([] { auto p = small_params(5); p.locked_levels = 2; return p; }()));
-  CHECK_THROWS_AS(VtSystem([] { auto p = small_params(); p.prefetch_finer_levels = 3; return p; }()), std::invalid_argument);
+  CHECK_THROWS_AS(make_vt([] { auto p = small_params(); p.s.tile_size = 127; return p; }()), std::invalid_argument);
+  CHECK_THROWS_AS(make_vt([] { auto p = small_params(); p.c.locked_levels = 7; return p; }()), std::invalid_argument);
+  CHECK_THROWS_AS(make_vt([] { auto p = small_params(4); p.c.locked_levels = 2; return p; }()), std::invalid_argument);  // 5 locked pages
+  CHECK_NOTHROW(make_vt([] { auto p = small_params(5); p.c.locked_levels = 2; return p; }()));
+  CHECK_THROWS_AS(make_vt([] { auto p = small_params(); p.c.prefetch_finer_levels = 3; return p; }()), std::invalid_argument);
 }
 
 TEST_CASE("vt system: prefetch asks for the finer children of desired pages, into RAM only") {
   auto p = small_params();
-  p.prefetch_finer_levels = 2;
-  VtSystem vt(p);
+  p.c.prefetch_finer_levels = 2;
+  VtSystem vt(p.s, p.c);
   ViewBuffer vb;
   vb.samples = {sample(700, 700, 3.0f)};  // level 3 page (0,0): 4 children at level 2, 16 at level 1
   const auto needs = frame(vt, 0, &vb);
@@ -287,7 +301,8 @@ TEST_CASE("vt system: spans give the same wanted pages, requests and resident le
     CAPTURE(d.clamp);
     CAPTURE(d.bias);
     CAPTURE(d.sample_bias);
-    VtSystem with_spans(small_params(256)), per_sample(small_params(256));
+    const VtParams p = small_params(256);
+    VtSystem with_spans(p.s, p.c), per_sample(p.s, p.c);
     SystemFrame a, b;
     a.view = &sb.view;
     a.spans = &sb;

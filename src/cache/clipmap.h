@@ -40,14 +40,18 @@
 
 namespace vtsim {
 
-struct ClipmapParams {
-  TextureExtent extent{1 << 20, 1 << 20};  // level-0 texels
-  int tile_size = 128;                    // T: payload texels per tile side
+// How the windows behave: the config's [clipmap] section.
+struct ClipmapConfig {
   int clipsize = 1024;                    // N: window side in texels, a multiple of T
-  int layers = 1;                         // layers streamed per tile (albedo, normal, ...)
   double update_threshold_tiles = 0.5;    // hysteresis beyond the centre tile, in tiles (>= 0)
   int invalid_border_tiles = 0;           // window tiles at each moving edge excluded from sampling
   int filter_margin_texels = 1;           // footprint half-width that must be valid (bilinear: 1)
+};
+
+struct ClipmapParams : ClipmapConfig {
+  TextureExtent extent{1 << 20, 1 << 20};  // level-0 texels
+  int tile_size = 128;                    // T: payload texels per tile side
+  int layers = 1;                         // layers streamed per tile (albedo, normal, ...)
 };
 
 // VRAM bytes of a clipmap (Yao 2007 §2-3): the stack's windows and the pyramid's full levels.

@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "sim/run/real_replay.h"
 #include "sim/run/replay.h"
+#include "sim/run/systems.h"
 #include "sim/run/report_html.h"
 #include "sim/view/scene.h"
 #include "sim/view/scene_town.h"
@@ -51,20 +52,82 @@ std::string blind_replay_warning(const MetricsCollector& m, const Trace& trace, 
   }
   if (measured == 0 || trace.poses.empty()) return {};
   const glm::dvec3 p = trace.poses.front().pos_m;
-  const double x1 = cfg.origin_x_m + static_cast<double>(cfg.width) / cfg.texels_per_m;
-  const double y1 = cfg.origin_y_m + static_cast<double>(cfg.height) / cfg.texels_per_m;
-  std::string where = fmt::format("the texture covers x {:.1f}..{:.1f} m, y {:.1f}..{:.1f} m", cfg.origin_x_m, x1,
-                                  cfg.origin_y_m, y1);
-  if (cfg.scene == "town") {  // the town's layout is fixed (SceneConfig's defaults) from the texture's origin
+  const TextureConfig& tx = cfg.texture;
+  const double x1 = tx.origin_x_m + static_cast<double>(tx.width) / tx.texels_per_m;
+  const double y1 = tx.origin_y_m + static_cast<double>(tx.height) / tx.texels_per_m;
+  std::string where = fmt::format("the texture covers x {:.1f}..{:.1f} m, y {:.1f}..{:.1f} m", tx.origin_x_m, x1,
+                                  tx.origin_y_m, y1);
+  if (cfg.scene.kind == "town") {  // the town's layout is fixed (SceneConfig's defaults) from the texture's origin
     const double S = town_size_m(SceneConfig{});
     where = fmt::format("the town covers x {:.1f}..{:.1f} m, y {:.1f}..{:.1f} m (a walk in it: `vtsim trace gen walk "
                         "--start 30,8`)",
-                        cfg.origin_x_m, cfg.origin_x_m + S, cfg.origin_y_m, cfg.origin_y_m + S);
+                        tx.origin_x_m, tx.origin_x_m + S, tx.origin_y_m, tx.origin_y_m + S);
   }
   return fmt::format("no frame saw a textured surface (0 samples in {} measured frames): the trace starts at "
                      "({:.1f}, {:.1f}, {:.1f}) m and {} (texture.origin_x_m, texture.origin_y_m, "
                      "texture.texels_per_m; docs/traces.md)",
                      measured, p.x, p.y, p.z, where);
+}
+
+// A short human summary of a result.
+std::string format_summary(const nlohmann::json& s) {
+  const auto& b = s["bandwidth"];
+  const auto& l = s["latency_ms"];
+  const auto& p = s["popin"];
+  const auto& c = s["cache"];
+  const auto& t = s["throttle"];
+  const auto& r = s["run"];
+  std::string out;
+  out += fmt::format("{} replay ({} clock) of '{}': {} frames, {:.1f} s\n", s["system"].get<std::string>(),
+                     s["clock"].get<std::string>(), s["trace"]["name"].get<std::string>(), s["trace"]["frames"].get<int>(),
+                     s["trace"]["duration_s"].get<double>());
+  out += fmt::format("  bandwidth   disk {:.2f} MB/s, decoded {:.2f} MB/s, upload {:.2f} MB/s (p99 {:.0f} B/frame)\n",
+                     b["disk_read_MBps"].get<double>(), b["decoded_MBps"].get<double>(), b["upload_MBps"].get<double>(),
+                     b["upload_bytes_per_frame"]["p99"].get<double>());
+  out += fmt::format("  latency     p50 {:.1f} ms, p95 {:.1f} ms, p99 {:.1f} ms, max {:.1f} ms ({} tiles)\n",
+                     l["p50"].get<double>(), l["p95"].get<double>(), l["p99"].get<double>(), l["max"].get<double>(),
+                     l["tiles"].get<std::size_t>());
+  out += fmt::format("  pop-in      blurry {:.2f}% mean (p99 {:.2f}%), mean deficit {:.3f} levels, {} visible pops\n",
+                     100.0 * p["blurry_fraction_mean"].get<double>(), 100.0 * p["blurry_fraction_p99"].get<double>(),
+                     p["mean_deficit"].get<double>(), p["visible_pops"].get<std::uint64_t>());
+  const auto& tts = p["time_to_sharp_s"];
+  if (tts["events"].get<std::size_t>() > 0)
+    out += fmt::format("  sharp again {:.2f} s mean, {:.2f} s max after {} cuts/turns ({} never)\n", tts["mean"].get<double>(),
+                       tts["max"].get<double>(), tts["events"].get<std::size_t>(), tts["never_sharp"].get<std::size_t>());
+  out += fmt::format("  cache       RAM hit ratio {:.1f}%, {} RAM evictions, {} VRAM evictions\n",
+                     100.0 * c["ram_hit_ratio"].get<double>(), c["ram_evictions"].get<std::uint64_t>(),
+                     c["vram_evictions"].get<std::uint64_t>());
+  if (s.contains("vt") && s["vt"].contains("pool")) {
+    const auto& v = s["vt"];
+    out += fmt::format("  vt          pool {} pages ({:.0f}% in use, mean), {} evictions, {} rescues, pressure max {:.2f}, "
+                       "bias max {:.2f}; page table {} texels rewritten (baked)\n",
+                       v["pool_pages"].get<std::uint64_t>(), 100.0 * v["per_frame"]["pool_occupancy"]["mean"].get<double>(),
+                       v["pool"]["evictions"].get<std::uint64_t>(), v["pool"]["rescues"].get<std::uint64_t>(),
+                       v["per_frame"]["pool_pressure"]["max"].get<double>(), v["per_frame"]["bias"]["max"].get<double>(),
+                       v["page_table"]["texels_written_baked"].get<std::uint64_t>());
+  }
+  out += fmt::format("  throttle    {} frames throttled, max clamp {}, {} changes ({})\n", t["frames_throttled"].get<std::size_t>(),
+                     t["max_clamp"].get<int>(), t["changes"].get<std::size_t>(), t["policy"].get<std::string>());
+  if (s["faults"]["faults"].get<std::uint64_t>() > 0)
+    out += fmt::format("  faults      {} faults, {} retries, {} tiles failed\n", s["faults"]["faults"].get<std::uint64_t>(),
+                       s["faults"]["retries"].get<std::uint64_t>(), s["faults"]["failed_tiles"].get<std::uint64_t>());
+  if (s.contains("real_clock")) {
+    const auto& rc = s["real_clock"];
+    out += fmt::format("  real clock  {} IO threads ({}), {} decode workers; start-up {:.2f} s; {} late frames (max {:.1f} ms); "
+                       "VRAM arena: {:.1f} MB copied in {:.1f} ms\n",
+                       rc["io_threads"].get<int>(), rc["o_direct"].get<bool>() ? "O_DIRECT" : "page cache",
+                       rc["decode_workers"].get<int>(), rc.value("startup_s", 0.0), rc["late_frames"].get<std::uint64_t>(),
+                       rc["max_late_ms"].get<double>(),
+                       static_cast<double>(rc["vram_arena"]["bytes"].get<std::uint64_t>()) / 1e6,
+                       rc["vram_arena"]["copy_ms"].get<double>());
+  }
+  out += fmt::format("  run         {:.2f} s wall, {:.0f} frames/s, {:.0f}x real time, peak {:.0f} MB", r["wall_s"].get<double>(),
+                     r["frames_per_s"].get<double>(), r["x_realtime"].get<double>(), r["peak_rss_MB"].get<double>());
+  if (r.contains("render_threads") && r["render_threads"].get<int>() > 0)
+    out += fmt::format("; feedback on {} render threads, the loop's own CPU {:.2f} s", r["render_threads"].get<int>(),
+                       r["loop_cpu_s"].get<double>());
+  out += "\n";
+  return out;
 }
 
 }  // namespace
@@ -122,7 +185,7 @@ void register_replay_commands(CLI::App& app) {
   c->add_option("--trace,-t", a->trace, "camera trace (native CSV, or TUM / EuRoC / KITTI, see docs/traces.md)");
   c->add_option("--config,-c", a->config, "TOML config file (docs/config.md)");
   c->add_option("--set", a->sets, "override one config key: --set upload.tiles_per_frame=8 (repeatable)");
-  c->add_option("--system", a->system, "clipmap | vt (overrides run.system)");
+  c->add_option("--system", a->system, streaming_systems().names(" | ") + " (overrides run.system)");
   c->add_option("--clock", a->clock, "sim (device models, deterministic) | real (IO and decode threads on --store, wall-clock pacing)")
       ->capture_default_str();
   c->add_option("--store", a->store,
@@ -139,9 +202,9 @@ void register_replay_commands(CLI::App& app) {
 
   auto* cc = app.add_subcommand("config", "Print every config key with its default value and why");
   auto markdown = std::make_shared<bool>(false);
-  cc->add_flag("--markdown", *markdown, "as the Markdown table of docs/config.md");
+  cc->add_flag("--markdown", *markdown, "as the Markdown reference of docs/config.md (keys, then every registry)");
   cc->callback([markdown] {
-    if (*markdown) fmt::print("{}", replay_config_table().markdown(ReplayConfig{}));
+    if (*markdown) fmt::print("{}", config_reference_markdown());
     else fmt::print("{}", replay_config_table().dump(ReplayConfig{}));
   });
 }

@@ -241,147 +241,176 @@ Image8 extract_level(const TileStore& s, std::uint32_t layer, std::uint32_t leve
   return img;
 }
 
+// vtsim store build's options as typed.
+struct StoreBuildArgs {
+  std::vector<std::string> images;
+  std::string out, codecs = "zstd", names, transfers = "srgb";
+  std::uint32_t tile = 128, border = 4, levels = 0;
+  unsigned threads = 0;
+  bool progress = false, accept_damaged = false;
+};
+
+// The builder's options from the typed ones; throws InputError naming the option (--codec first,
+// then --transfer).
+BuildOptions store_build_options(const StoreBuildArgs& a) {
+  BuildOptions b;
+  b.accept_damaged = a.accept_damaged;
+  b.tile = a.tile;
+  b.border = a.border;
+  b.levels = a.levels;
+  b.threads = a.threads;
+  for (const auto& s : split_commas(a.codecs)) b.codecs.push_back(parse_codec_spec(s, "--codec"));
+  if (!a.names.empty()) b.layer_names = split_commas(a.names);
+  for (const auto& s : split_commas(a.transfers)) {
+    if (s == "srgb") b.transfers.push_back(store::Transfer::srgb);
+    else if (s == "linear") b.transfers.push_back(store::Transfer::linear);
+    else throw InputError("--transfer", "'" + s + "' is not srgb or linear");
+  }
+  return b;
+}
+
+void register_store_build(CLI::App* store) {
+  auto* c = store->add_subcommand("build", "Build a tile store from images (one image per layer)");
+  auto o = std::make_shared<StoreBuildArgs>();
+  c->add_option("IMAGE", o->images, "Images OpenImageIO reads (PNG, JPEG, TIFF, EXR...), one per layer")->required();
+  c->add_option("-o,--output", o->out, "Output store (.vts)")->required();
+  c->add_option("--tile", o->tile, "Payload tile side T in texels")->capture_default_str();
+  c->add_option("--border", o->border, "Border B in texels on each side (stored side T+2B)")->capture_default_str();
+  c->add_option("--levels", o->levels, "Number of levels (0 = down to 1x1)")->capture_default_str();
+  std::string specs;  // "raw, zstd[:1-22], ...": from the codec table
+  for (const CodecInfo& e : codecs().entries()) specs += (specs.empty() ? "" : ", ") + std::string(e.spec);
+  c->add_option("--codec", o->codecs, "Codec per layer, comma-separated: " + specs)
+      ->capture_default_str();
+  c->add_option("--layer-names", o->names, "Layer names, comma-separated (default: image file names)");
+  c->add_option("--transfer", o->transfers, "srgb or linear per layer (mip filtering in linear light for srgb)")->capture_default_str();
+  c->add_option("--threads", o->threads, "Encode threads (0 = all cores); the file does not depend on it");
+  c->add_flag("--progress", o->progress, "Show progress even when stderr is not a terminal");
+  c->add_flag("--accept-damaged", o->accept_damaged,
+              "Build from images the reader reports damaged (truncated JPEG/TIFF), its filler included");
+  c->callback([o] {
+    const BuildOptions b = store_build_options(*o);
+    run_interruptible(o->out, [&] {
+      const BuildResult r = build_store(o->images, b, o->out, interruptible(progress_printer("store build", o->progress)));
+      print_result(o->out, r);
+    });
+  });
+}
+
+// vtsim store gen's options as typed.
+struct StoreGenArgs {
+  std::string out, size, layers = "albedo:zstd,normal:lz4";
+  std::uint32_t tile = 128, border = 4, levels = 0;
+  std::uint64_t seed = 1;
+  double feature = 4096;  // level-0 texels
+  unsigned threads = 0;
+  bool progress = false;
+};
+
+// The generator's options from the typed ones; throws InputError naming the option (--size
+// first, then --layers).
+GenOptions store_gen_options(const StoreGenArgs& a) {
+  GenOptions g;
+  parse_store_size(a.size, g.width, g.height);
+  g.tile = a.tile;
+  g.border = a.border;
+  g.levels = a.levels;
+  g.seed = a.seed;
+  g.feature_texels = a.feature;
+  g.threads = a.threads;
+  g.layers = parse_gen_layers(a.layers, "--layers");
+  return g;
+}
+
+void register_store_gen(CLI::App* store) {
+  auto* c = store->add_subcommand("gen", "Generate a procedural terrain store of any size (deterministic)");
+  auto o = std::make_shared<StoreGenArgs>();
+  c->add_option("-o,--output", o->out, "Output store (.vts)")->required();
+  c->add_option("--size", o->size, "Level-0 size WIDTHxHEIGHT in texels")->required();
+  c->add_option("--tile", o->tile, "Payload tile side T in texels")->capture_default_str();
+  c->add_option("--border", o->border, "Border B in texels")->capture_default_str();
+  c->add_option("--levels", o->levels, "Number of levels (0 = down to 1x1)")->capture_default_str();
+  c->add_option("--layers", o->layers, "Layers name:codec[:param], comma-separated; names albedo*, normal*, height*")
+      ->capture_default_str();
+  c->add_option("--seed", o->seed, "Noise seed")->capture_default_str();
+  c->add_option("--feature", o->feature, "Wavelength of the largest terrain features, level-0 texels")->capture_default_str();
+  c->add_option("--threads", o->threads, "Worker threads (0 = all cores); the file does not depend on it");
+  c->add_flag("--progress", o->progress, "Show progress even when stderr is not a terminal");
+  c->callback([o] {
+    const GenOptions g = store_gen_options(*o);
+    run_interruptible(o->out, [&] {
+      const BuildResult r = generate_store(g, o->out, interruptible(progress_printer("store gen", o->progress)));
+      print_result(o->out, r);
+    });
+  });
+}
+
+void register_store_info(CLI::App* store) {
+  auto* c = store->add_subcommand("info", "Sizes, levels, layers, codecs and compression of a store");
+  auto path = std::make_shared<std::string>();
+  auto json = std::make_shared<bool>(false);
+  c->add_option("STORE", *path, "Tile store (.vts)")->required();
+  c->add_flag("--json", *json, "Print JSON");
+  c->callback([path, json] {
+    const TileStore s = TileStore::open(*path);
+    if (*json) fmt::print("{}\n", info_json(s).dump(2));
+    else print_info(s);
+  });
+}
+
+void register_store_extract(CLI::App* store) {
+  auto* c = store->add_subcommand("extract", "Write one level of one layer as an image (assembled from the tiles)");
+  struct Opts {
+    std::string path, out;
+    std::uint32_t layer = 0, level = 0;
+  };
+  auto o = std::make_shared<Opts>();
+  c->add_option("STORE", o->path, "Tile store (.vts)")->required();
+  c->add_option("-o,--output", o->out, "Image to write (PNG, TIFF, ... by extension)")->required();
+  c->add_option("--layer", o->layer, "Layer index")->capture_default_str();
+  c->add_option("--level", o->level, "Mip level")->capture_default_str();
+  c->callback([o] {
+    const TileStore s = TileStore::open(o->path);
+    const Image8 img = extract_level(s, o->layer, o->level);
+    write_image8(o->out, img);
+    fmt::print("wrote {}: layer {} ('{}') level {}, {}x{}x{}\n", o->out, o->layer, s.layer(o->layer).name, o->level, img.width,
+               img.height, img.channels);
+  });
+}
+
+void register_store_verify(CLI::App* store) {
+  auto* c = store->add_subcommand("verify", "Check every tile's checksum and that it decodes; list bad tiles (exit 1 if any)");
+  struct Opts {
+    std::string path;
+    bool buffered = false, progress = false;
+    std::uint64_t max_report = 100;
+  };
+  auto o = std::make_shared<Opts>();
+  c->add_option("STORE", o->path, "Tile store (.vts)")->required();
+  c->add_flag("--buffered", o->buffered, "Read through the page cache instead of O_DIRECT");
+  c->add_option("--max-report", o->max_report, "List at most this many bad tiles")->capture_default_str();
+  c->add_flag("--progress", o->progress, "Show progress even when stderr is not a terminal");
+  c->callback([o] {
+    const TileStore s = TileStore::open(o->path);
+    const std::uint64_t bad = verify(s, !o->buffered, o->max_report, progress_printer("store verify", o->progress));
+    const std::uint64_t n = s.index().size();
+    if (bad) {
+      fmt::print("{}: {} of {} tiles are bad\n", o->path, bad, n);
+      throw Exit{kExitFailure};
+    }
+    fmt::print("{}: all {} tiles verified (checksum and decode)\n", o->path, n);
+  });
+}
+
 }  // namespace
 
 void register_store_commands(CLI::App& app) {
   auto* store = app.add_subcommand("store", "Build, generate, inspect and verify on-disk tile stores (.vts)");
   store->require_subcommand(1);
-
-  {  // build
-    auto* c = store->add_subcommand("build", "Build a tile store from images (one image per layer)");
-    struct Opts {
-      std::vector<std::string> images;
-      std::string out, codecs = "zstd", names, transfers = "srgb";
-      std::uint32_t tile = 128, border = 4, levels = 0;
-      unsigned threads = 0;
-      bool progress = false, accept_damaged = false;
-    };
-    auto o = std::make_shared<Opts>();
-    c->add_option("IMAGE", o->images, "Images OpenImageIO reads (PNG, JPEG, TIFF, EXR...), one per layer")->required();
-    c->add_option("-o,--output", o->out, "Output store (.vts)")->required();
-    c->add_option("--tile", o->tile, "Payload tile side T in texels")->capture_default_str();
-    c->add_option("--border", o->border, "Border B in texels on each side (stored side T+2B)")->capture_default_str();
-    c->add_option("--levels", o->levels, "Number of levels (0 = down to 1x1)")->capture_default_str();
-    c->add_option("--codec", o->codecs, "Codec per layer, comma-separated: raw, zstd[:1-22], lz4[:0|3-12], png[:0-9], jpeg[:1-100]")
-        ->capture_default_str();
-    c->add_option("--layer-names", o->names, "Layer names, comma-separated (default: image file names)");
-    c->add_option("--transfer", o->transfers, "srgb or linear per layer (mip filtering in linear light for srgb)")->capture_default_str();
-    c->add_option("--threads", o->threads, "Encode threads (0 = all cores); the file does not depend on it");
-    c->add_flag("--progress", o->progress, "Show progress even when stderr is not a terminal");
-    c->add_flag("--accept-damaged", o->accept_damaged,
-                "Build from images the reader reports damaged (truncated JPEG/TIFF), its filler included");
-    c->callback([o] {
-      BuildOptions b;
-      b.accept_damaged = o->accept_damaged;
-      b.tile = o->tile;
-      b.border = o->border;
-      b.levels = o->levels;
-      b.threads = o->threads;
-      for (const auto& s : split_commas(o->codecs)) b.codecs.push_back(parse_codec_spec(s, "--codec"));
-      if (!o->names.empty()) b.layer_names = split_commas(o->names);
-      for (const auto& s : split_commas(o->transfers)) {
-        if (s == "srgb") b.transfers.push_back(store::Transfer::srgb);
-        else if (s == "linear") b.transfers.push_back(store::Transfer::linear);
-        else throw InputError("--transfer", "'" + s + "' is not srgb or linear");
-      }
-      run_interruptible(o->out, [&] {
-        const BuildResult r = build_store(o->images, b, o->out, interruptible(progress_printer("store build", o->progress)));
-        print_result(o->out, r);
-      });
-    });
-  }
-  {  // gen
-    auto* c = store->add_subcommand("gen", "Generate a procedural terrain store of any size (deterministic)");
-    struct Opts {
-      std::string out, size, layers = "albedo:zstd,normal:lz4";
-      std::uint32_t tile = 128, border = 4, levels = 0;
-      std::uint64_t seed = 1;
-      double feature = 4096;
-      unsigned threads = 0;
-      bool progress = false;
-    };
-    auto o = std::make_shared<Opts>();
-    c->add_option("-o,--output", o->out, "Output store (.vts)")->required();
-    c->add_option("--size", o->size, "Level-0 size WIDTHxHEIGHT in texels")->required();
-    c->add_option("--tile", o->tile, "Payload tile side T in texels")->capture_default_str();
-    c->add_option("--border", o->border, "Border B in texels")->capture_default_str();
-    c->add_option("--levels", o->levels, "Number of levels (0 = down to 1x1)")->capture_default_str();
-    c->add_option("--layers", o->layers, "Layers name:codec[:param], comma-separated; names albedo*, normal*, height*")
-        ->capture_default_str();
-    c->add_option("--seed", o->seed, "Noise seed")->capture_default_str();
-    c->add_option("--feature", o->feature, "Wavelength of the largest terrain features, level-0 texels")->capture_default_str();
-    c->add_option("--threads", o->threads, "Worker threads (0 = all cores); the file does not depend on it");
-    c->add_flag("--progress", o->progress, "Show progress even when stderr is not a terminal");
-    c->callback([o] {
-      GenOptions g;
-      parse_store_size(o->size, g.width, g.height);
-      g.tile = o->tile;
-      g.border = o->border;
-      g.levels = o->levels;
-      g.seed = o->seed;
-      g.feature_texels = o->feature;
-      g.threads = o->threads;
-      g.layers = parse_gen_layers(o->layers, "--layers");
-      run_interruptible(o->out, [&] {
-        const BuildResult r = generate_store(g, o->out, interruptible(progress_printer("store gen", o->progress)));
-        print_result(o->out, r);
-      });
-    });
-  }
-  {  // info
-    auto* c = store->add_subcommand("info", "Sizes, levels, layers, codecs and compression of a store");
-    auto path = std::make_shared<std::string>();
-    auto json = std::make_shared<bool>(false);
-    c->add_option("STORE", *path, "Tile store (.vts)")->required();
-    c->add_flag("--json", *json, "Print JSON");
-    c->callback([path, json] {
-      const TileStore s = TileStore::open(*path);
-      if (*json) fmt::print("{}\n", info_json(s).dump(2));
-      else print_info(s);
-    });
-  }
-  {  // extract
-    auto* c = store->add_subcommand("extract", "Write one level of one layer as an image (assembled from the tiles)");
-    struct Opts {
-      std::string path, out;
-      std::uint32_t layer = 0, level = 0;
-    };
-    auto o = std::make_shared<Opts>();
-    c->add_option("STORE", o->path, "Tile store (.vts)")->required();
-    c->add_option("-o,--output", o->out, "Image to write (PNG, TIFF, ... by extension)")->required();
-    c->add_option("--layer", o->layer, "Layer index")->capture_default_str();
-    c->add_option("--level", o->level, "Mip level")->capture_default_str();
-    c->callback([o] {
-      const TileStore s = TileStore::open(o->path);
-      const Image8 img = extract_level(s, o->layer, o->level);
-      write_image8(o->out, img);
-      fmt::print("wrote {}: layer {} ('{}') level {}, {}x{}x{}\n", o->out, o->layer, s.layer(o->layer).name, o->level, img.width,
-                 img.height, img.channels);
-    });
-  }
-  {  // verify
-    auto* c = store->add_subcommand("verify", "Check every tile's checksum and that it decodes; list bad tiles (exit 1 if any)");
-    struct Opts {
-      std::string path;
-      bool buffered = false, progress = false;
-      std::uint64_t max_report = 100;
-    };
-    auto o = std::make_shared<Opts>();
-    c->add_option("STORE", o->path, "Tile store (.vts)")->required();
-    c->add_flag("--buffered", o->buffered, "Read through the page cache instead of O_DIRECT");
-    c->add_option("--max-report", o->max_report, "List at most this many bad tiles")->capture_default_str();
-    c->add_flag("--progress", o->progress, "Show progress even when stderr is not a terminal");
-    c->callback([o] {
-      const TileStore s = TileStore::open(o->path);
-      const std::uint64_t bad = verify(s, !o->buffered, o->max_report, progress_printer("store verify", o->progress));
-      const std::uint64_t n = s.index().size();
-      if (bad) {
-        fmt::print("{}: {} of {} tiles are bad\n", o->path, bad, n);
-        throw Exit{kExitFailure};
-      }
-      fmt::print("{}: all {} tiles verified (checksum and decode)\n", o->path, n);
-    });
-  }
+  register_store_build(store);
+  register_store_gen(store);
+  register_store_info(store);
+  register_store_extract(store);
+  register_store_verify(store);
 }
 
 }  // namespace vtsim::cli

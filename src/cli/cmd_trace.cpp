@@ -1,4 +1,4 @@
-// vtsim trace …: generate, import, resample and inspect camera traces (docs/traces.md).
+// vtsim trace …: generate, import, export, resample and inspect camera traces (docs/traces.md).
 #include <fmt/core.h>
 
 #include <charconv>
@@ -11,6 +11,8 @@
 
 #include "cli/commands.h"
 #include "core/error.h"
+#include "sim/trace/trace_export.h"
+#include "sim/trace/trace_format.h"
 #include "sim/trace/trace_gen.h"
 #include "sim/trace/trace_import.h"
 #include "sim/trace/trace_io.h"
@@ -76,6 +78,14 @@ nlohmann::json repairs_json(const TraceRepairs& r) {
           {"rotations_orthonormalised", r.rotations_orthonormalised}};
 }
 
+// "native ENU/FLU, tum z-up/optical, ...": each format's default source axes, in table order.
+std::string default_axes_text() {
+  std::string s;
+  for (const TraceFormat& f : trace_formats().entries())
+    s += fmt::format("{}{} {}/{}", s.empty() ? "" : ", ", f.name, f.axes.world, f.axes.camera);
+  return s;
+}
+
 // Options shared by `import` and `info` for reading a non-native file.
 struct ReadArgs {
   std::string format = "auto";
@@ -84,14 +94,14 @@ struct ReadArgs {
   bool strict = false;
 
   void add(CLI::App* c) {
-    c->add_option("--format", format, "Input format: auto, native, tum, euroc, kitti")->capture_default_str();
+    c->add_option("--format", format, "Input format: auto, " + trace_formats().names())->capture_default_str();
     c->add_option("--times", times, "KITTI: file with one time in seconds per pose");
     c->add_option("--rate", rate, "KITTI: fixed pose rate in Hz (KITTI odometry is 10)");
     c->add_flag("--strict", strict, "Refuse repairable input (renormalised quaternions, repeated times)");
   }
   ImportOptions options() const {
     ImportOptions o;
-    if (format != "auto") o.format = parse_trace_format(format, "--format");
+    if (format != "auto") o.format = parse_trace_format(format, "--format").name;
     o.kitti_times_path = times;
     o.kitti_rate_hz = rate;
     o.read.strict = strict;
@@ -243,9 +253,9 @@ void register_import(CLI::App* trace) {
   c->footer(
       "Transform order: time t' = (t - t0) * time-scale + time-offset; position\n"
       "p' = offset + scale * Rz(yaw) * W * (p - [recenter] p0); orientation q' = Rz(yaw) * W * q * C^-1\n"
-      "(W: source world axes -> ENU, C: source camera axes -> FLU). Defaults per format:\n"
-      "tum z-up/optical, euroc z-up/imu-urf, kitti y-down/optical, native ENU/FLU.\n"
-      "Example (a handheld recording flown over the terrain centre at 300 m, 100x larger):\n"
+      "(W: source world axes -> ENU, C: source camera axes -> FLU). Defaults per format:\n" +
+      default_axes_text() +
+      ".\nExample (a handheld recording flown over the terrain centre at 300 m, 100x larger):\n"
       "  vtsim trace import --format tum --scale 100 --recenter --offset 4096,4096,300 \\\n"
       "      --resample 60 tum_fr1_xyz_groundtruth.txt -o fr1_flight.csv");
   c->add_option("input", a->in, "Input trajectory file")->required();
@@ -272,6 +282,53 @@ void register_import(CLI::App* trace) {
     }
     save_trace(t, a->out);
     if (a->out != "-") fmt::print(stderr, "wrote {} poses to {}\n", t.poses.size(), a->out);
+  });
+}
+
+void register_export(CLI::App* trace) {
+  struct Args {
+    std::string in, out, format, times, up, camera;
+    double rate = 0.0;
+  };
+  auto a = std::make_shared<Args>();
+  std::string apart;  // "kitti": formats whose poses carry no time
+  for (const TraceFormat& f : trace_formats().entries())
+    if (f.separate_times) apart += (apart.empty() ? "" : ", ") + std::string(f.name);
+  auto* c = trace->add_subcommand("export", "Write a trace in another format (TUM, EuRoC, KITTI), e.g. for evo");
+  c->footer(
+      "Writes the poses in the format's own conventions and units, so that `vtsim trace import`\n"
+      "with the defaults (and the same --times file or --rate) gives the trace back: positions\n"
+      "exactly, orientations to ~1e-15, times to the nanosecond, rebased to the first pose; name,\n"
+      "image size and vfov only in native. Default axes per format (world/camera):\n" +
+      default_axes_text() +
+      ".\nExamples (the first for evo_traj tum walk_tum.txt --plot):\n"
+      "  vtsim trace export --format tum traces/walk.csv -o walk_tum.txt\n"
+      "  vtsim trace export --format kitti traces/walk.csv -o walk_kitti.txt --times walk_times.txt");
+  c->add_option("input", a->in, "Input trace (native; other formats are detected and imported with defaults)")
+      ->required();
+  c->add_option("-o,--output", a->out, "Output file (- for stdout)")->required();
+  c->add_option("--format", a->format, "Output format: " + trace_formats().names())->required();
+  c->add_option("--times", a->times,
+                "Formats whose poses carry no time (" + apart + "): write the times here, one per line in seconds");
+  c->add_option("--rate", a->rate,
+                "Formats whose poses carry no time (" + apart +
+                    "): write no times; the poses must be at t0 + i / rate (Hz), what `import --rate` gives");
+  c->add_option("--up", a->up, "World axes to write in, as for import (default: the format's)");
+  c->add_option("--camera", a->camera, "Camera axes to write in, as for import (default: the format's)");
+  c->callback([a] {
+    const TraceFormat& format = parse_trace_format(a->format, "--format");
+    TraceLoadReport rep;
+    const Trace t = load_any_trace(a->in, {}, &rep);
+    if (rep.repairs.total()) fmt::print(stderr, "{}: repairs: {}\n", a->in, repairs_text(rep.repairs));
+    ExportOptions o;
+    o.world_axes = a->up;
+    o.camera_axes = a->camera;
+    o.times_path = a->times;
+    o.rate_hz = a->rate;
+    export_trace(t, format.name, a->out, o);
+    if (a->out != "-")
+      fmt::print(stderr, "wrote {} poses ({}) to {}{}\n", t.poses.size(), format.name, a->out,
+                 a->times.empty() || a->times == "-" ? "" : ", their times to " + a->times);
   });
 }
 
@@ -338,10 +395,9 @@ void register_info(CLI::App* trace) {
   c->callback([a] {
     TraceLoadReport rep;
     ImportOptions io = a->read.options();
-    if (!io.format) io.format = detect_trace_format(a->in, io.read.limits);
+    if (io.format.empty()) io.format = detect_trace_format(a->in, io.read.limits);
     // A native file is shown as stored; other formats as imported with the defaults.
-    const Trace t = *io.format == TraceFormat::native ? load_trace(a->in, io.read, &rep)
-                                                      : import_trace(a->in, io, &rep);
+    const Trace t = io.format == "native" ? load_trace(a->in, io.read, &rep) : import_trace(a->in, io, &rep);
     const TraceStats s = trace_stats(t, a->so);
     if (a->json) {
       nlohmann::json j = to_json(s);
@@ -379,10 +435,11 @@ void register_info(CLI::App* trace) {
 }  // namespace
 
 void register_trace_commands(CLI::App& app) {
-  auto* trace = app.add_subcommand("trace", "Generate, import, resample and inspect camera traces");
+  auto* trace = app.add_subcommand("trace", "Generate, import, export, resample and inspect camera traces");
   trace->require_subcommand(1);
   register_gen(trace);
   register_import(trace);
+  register_export(trace);
   register_resample(trace);
   register_info(trace);
 }

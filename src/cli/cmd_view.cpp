@@ -78,11 +78,10 @@ void parse_view_size(const std::string& s, int& w, int& h) {
 
 void run_view(const ViewOptions& o) {
   SceneConfig cfg;
-  cfg.kind = parse_scene_kind(o.scene);
+  cfg.kind = find_scene(o.scene).name;
   cfg.size_x_m = cfg.size_y_m = o.terrain_size_m;
   cfg.texels_per_m = o.texels_per_m;
-  cfg.obj_path = o.obj;
-  cfg.heightmap_path = o.heightmap;
+  cfg.file = cfg.kind == "mesh" ? o.obj : o.heightmap;  // the two options predate SceneConfig::file
   cfg.spacing_m = o.spacing_m;
   cfg.height_scale_m = o.height_scale_m;
   cfg.z0_m = o.z0_m;
@@ -105,7 +104,7 @@ void run_view(const ViewOptions& o) {
     if (const auto* hs = dynamic_cast<const HeightfieldScene*>(scene.get())) {
       ground = hs->height_at(pos.x, pos.y);
       if (!std::isfinite(ground)) throw InputError("--agl", "the position is outside the heightfield");
-    } else if (cfg.kind == SceneKind::plane) {
+    } else if (cfg.kind == "plane") {
       ground = cfg.plane_z_m;
     }
     pos.z += ground;
@@ -187,7 +186,7 @@ void run_view(const ViewOptions& o) {
 void register_view_commands(CLI::App& app) {
   auto opt = std::make_shared<ViewOptions>();
   auto* cmd = app.add_subcommand("view", "Render one feedback frame of a scene; write the desired mip level as a PNG");
-  cmd->add_option("--scene", opt->scene, "plane | heightfield | mesh | town")->capture_default_str();
+  cmd->add_option("--scene", opt->scene, scenes().names(" | "))->capture_default_str();
   cmd->add_option("--obj", opt->obj, "Wavefront OBJ file (scene mesh); vt in [0,1) spans the texture");
   cmd->add_option("--heightmap", opt->heightmap, "heightmap image (scene heightfield); default: generated noise");
   cmd->add_option("--spacing", opt->spacing_m, "heightfield post spacing, m")->capture_default_str();

@@ -19,7 +19,7 @@ namespace {
 
 struct VtCompareArgs {
   std::vector<std::string> traces{"traces"};
-  std::string policies = "none,deadline,vt_clamp,unreal_bias,rage_watermarks";
+  std::string policies = throttle_policies().names(",");  // all of them
   std::string config;
   std::vector<std::string> sets;
   std::string markdown, json;
@@ -62,12 +62,12 @@ void run_compare(const VtCompareArgs& a) {
   const auto policies = split(a.policies);
   if (policies.empty()) throw InputError("--policies", "no policy named");
   for (const auto& p : policies)
-    if (!make_throttle_policy(p, ThrottleParams{})) throw InputError("--policies", "unknown policy '" + p + "'");
+    if (!throttle_policies().find(p)) throw InputError("--policies", throttle_policies().unknown(p));
   const auto files = trace_files(a.traces);
   // The shared budget: one config for every run, the policy the only difference.
   ReplayConfig base = load_replay_config(a.config, a.sets, "vt");
-  if (base.system != "vt")  // --set run.system=... comes after the command's own "vt"
-    throw InputError("config", "field 'run.system': vt compare replays the vt system, not '" + base.system + "'");
+  if (base.run.system != "vt")  // --set run.system=... comes after the command's own "vt"
+    throw InputError("config", "field 'run.system': vt compare replays the vt system, not '" + base.run.system + "'");
   nlohmann::json rows = nlohmann::json::array();
   auto scene = make_scene_from_config(base);
   for (const auto& file : files) {
@@ -111,8 +111,8 @@ void run_compare(const VtCompareArgs& a) {
 
   std::string md;
   md += fmt::format("Pool {} pages of {}+2×{} texels, disk `{}`, upload {} tiles/frame, RAM {} MiB, view divisor {}, scene `{}`.\n\n",
-                    base.vt_pool_pages, base.tile_size, base.border, base.disk_preset, base.upload_tiles_per_frame,
-                    base.ram_MiB, base.divisor, base.scene);
+                    base.vt.pool_pages, base.texture.tile_size, base.texture.border, base.disk.preset, base.upload.tiles_per_frame,
+                    base.ram.capacity_MiB, base.view.divisor, base.scene.kind);
   md += "| trace | policy | blurry % mean | blurry % p99 | deficit | pops/s | sharp again s (mean / max) | latency ms p50 / p99 | "
         "disk MB/s | upload MB/s | evictions | thrash | max pressure | max bias | max clamp |\n";
   md += "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";

@@ -9,11 +9,14 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <type_traits>
+#include <utility>
 #include <string>
 #include <variant>
 #include <vector>
 
 #include "core/error.h"
+#include "core/registry.h"
 #include "core/utf8.h"
 
 namespace vtsim {
@@ -98,49 +101,93 @@ bool as_bool(const ConfigValue& v);
 std::string as_string(const ConfigValue& v);
 std::string fmt_double(double d);
 
-template <class Cfg, class T>
-ConfigField<Cfg> integer(std::string key, T Cfg::*m, std::int64_t lo, std::int64_t hi, std::string why) {
+// Where a field lives in the config struct: a data member pointer (&Cfg::fps) or a path of them
+// into nested sections (at(&Cfg::throttle, &ThrottleParams::deadline_ms)).
+template <class First, class... Rest>
+struct MemberPath {
+  First first;
+  MemberPath<Rest...> rest;
+  template <class T>
+  decltype(auto) operator()(T& obj) const {
+    return rest(obj.*first);
+  }
+};
+template <class Last>
+struct MemberPath<Last> {
+  Last last;
+  template <class T>
+  decltype(auto) operator()(T& obj) const {
+    return (obj.*last);
+  }
+};
+template <class... Members>
+MemberPath<Members...> at(Members... members) {
+  return {members...};
+}
+
+// The member `ref` designates in `c` (a reference, const when c is).
+template <class Cfg, class Ref>
+decltype(auto) member(Cfg& c, const Ref& ref) {
+  if constexpr (std::is_member_object_pointer_v<Ref>) return (c.*ref);
+  else return ref(c);
+}
+template <class Cfg, class Ref>
+using MemberType = std::remove_cvref_t<decltype(member(std::declval<Cfg&>(), std::declval<const Ref&>()))>;
+
+template <class Cfg, class Ref>
+ConfigField<Cfg> integer(std::string key, Ref m, std::int64_t lo, std::int64_t hi, std::string why) {
+  using T = MemberType<Cfg, Ref>;
   return {std::move(key), std::move(why),
           [m, lo, hi](Cfg& c, const ConfigValue& v) {
             const std::int64_t x = as_int(v);
             if (x < lo || x > hi)
               throw std::invalid_argument(std::to_string(x) + " is out of range [" + std::to_string(lo) +
                                           ", " + std::to_string(hi) + "]");
-            c.*m = static_cast<T>(x);
+            member(c, m) = static_cast<T>(x);
           },
-          [m](const Cfg& c) { return std::to_string(static_cast<std::int64_t>(c.*m)); }};
+          [m](const Cfg& c) { return std::to_string(static_cast<std::int64_t>(member(c, m))); }};
 }
 
-template <class Cfg>
-ConfigField<Cfg> real(std::string key, double Cfg::*m, double lo, double hi, std::string why) {
+template <class Cfg, class Ref>
+ConfigField<Cfg> real(std::string key, Ref m, double lo, double hi, std::string why) {
+  static_assert(std::is_same_v<MemberType<Cfg, Ref>, double>, "cfg::real binds a double");
   return {std::move(key), std::move(why),
           [m, lo, hi](Cfg& c, const ConfigValue& v) {
             const double x = as_double(v);
             if (!(x >= lo && x <= hi))
               throw std::invalid_argument(fmt_double(x) + " is out of range [" + fmt_double(lo) + ", " +
                                           fmt_double(hi) + "]");
-            c.*m = x;
+            member(c, m) = x;
           },
-          [m](const Cfg& c) { return fmt_double(c.*m); }};
+          [m](const Cfg& c) { return fmt_double(member(c, m)); }};
 }
 
-template <class Cfg>
-ConfigField<Cfg> boolean(std::string key, bool Cfg::*m, std::string why) {
-  return {std::move(key), std::move(why), [m](Cfg& c, const ConfigValue& v) { c.*m = as_bool(v); },
-          [m](const Cfg& c) { return std::string(c.*m ? "true" : "false"); }};
+template <class Cfg, class Ref>
+ConfigField<Cfg> boolean(std::string key, Ref m, std::string why) {
+  static_assert(std::is_same_v<MemberType<Cfg, Ref>, bool>, "cfg::boolean binds a bool");
+  return {std::move(key), std::move(why), [m](Cfg& c, const ConfigValue& v) { member(c, m) = as_bool(v); },
+          [m](const Cfg& c) { return std::string(member(c, m) ? "true" : "false"); }};
 }
 
-// A string field with a parser/validator; `parse` throws std::invalid_argument on a bad value.
-template <class Cfg>
-ConfigField<Cfg> text(std::string key, std::string Cfg::*m, std::function<void(const std::string&)> check,
-                      std::string why) {
+// A string field with a validator; `check` throws std::invalid_argument on a bad value.
+template <class Cfg, class Ref>
+ConfigField<Cfg> text(std::string key, Ref m, std::function<void(const std::string&)> check, std::string why) {
+  static_assert(std::is_same_v<MemberType<Cfg, Ref>, std::string>, "cfg::text binds a std::string");
   return {std::move(key), std::move(why),
           [m, check](Cfg& c, const ConfigValue& v) {
             std::string s = as_string(v);
             if (check) check(s);
-            c.*m = std::move(s);
+            member(c, m) = std::move(s);
           },
-          [m](const Cfg& c) { return "\"" + c.*m + "\""; }};
+          [m](const Cfg& c) { return "\"" + member(c, m) + "\""; }};
+}
+
+// A string field naming an entry of a registry (core/registry.h): an unknown name is refused with
+// the registry's list and "did you mean"; the why ends with the names, from the same table.
+template <class Cfg, class Ref, class Entry>
+ConfigField<Cfg> choice(std::string key, Ref m, const Registry<Entry>& registry, std::string why) {
+  return text<Cfg>(std::move(key), m, [&registry](const std::string& v) { registry.at(v); },
+                   std::move(why) + ": " + registry.names(" | "));
 }
 
 }  // namespace cfg
@@ -165,28 +212,10 @@ std::vector<TomlEntry> read_toml_entries(const std::string& path, std::vector<To
 
 template <class Cfg>
 std::string ConfigTable<Cfg>::suggest(const std::string& key) const {
-  // Closest key by edit distance, when it is close enough to be a plausible typo.
-  auto dist = [](const std::string& a, const std::string& b) {
-    std::vector<std::size_t> prev(b.size() + 1), cur(b.size() + 1);
-    for (std::size_t j = 0; j <= b.size(); ++j) prev[j] = j;
-    for (std::size_t i = 1; i <= a.size(); ++i) {
-      cur[0] = i;
-      for (std::size_t j = 1; j <= b.size(); ++j)
-        cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a[i - 1] == b[j - 1] ? 0u : 1u)});
-      std::swap(prev, cur);
-    }
-    return prev[b.size()];
-  };
-  std::size_t best = 4;
-  std::string best_key;
-  for (const auto& f : fields_) {
-    // The distance is at least the difference in length: a long key costs nothing here.
-    const std::size_t diff = key.size() > f.key.size() ? key.size() - f.key.size() : f.key.size() - key.size();
-    if (diff >= best) continue;
-    const std::size_t d = dist(key, f.key);
-    if (d < best) best = d, best_key = f.key;
-  }
-  return best_key.empty() ? std::string() : " (did you mean '" + best_key + "'?)";
+  std::vector<std::string_view> keys;
+  for (const auto& f : fields_) keys.push_back(f.key);
+  const std::string best = closest_name(key, keys);
+  return best.empty() ? std::string() : " (did you mean '" + best + "'?)";
 }
 
 template <class Cfg>

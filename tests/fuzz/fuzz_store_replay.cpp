@@ -47,7 +47,7 @@ void store_replay(const std::uint8_t* data, std::size_t size) {
       // A clip window of 4 tiles (the default 1024 texels is not a multiple of every tile size);
       // set directly, as texture.tile_size's range would refuse the store's tiny tiles, which
       // binding takes from the store (and validates again).
-      cfg.clipsize = static_cast<int>(std::min<std::uint64_t>(4 * std::uint64_t{store->geometry().tile}, 1 << 20));
+      cfg.clipmap.clipsize = static_cast<int>(std::min<std::uint64_t>(4 * std::uint64_t{store->geometry().tile}, 1 << 20));
       (void)bind_store_texture(cfg, *store);
       scene = make_scene_from_config(cfg);
       t.image_width = 64;

@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <vector>
 
 #include "fuzz_targets.h"
 #include "sim/trace/trace_import.h"
@@ -80,10 +81,12 @@ void trace_import(const std::uint8_t* data, std::size_t size) {
   const std::string path = input_file(reinterpret_cast<const std::uint8_t*>(poses.data()), poses.size(), "txt");
   std::string times_path;
   if (!times.empty()) times_path = input_file(reinterpret_cast<const std::uint8_t*>(times.data()), times.size(), "times.txt");
-  for (int f = -1; f < 4; ++f) {  // detected, then native, tum, euroc, kitti
+  std::vector<std::string> formats = {""};  // detected, then each registered format
+  for (const TraceFormat& e : trace_formats().entries()) formats.emplace_back(e.name);
+  for (const std::string& f : formats) {
     expect_accept_or_reject("trace_import", [&] {
       ImportOptions o;
-      if (f >= 0) o.format = static_cast<TraceFormat>(f);
+      o.format = f;
       if (times_path.empty()) o.kitti_rate_hz = 10.0;
       else o.kitti_times_path = times_path;
       TraceLoadReport report;
@@ -92,7 +95,7 @@ void trace_import(const std::uint8_t* data, std::size_t size) {
     });
     expect_accept_or_reject("trace_import", [&] {  // strict: every repair is an error
       ImportOptions o;
-      if (f >= 0) o.format = static_cast<TraceFormat>(f);
+      o.format = f;
       o.kitti_rate_hz = 10.0;
       o.read.strict = true;
       (void)import_trace(path, o);

@@ -9,13 +9,12 @@
 #include <cmath>
 #include <thread>
 
-#include "cache/page_table.h"
 #include "core/error.h"
 #include "core/host_memory.h"
+#include "sim/run/systems.h"
 #include "sim/view/scene.h"
 #include "sim/trace/trace_io.h"
 #include "stream/exec/threaded_executor.h"
-#include "stream/system/vt_system.h"
 
 namespace vtsim {
 
@@ -50,10 +49,10 @@ std::vector<std::string> bind_store_texture(ReplayConfig& cfg, const TileStore& 
                                              key, value, path, store_value));
     value = static_cast<T>(store_value);
   };
-  bind("texture.width", cfg.width, def.width, g.width);
-  bind("texture.height", cfg.height, def.height, g.height);
-  bind("texture.tile_size", cfg.tile_size, def.tile_size, g.tile);
-  bind("texture.border", cfg.border, def.border, g.border);
+  bind("texture.width", cfg.texture.width, def.texture.width, g.width);
+  bind("texture.height", cfg.texture.height, def.texture.height, g.height);
+  bind("texture.tile_size", cfg.texture.tile_size, def.texture.tile_size, g.tile);
+  bind("texture.border", cfg.texture.border, def.texture.border, g.border);
 
   std::string layers;
   const auto totals = store.totals();
@@ -62,26 +61,24 @@ std::vector<std::string> bind_store_texture(ReplayConfig& cfg, const TileStore& 
     layers += fmt::format("{}{}:{}:{:.4g}", i ? "," : "", store.layer(i).name, format_for_channels(store.layer(i).channels),
                           std::clamp(ratio, 1.0, 1000.0));
   }
-  if (cfg.layers != def.layers) {
-    const auto want = parse_layers(cfg.layers), have = parse_layers(layers);
+  if (cfg.texture.layers.text != def.texture.layers.text) {
+    const auto& want = cfg.texture.layers.specs;
+    const auto have = parse_layers(layers);
     bool same = want.size() == have.size();
     for (std::size_t i = 0; same && i < want.size(); ++i) same = want[i].name == have[i].name && want[i].format == have[i].format;
     if (!same)
-      throw InputError("config", "field 'texture.layers': '" + cfg.layers + "' disagrees with the store " + path + " ('" +
+      throw InputError("config", "field 'texture.layers': '" + cfg.texture.layers.text + "' disagrees with the store " + path + " ('" +
                                      layers + "'); leave it unset to take the store's");
   }
-  cfg.layers = layers;
+  cfg.texture.layers.text = layers;
+  cfg.texture.layers.specs = parse_layers(layers);
   validate(cfg);
-  // The clipmap samples every level down to 1×1; a virtual texture's levels go down to one page.
-  const bool vt = cfg.system == "vt";
-  const std::uint32_t need = vt ? static_cast<std::uint32_t>(VtGeometry({cfg.width, cfg.height}, cfg.tile_size, cfg.border).levels())
-                                : store::full_level_count(g.width, g.height);
-  if (g.levels < need || (!vt && g.levels != need))
+  // The levels the system samples (the clipmap: down to 1×1; a virtual texture: down to one page).
+  const SystemInfo& system = streaming_systems().at(cfg.run.system);
+  const auto need = static_cast<std::uint32_t>(system.store_levels(cfg));
+  if (g.levels < need)
     throw InputError(path + ": header field 'level_count'",
-                     fmt::format("{} levels; {} ({}): generate the store without --levels", g.levels,
-                                 vt ? "a virtual texture needs every level down to a single page"
-                                    : "a clipmap samples every level down to 1×1",
-                                 need));
+                     fmt::format("{} levels; {} ({}): generate the store without --levels", g.levels, system.store_levels_why, need));
   return {fmt::format("texture from the store {}: {}×{} texels, tile {}, border {}, {} levels, layers {}", path, g.width,
                       g.height, g.tile, g.border, g.levels, layers)};
 }
@@ -97,13 +94,13 @@ TileSizer store_sizer(const TileStore& store) {
 void apply_speed(ReplayConfig& cfg, Trace& trace, double speed) {
   if (!(speed > 0.0 && speed <= 1000.0)) throw InputError("--speed", fmt::format("{} is outside (0, 1000]", speed));
   if (speed == 1.0) return;
-  if (cfg.fps * speed > 10000.0)  // the resampler's limit (trace_resample.cpp)
-    throw InputError("--speed", fmt::format("{} times run.fps {} is above 10000 frames/s", speed, cfg.fps));
+  if (cfg.run.fps * speed > 10000.0)  // the resampler's limit (trace_resample.cpp)
+    throw InputError("--speed", fmt::format("{} times run.fps {} is above 10000 frames/s", speed, cfg.run.fps));
   for (const Pose& p : trace.poses)
     if (std::abs(p.t_s / speed) > kMaxAbsTime_s)
       throw InputError("--speed", fmt::format("{} stretches the trace's time {} s beyond +-{:g} s", speed, p.t_s, kMaxAbsTime_s));
   for (Pose& p : trace.poses) p.t_s /= speed;
-  cfg.fps *= speed;
+  cfg.run.fps *= speed;
 }
 
 RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const TileStore& store,
@@ -113,12 +110,12 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
   const auto setup_start = std::chrono::steady_clock::now();
   double startup_s = 0;
   ThreadedExecutorConfig xc;
-  xc.io_threads = cfg.io_threads;
-  xc.decode_workers = cfg.decode_workers;
-  xc.capacity = static_cast<std::size_t>(cfg.max_in_flight);
-  xc.direct = cfg.io_direct;
-  xc.faults = cfg.faults;
-  xc.tile_memory_bytes = static_cast<std::uint64_t>(cfg.ram_MiB * 1048576.0);
+  xc.io_threads = cfg.io.threads;
+  xc.decode_workers = cfg.decode.workers;
+  xc.capacity = static_cast<std::size_t>(cfg.io.max_in_flight);
+  xc.direct = cfg.io.direct;
+  xc.faults = cfg.io.faults;
+  xc.tile_memory_bytes = static_cast<std::uint64_t>(cfg.ram.capacity_MiB * 1048576.0);
 
   // Host memory the size of the RAM cache and of the VRAM the arena stands for, allocated before
   // the first frame: both must fit together in what this process may use, checked before either
@@ -133,34 +130,23 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
   std::vector<std::uint32_t> layer_bytes;
   for (std::uint32_t i = 0; i < store.layer_count(); ++i) layer_bytes.push_back(store.tile_bytes(i));
   RealRun run;
-  const bool vt = cfg.system == "vt";
+  const SystemInfo& system = streaming_systems().at(cfg.run.system);
   try {
-    if (vt) {
-      run.arena = std::make_unique<VramArena>(
-          VramArena::for_pool(static_cast<std::uint32_t>(cfg.vt_pool_pages), layer_bytes, usable - reserve));
-    } else {
-      ClipmapParams cp;
-      cp.extent = scene.texture();
-      cp.tile_size = cfg.tile_size;
-      cp.clipsize = cfg.clipsize;
-      cp.layers = static_cast<int>(store.layer_count());
-      run.arena = std::make_unique<VramArena>(VramArena::for_clipmap(cp, layer_bytes, usable - reserve));
-    }
+    run.arena = std::make_unique<VramArena>(system.vram_arena(cfg, layer_bytes, usable - reserve));
   } catch (const VramArena::ArenaTooLarge& e) {
     throw InputError("config", fmt::format("field '{}': the VRAM arena needs {:.1f} MiB, more than the {:.1f} MiB of "
                                            "memory this process may use ({:.1f} MiB) less the RAM cache's buffers "
                                            "({:.1f} MiB, ram.capacity_MiB)",
-                                           vt ? "vt.pool_pages" : "clipmap.clipsize", mib(e.bytes), mib(e.limit),
-                                           mib(usable), mib(reserve)));
+                                           system.vram_field, mib(e.bytes), mib(e.limit), mib(usable), mib(reserve)));
   } catch (const std::bad_alloc&) {
-    throw InputError("config", fmt::format("field '{}': the VRAM arena does not fit in host memory", vt ? "vt.pool_pages" : "clipmap.clipsize"));
+    throw InputError("config", fmt::format("field '{}': the VRAM arena does not fit in host memory", system.vram_field));
   }
   VramArena& arena = *run.arena;
   ThreadedExecutor exec(store, xc);
 
   // Frame pacing: frame f starts at its trace time on the wall clock, or as soon as the previous
   // frame is done when the loop runs late (the lateness is measured, not hidden).
-  const double period_s = cfg.fps > 0 ? 1.0 / cfg.fps : 1.0 / 60.0;
+  const double period_s = cfg.run.fps > 0 ? 1.0 / cfg.run.fps : 1.0 / 60.0;
   const Ticks half_period = seconds_to_ticks(period_s / 2);
   std::uint64_t late_frames = 0, no_data = 0;
   Ticks max_late = 0, sum_late = 0;
@@ -205,17 +191,11 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
   };
   // VT: every page complete in the pool must be in the arena at its slot, every layer.
   std::uint64_t pool_layers_missing = 0;
-  env.on_finish = [&](const IStreamingSystem& system) {
-    const auto* vts = dynamic_cast<const VtSystem*>(&system);
-    if (!vts) return;
-    const PagePool& pool = vts->pool();
-    for (std::uint32_t s = 0; s < pool.slots(); ++s) {
-      const std::optional<TileKey> page = pool.complete_page(s);
-      if (!page) continue;
-      run.pool_pages.emplace_back(*page, s);
+  env.on_finish = [&](const IStreamingSystem& sys) {
+    sys.pool_pages(run.pool_pages);
+    for (const auto& [page, slot] : run.pool_pages)
       for (std::uint32_t layer = 0; layer < store.layer_count(); ++layer)
-        pool_layers_missing += arena.peek(TileKey(layer, page->level(), page->x(), page->y()), s).empty();
-    }
+        pool_layers_missing += arena.peek(TileKey(layer, page.level(), page.x(), page.y()), slot).empty();
   };
   run.result = run_replay(cfg, trace, scene, env);
   exec.shutdown();
@@ -225,7 +205,7 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
   nlohmann::json& rc = run.result.summary["real_clock"];
   rc["io_threads"] = exec.io_threads();
   rc["decode_workers"] = exec.decode_workers();
-  rc["max_in_flight"] = cfg.max_in_flight;
+  rc["max_in_flight"] = cfg.io.max_in_flight;
   rc["o_direct"] = exec.direct();
   rc["o_direct_warning"] = exec.direct_warning();
   rc["startup_s"] = startup_s;

@@ -4,12 +4,8 @@
 #include <fmt/core.h>
 #include <fmt/format.h>
 
-#include <cerrno>
 #include <cmath>
-#include <cstdio>
-#include <cstring>
 #include <iterator>
-#include <memory>
 
 #include "core/error.h"
 #include "sim/trace/trace_text.h"
@@ -207,20 +203,15 @@ std::string format_trace(const Trace& trace) {
   return s;
 }
 
+void write_trace_text(const Trace& trace, const std::function<void(std::string_view)>& sink) {
+  emit_native(trace, [&](const char* d, std::size_t n) { sink(std::string_view(d, n)); });
+}
+
 void save_trace(const Trace& trace, const std::string& path) {
   validate_trace(trace, path);
-  const bool to_stdout = path == "-";
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> owned(to_stdout ? nullptr : std::fopen(path.c_str(), "wb"),
-                                                        &std::fclose);
-  if (!to_stdout && !owned) throw InputError(path, fmt::format("cannot create: {}", std::strerror(errno)));
-  std::FILE* f = to_stdout ? stdout : owned.get();
-  const std::string where = to_stdout ? "stdout" : path;
-  emit_native(trace, [&](const char* d, std::size_t n) {
-    if (std::fwrite(d, 1, n, f) != n) throw InputError(where, fmt::format("write failed: {}", std::strerror(errno)));
-  });
-  if (std::fflush(f) != 0) throw InputError(where, fmt::format("write failed: {}", std::strerror(errno)));
-  if (!to_stdout && std::fclose(owned.release()) != 0)
-    throw InputError(where, fmt::format("write failed: {}", std::strerror(errno)));
+  trace_text::TextFileOut out(path);
+  emit_native(trace, [&](const char* d, std::size_t n) { out.write(std::string_view(d, n)); });
+  out.close();
 }
 
 }  // namespace vtsim

@@ -9,7 +9,9 @@
 // Doubles are written in their shortest round-trip form, so save -> load is bit-exact.
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <string>
+#include <string_view>
 
 #include "core/trace.h"
 
@@ -65,6 +67,10 @@ Trace load_trace(const std::string& path, const TraceReadOptions& options = {},
 
 // The native text of a trace (validate_trace first). Shortest round-trip doubles.
 std::string format_trace(const Trace& trace);
+
+// The same text handed to sink in order, in chunks of about 64 KiB (no validation): a long trace is
+// written without building its whole text in memory.
+void write_trace_text(const Trace& trace, const std::function<void(std::string_view)>& sink);
 
 // Writes format_trace(trace) to path ("-" = stdout). Throws InputError(path, ...) if the trace
 // is invalid or the file cannot be written.

@@ -105,6 +105,33 @@ bool LineReader::next(std::string_view& line) {
   return true;
 }
 
+TextFileOut::TextFileOut(const std::string& path)
+    : stdout_(path == "-"), where_(stdout_ ? "stdout" : path) {
+  if (stdout_) {
+    f_ = stdout;
+    return;
+  }
+  f_ = std::fopen(path.c_str(), "wb");
+  if (!f_) throw InputError(path, fmt::format("cannot create: {}", std::strerror(errno)));
+}
+
+TextFileOut::~TextFileOut() {
+  if (f_ && !stdout_) std::fclose(f_);
+}
+
+void TextFileOut::write(std::string_view s) {
+  if (std::fwrite(s.data(), 1, s.size(), f_) != s.size())
+    throw InputError(where_, fmt::format("write failed: {}", std::strerror(errno)));
+}
+
+void TextFileOut::close() {
+  if (!f_) return;
+  if (std::fflush(f_) != 0) throw InputError(where_, fmt::format("write failed: {}", std::strerror(errno)));
+  std::FILE* f = f_;
+  f_ = nullptr;
+  if (!stdout_ && std::fclose(f) != 0) throw InputError(where_, fmt::format("write failed: {}", std::strerror(errno)));
+}
+
 std::string_view trim(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
   while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);

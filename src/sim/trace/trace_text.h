@@ -1,9 +1,11 @@
 #pragma once
 // Shared reading layer for untrusted text traces: the file and line limits, line splitting and
 // number parsing, so that every format rejects the same bad input with the same words
-// (docs/traces.md, "Errors and repairs"). Internal to src/sim/trace/trace_*.cpp.
+// (docs/traces.md, "Errors and repairs"); and the writers' output file. Internal to
+// src/sim/trace (trace_*.cpp and the format files in impl/).
 #include <algorithm>
 #include <cstdint>
+#include <cstdio>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -54,6 +56,25 @@ class LineReader {
   std::int64_t line_no_ = 0;
   std::uint64_t bytes_read_ = 0;
   std::uint64_t file_bytes_ = 0;
+};
+
+// A text file written in pieces; "-" is stdout. Throws InputError(path, "cannot create: <reason>")
+// when it cannot be created and InputError(path, or "stdout", "write failed: <reason>") when a
+// write, the flush or the close fails. Not thread-safe.
+class TextFileOut {
+ public:
+  explicit TextFileOut(const std::string& path);
+  ~TextFileOut();  // closes a file close() did not (unchecked: an exception is on its way)
+  TextFileOut(const TextFileOut&) = delete;
+  TextFileOut& operator=(const TextFileOut&) = delete;
+
+  void write(std::string_view s);
+  void close();  // flushes and closes, checking both
+
+ private:
+  std::FILE* f_ = nullptr;
+  bool stdout_ = false;
+  std::string where_;
 };
 
 std::string_view trim(std::string_view s);  // spaces and tabs at both ends

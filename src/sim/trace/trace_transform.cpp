@@ -130,4 +130,20 @@ void transform_trace(Trace& trace, const TraceTransform& tf, const std::string& 
   validate_trace(trace, where);
 }
 
+void to_source_axes(Trace& trace, std::string_view world_axes, std::string_view camera_axes,
+                    const std::string& where) {
+  const AxisConvention world = parse_world_axes(world_axes.empty() ? "ENU" : world_axes, where + ": world_axes");
+  const AxisConvention camera =
+      parse_camera_axes(camera_axes.empty() ? "FLU" : camera_axes, where + ": camera_axes");
+  const bool move_p = world.to_vtsim != glm::dmat3(1.0);
+  const glm::dmat3 to_source = glm::transpose(world.to_vtsim);
+  const glm::dquat q_pre = glm::conjugate(to_quat(world));
+  const glm::dquat q_post = to_quat(camera);
+  const bool rotate_q = !is_identity(q_pre) || !is_identity(q_post);
+  for (Pose& p : trace.poses) {
+    if (move_p) p.pos_m = to_source * p.pos_m;
+    if (rotate_q) p.q = glm::normalize(q_pre * p.q * q_post);
+  }
+}
+
 }  // namespace vtsim

@@ -52,6 +52,15 @@ struct TraceTransform {
 // for bad parameters or a result out of range.
 void transform_trace(Trace& trace, const TraceTransform& tf, const std::string& where = "transform");
 
+// The inverse of transform_trace's axes step (2) alone, for writers: poses in vtsim's conventions
+// expressed in the source conventions world_axes / camera_axes (empty: ENU / FLU), so that
+// importing them with those conventions gives them back: p = W^T p' (exact: W is a signed
+// permutation), q = normalize(conj(qW) q' qC) (to rounding, ~1e-16). What is the identity is
+// skipped, so ENU / FLU leaves the trace bit for bit. Throws InputError(where + ": world_axes" or
+// ": camera_axes", ...) for a bad spec.
+void to_source_axes(Trace& trace, std::string_view world_axes, std::string_view camera_axes,
+                    const std::string& where);
+
 // Orientation quaternion for a camera with heading (yaw, counter-clockwise from +x) and pitch
 // (up positive), no roll: qz(yaw) * qy(-pitch). Degrees.
 glm::dquat yaw_pitch_quat(double yaw_deg, double pitch_deg);

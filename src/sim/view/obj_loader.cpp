@@ -9,6 +9,7 @@
 #include "core/input_file.h"
 #include "sim/trace/trace_text.h"
 #include "sim/view/mesh.h"
+#include "sim/view/scene_mesh.h"
 
 namespace vtsim {
 
@@ -158,6 +159,11 @@ Mesh parse_obj(const std::string& text, const std::string& name, ObjStats* stats
 Mesh load_obj(const std::string& path, ObjStats* stats, const ObjLimits& limits) {
   const std::string text = read_regular_file(path, limits.max_bytes, "more than the limit for an OBJ file");
   return parse_obj(text, path, stats, limits);
+}
+
+// The table's "mesh" (scene.cpp): cfg.file's OBJ.
+std::unique_ptr<IScene> make_obj_scene(const SceneConfig& cfg, TextureExtent extent) {
+  return std::make_unique<MeshScene>(load_obj(cfg.file), extent);
 }
 
 }  // namespace vtsim

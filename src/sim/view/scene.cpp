@@ -5,30 +5,8 @@
 
 #include "core/error.h"
 #include "core/tile_key.h"
-#include "sim/view/scene_heightfield.h"
-#include "sim/view/scene_mesh.h"
-#include "sim/view/scene_plane.h"
-#include "sim/view/scene_town.h"
 
 namespace vtsim {
-
-SceneKind parse_scene_kind(const std::string& s) {
-  if (s == "plane") return SceneKind::plane;
-  if (s == "heightfield") return SceneKind::heightfield;
-  if (s == "mesh") return SceneKind::mesh;
-  if (s == "town") return SceneKind::town;
-  throw InputError("scene", "unknown scene '" + s + "' (plane | heightfield | mesh | town)");
-}
-
-const char* scene_kind_name(SceneKind k) {
-  switch (k) {
-    case SceneKind::plane: return "plane";
-    case SceneKind::heightfield: return "heightfield";
-    case SceneKind::mesh: return "mesh";
-    case SceneKind::town: return "town";
-  }
-  return "?";
-}
 
 TextureExtent scene_texture(const SceneConfig& cfg) {
   // Largest side: 2^27 tiles of 128 texels (TileKey's coordinate range) = 2^34 texels.
@@ -45,28 +23,41 @@ TextureExtent scene_texture(const SceneConfig& cfg) {
   return TextureExtent{static_cast<std::int64_t>(w), static_cast<std::int64_t>(h)};
 }
 
-std::unique_ptr<IScene> make_scene(const SceneConfig& cfg) {
-  const TextureExtent ext = scene_texture(cfg);
-  const GroundTexture ground{cfg.origin_x_m, cfg.origin_y_m, cfg.texels_per_m, ext};
-  switch (cfg.kind) {
-    case SceneKind::plane:
-      if (!std::isfinite(cfg.plane_z_m)) throw InputError("plane_z_m", "must be finite");
-      return std::make_unique<PlaneScene>(ground, cfg.plane_z_m);
-    case SceneKind::heightfield: {
-      Heightfield hf = cfg.heightmap_path.empty()
-                           ? generate_heightfield(cfg.noise_posts, cfg.spacing_m, cfg.noise_amplitude_m, cfg.z0_m,
-                                                  cfg.seed, cfg.origin_x_m, cfg.origin_y_m)
-                           : load_heightfield(cfg.heightmap_path, cfg.spacing_m, cfg.height_scale_m, cfg.z0_m,
-                                              cfg.origin_x_m, cfg.origin_y_m);
-      return std::make_unique<HeightfieldScene>(std::move(hf), ground);
-    }
-    case SceneKind::mesh:
-      if (cfg.obj_path.empty()) throw InputError("obj_path", "the mesh scene needs an OBJ file");
-      return std::make_unique<MeshScene>(load_obj(cfg.obj_path), ext);
-    case SceneKind::town:
-      return std::make_unique<MeshScene>(generate_town(cfg), ext);
+std::unique_ptr<IScene> make_plane_scene(const SceneConfig& cfg, TextureExtent extent);
+std::unique_ptr<IScene> make_heightfield_scene(const SceneConfig& cfg, TextureExtent extent);
+std::unique_ptr<IScene> make_obj_scene(const SceneConfig& cfg, TextureExtent extent);
+std::unique_ptr<IScene> make_town_scene(const SceneConfig& cfg, TextureExtent extent);
+
+const Registry<SceneInfo>& scenes() {
+  static const Registry<SceneInfo> table(
+      "scene",
+      {
+          {"plane", "flat ground under the whole texture: the closed-form cases (clipmap bandwidth, LOD)", "", false,
+           make_plane_scene},
+          {"heightfield", "terrain from a height image, or generated hills that occlude each other", "a height image (optional: noise without)",
+           false, make_heightfield_scene},
+          {"town", "a generated town: streets, buildings and walls, unique UVs, heavy occlusion (the VT case)", "", false,
+           make_town_scene},
+          {"mesh", "a Wavefront OBJ whose UVs span the virtual texture (unique texturing, Yao 2011)", "an OBJ file", true,
+           make_obj_scene},
+      });
+  return table;
+}
+
+const SceneInfo& find_scene(std::string_view name) {
+  try {
+    return scenes().at(name);
+  } catch (const std::invalid_argument& e) {
+    throw InputError("scene", e.what());
   }
-  throw InputError("scene", "unknown scene kind");
+}
+
+std::unique_ptr<IScene> make_scene(const SceneConfig& cfg) {
+  const SceneInfo& info = find_scene(cfg.kind);
+  const TextureExtent ext = scene_texture(cfg);
+  if (info.file_required && cfg.file.empty())
+    throw InputError("file", "the " + std::string(info.name) + " scene needs " + std::string(info.file));
+  return info.make(cfg, ext);
 }
 
 // IScene's defaults: a scene without a span renderer renders per sample and derives the spans.

@@ -1,13 +1,16 @@
 #pragma once
-// Scenes the feedback renderer draws (docs/view.md): a flat ground plane, a heightfield, an OBJ
-// mesh with unique UVs (Yao 2011's megatexture case) and a generated test town. Every scene is
+// Scenes the feedback renderer draws (docs/view.md), one table of them (scenes()): a flat ground
+// plane, a heightfield, an OBJ mesh with unique UVs (Yao 2011's megatexture case) and a generated
+// test town. Every scene is
 // parameterised into one virtual texture and renders a ViewBuffer: one ViewSample per feedback
 // pixel whose nearest surface within [near, far] faces the camera and lies inside the texture.
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <string_view>
 
 #include "core/camera.h"
+#include "core/registry.h"
 #include "core/view.h"
 #include "core/view_spans.h"
 
@@ -38,12 +41,11 @@ class IScene : public ISampleSource {
                      std::vector<ViewSample>& out) const override;
 };
 
-enum class SceneKind { plane, heightfield, mesh, town };
-
 // Parameters of make_scene. Every scene maps into one virtual texture of
 // llround(size_x_m·texels_per_m) × llround(size_y_m·texels_per_m) level-0 texels.
 struct SceneConfig {
-  SceneKind kind = SceneKind::plane;
+  std::string kind = "plane";      // a name of scenes()
+  std::string file;                // the scene's input file: heightfield image, OBJ mesh (scenes()'s `file`)
 
   // The terrain and its texture. Defaults: 8192 m × 8192 m at 128 texels/m = a 2^20 × 2^20
   // virtual texture, the megatexture scale of Yao 2011 (RAGE: 128k², here 8× larger a side).
@@ -57,7 +59,7 @@ struct SceneConfig {
   double plane_z_m = 0.0;
 
   // heightfield: posts on a regular grid from the terrain origin; z = z0 + scale·value.
-  std::string heightmap_path;      // any image OpenImageIO reads (first channel); empty: noise
+  //   `file`: any image OpenImageIO reads (first channel); empty: noise
   double spacing_m = 8.0;          // between posts; 8 m × 1024 cells spans the default terrain
   double height_scale_m = 1.0;     // metres per image value (OIIO maps integer pixels to [0, 1])
   double z0_m = 0.0;               // height of value 0
@@ -65,8 +67,7 @@ struct SceneConfig {
   double noise_amplitude_m = 150.0;  // generated relief, peak to mean: hills that occlude each other
   std::uint64_t seed = 1;          // generated heightfield and town
 
-  // mesh: a Wavefront OBJ; vt (u, v) in [0, 1) spans the whole virtual texture.
-  std::string obj_path;
+  // mesh: `file` is a Wavefront OBJ; vt (u, v) in [0, 1) spans the whole virtual texture.
 
   // town (generated mesh): a grid of city blocks on ground z = 0 from the terrain origin.
   int town_blocks = 16;            // blocks per side
@@ -76,12 +77,25 @@ struct SceneConfig {
   int town_walls_per_block = 2;    // free-standing walls (3 m high) per block: near occluders
 };
 
-// Builds a scene; throws InputError naming the field or file ("size_x_m", "file:line", ...).
-std::unique_ptr<IScene> make_scene(const SceneConfig& cfg);
+// A kind of scene in the table (scene.cpp): adding a scene is its file (a class implementing
+// IScene and its make function) and one line in the table.
+struct SceneInfo {
+  std::string_view name;
+  std::string_view why;
+  // What SceneConfig::file is for this scene ("" = none is read); with file_required, a scene
+  // without one is refused.
+  std::string_view file;
+  bool file_required = false;
+  // Builds the scene (extent: scene_texture(cfg)); throws InputError naming the field or file.
+  std::unique_ptr<IScene> (*make)(const SceneConfig& cfg, TextureExtent extent);
+};
+const Registry<SceneInfo>& scenes();
+// The scene of that name; throws InputError("scene", "unknown scene ... did you mean ...").
+const SceneInfo& find_scene(std::string_view name);
 
-// "plane" | "heightfield" | "mesh" | "town"; throws InputError("scene", ...) otherwise.
-SceneKind parse_scene_kind(const std::string& s);
-const char* scene_kind_name(SceneKind k);
+// Builds the scene cfg.kind names; throws InputError naming the field or file ("size_x_m",
+// "file:line", ...).
+std::unique_ptr<IScene> make_scene(const SceneConfig& cfg);
 
 // The texture extent of a config (validated: throws InputError naming the field).
 TextureExtent scene_texture(const SceneConfig& cfg);

@@ -335,4 +335,13 @@ void HeightfieldScene::render(const Camera& cam, const ViewParams& p, ViewBuffer
   out.counters = c;
 }
 
+// The table's "heightfield" (scene.cpp): cfg.file's image, or generated noise without one.
+std::unique_ptr<IScene> make_heightfield_scene(const SceneConfig& cfg, TextureExtent extent) {
+  Heightfield hf = cfg.file.empty() ? generate_heightfield(cfg.noise_posts, cfg.spacing_m, cfg.noise_amplitude_m, cfg.z0_m,
+                                                          cfg.seed, cfg.origin_x_m, cfg.origin_y_m)
+                                    : load_heightfield(cfg.file, cfg.spacing_m, cfg.height_scale_m, cfg.z0_m,
+                                                       cfg.origin_x_m, cfg.origin_y_m);
+  return std::make_unique<HeightfieldScene>(std::move(hf), GroundTexture{cfg.origin_x_m, cfg.origin_y_m, cfg.texels_per_m, extent});
+}
+
 }  // namespace vtsim

@@ -370,6 +370,36 @@ struct Scratch {
   std::uint64_t frame = 0;           // renders by this thread: stamps never repeat
   MeshScene::RenderStats stats;      // of the render under way, then the last one
 
+  // Starts a render of a mesh of `tris` triangles into a buf_w × buf_h buffer at divisor `div`:
+  // nothing drawn, stats zeroed, the sample positions of this camera, the per-triangle stamps
+  // sized (a new size drops the warm start). Returns the render's stamp (== frame).
+  std::uint64_t begin(const Camera& cam, int div, int buf_w, int buf_h, std::size_t tris) {
+    const std::size_t npix = static_cast<std::size_t>(buf_w) * static_cast<std::size_t>(buf_h);
+    stats = MeshScene::RenderStats{};
+    invz.assign(npix + 4, 0.0);  // + 4: shade_batch reads whole lanes
+    id.assign(npix, kNoTri);
+    near_cut.assign(npix, 0);
+    bw = buf_w;
+    bh = buf_h;
+    tw = (bw + kTile - 1) >> kTileShift;
+    const std::size_t ntiles = static_cast<std::size_t>(tw) * static_cast<std::size_t>((bh + kTile - 1) >> kTileShift);
+    tile_min.assign(ntiles, 0.0);
+    tile_stale.assign(ntiles, 0);
+    sx.resize(static_cast<std::size_t>(bw) + 4);
+    sy.resize(static_cast<std::size_t>(bh));
+    for (int x = 0; x < bw; ++x) sx[static_cast<std::size_t>(x)] = sample_pos(x, div, cam.width);
+    for (int x = bw; x < bw + 4; ++x) sx[static_cast<std::size_t>(x)] = sx[static_cast<std::size_t>(bw - 1)];
+    for (int y = 0; y < bh; ++y) sy[static_cast<std::size_t>(y)] = sample_pos(y, div, cam.height);
+    if (drawn_stamp.size() != tris) {
+      drawn_stamp.assign(tris, 0);
+      hint_stamp.assign(tris, 0);
+      shade_stamp.assign(tris, 0);
+      shade.resize(tris);
+      hint.clear();
+    }
+    return ++frame;
+  }
+
   double tile_least(int tx, int ty) {
     const std::size_t t = static_cast<std::size_t>(ty) * static_cast<std::size_t>(tw) + static_cast<std::size_t>(tx);
     if (tile_stale[t]) {
@@ -550,6 +580,149 @@ void raster_poly(const PV* v, int n, std::uint32_t tag, bool depth, int div, int
   }
 }
 
+// The depth pass of one render: the camera in the rasteriser's terms (x right, y up, z view
+// depth), its frustum, and the steps per chunk and per triangle. Draws into a scratch that has
+// begun the render (Scratch::begin).
+struct DepthPass {
+  glm::dvec3 o, F, R, U;  // camera position, world metres; its forward, right and up axes
+  double cx, cy, f;       // principal point and focal length, full-resolution pixels
+  double near, zflag;     // the near plane and near·kNearFlagFraction, view depth in metres
+  int div, bw, bh;        // divisor; buffer size, samples
+  bool cull, skip_back;   // occlusion culling; back faces skipped (MeshScene::skips_back_faces)
+  glm::dvec3 planes[5];   // frustum planes through o at the image border, inward normals
+  Scratch& s;
+
+  DepthPass(const Camera& cam, const ViewParams& p, Scratch& scr, bool occlusion_culling, bool skip_back_faces)
+      : o(cam.pos_m), F(cam.fwd), R(-cam.left), U(cam.up), cx(cam.cx), cy(cam.cy), f(cam.focal_px), near(p.near_m),
+        zflag(p.near_m * kNearFlagFraction), div(p.divisor), bw(scr.bw), bh(scr.bh), cull(occlusion_culling),
+        skip_back(skip_back_faces),
+        planes{
+            F,                                        // in front of the camera
+            R + (cam.cx / f) * F,                     // right of the left border: x >= −(cx/f)·z
+            -R + ((cam.width - cam.cx) / f) * F,      // left of the right border
+            -U + (cam.cy / f) * F,                    // below the top border: y <= (cy/f)·z
+            U + ((cam.height - cam.cy) / f) * F,      // above the bottom border
+        },
+        s(scr) {}
+
+  // Whether box [lo, hi] may reach into the frustum (its corner farthest along each plane's normal
+  // is inside all five).
+  bool in_frustum(const glm::dvec3& lo, const glm::dvec3& hi) const {
+    for (const glm::dvec3& pl : planes) {
+      const glm::dvec3 corner(pl.x >= 0.0 ? hi.x : lo.x, pl.y >= 0.0 ? hi.y : lo.y, pl.z >= 0.0 ? hi.z : lo.z);
+      if (glm::dot(corner - o, pl) < 0.0) return false;
+    }
+    return true;
+  }
+
+  // The least view depth of box [lo, hi], metres (a linear function is least at a corner).
+  double least_depth(const glm::dvec3& lo, const glm::dvec3& hi) const {
+    const glm::dvec3 nearest(F.x >= 0.0 ? lo.x : hi.x, F.y >= 0.0 ? lo.y : hi.y, F.z >= 0.0 ? lo.z : hi.z);
+    return glm::dot(nearest - o, F);
+  }
+
+  // Whether box [lo, hi], at least view depth zmin > 0, lies behind what is drawn at every sample
+  // its projection can cover (also when it covers none): then none of its triangles can win a
+  // sample. kOccludeMargin covers the rasteriser's rounding of 1/z against the box's exact bound.
+  bool occluded(const glm::dvec3& lo, const glm::dvec3& hi, double zmin) const {
+    double X0 = INFINITY, X1 = -INFINITY, Y0 = INFINITY, Y1 = -INFINITY;
+    for (int c = 0; c < 8; ++c) {
+      const glm::dvec3 q = glm::dvec3(c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z) - o;
+      const double iz = 1.0 / glm::dot(q, F);
+      const double X = cx + f * glm::dot(q, R) * iz, Y = cy - f * glm::dot(q, U) * iz;
+      X0 = std::min(X0, X);
+      X1 = std::max(X1, X);
+      Y0 = std::min(Y0, Y);
+      Y1 = std::max(Y1, Y);
+    }
+    int x0, x1, y0, y1;
+    sample_range(X0, X1, div, bw, x0, x1);
+    sample_range(Y0, Y1, div, bh, y0, y1);
+    return s.all_nearer(x0, x1, y0, y1, (1.0 / zmin) * (1.0 + kOccludeMargin));
+  }
+
+  void project(const CV* poly, int n, PV* out) const {
+    for (int c = 0; c < n; ++c) {
+      const double iz = 1.0 / poly[c].z;
+      out[c] = PV{cx + f * poly[c].x * iz, cy - f * poly[c].y * iz, iz};
+    }
+  }
+
+  // Triangle k (corners p, world metres; n its front side): clip at near, project,
+  // occlusion-test, rasterise its depth; the part between near/1024 and near only as a flag.
+  void draw(const glm::dvec3 (&p)[3], const glm::dvec3& n, std::uint32_t k) const {
+    ++s.stats.triangles_visited;
+    const bool front = glm::dot(o - p[0], n) > 0.0;
+    if (!front && skip_back) {
+      ++s.stats.back_faces_skipped;
+      return;
+    }
+    CV cv[3];
+    bool all_near = true, any_flag = false;
+    for (int c = 0; c < 3; ++c) {
+      const glm::dvec3 q = p[c] - o;
+      cv[c] = CV{glm::dot(q, R), glm::dot(q, U), glm::dot(q, F)};
+      all_near = all_near && cv[c].z >= near;
+      any_flag = any_flag || cv[c].z >= zflag;
+    }
+    if (!any_flag) return;  // wholly behind the camera or nearer than near/1024
+    const std::uint32_t tag = front ? k : (k | kBackBit);
+    PV pv[5];
+    if (all_near) {
+      project(cv, 3, pv);
+      if (cull) {
+        // The chunk test at triangle granularity (same bound and margin): of the ~3,700
+        // triangles in the chunks a street-level town view draws, ~40 win a sample.
+        int x0, x1, y0, y1;
+        sample_range(std::min({pv[0].X, pv[1].X, pv[2].X}), std::max({pv[0].X, pv[1].X, pv[2].X}), div, bw, x0, x1);
+        sample_range(std::min({pv[0].Y, pv[1].Y, pv[2].Y}), std::max({pv[0].Y, pv[1].Y, pv[2].Y}), div, bh, y0, y1);
+        const double tz = std::min({cv[0].z, cv[1].z, cv[2].z});
+        if (s.all_nearer(x0, x1, y0, y1, (1.0 / tz) * (1.0 + kOccludeMargin))) {
+          ++s.stats.triangles_occluded;
+          return;
+        }
+      }
+      ++s.stats.triangles_rasterised;
+      raster_poly(pv, 3, tag, true, div, bw, bh, s);
+      return;
+    }
+    CV clip_a[4], clip_b[5], tmp[4];
+    const int na = clip_poly(cv, 3, near, true, clip_a);
+    if (na >= 3) {
+      ++s.stats.triangles_rasterised;
+      project(clip_a, na, pv);
+      raster_poly(pv, na, tag, true, div, bw, bh, s);
+    }
+    const int nt = clip_poly(cv, 3, near, false, tmp);
+    const int nb = nt >= 3 ? clip_poly(tmp, nt, zflag, true, clip_b) : 0;
+    if (nb >= 3) {
+      project(clip_b, nb, pv);
+      raster_poly(pv, nb, 0, false, div, bw, bh, s);
+    }
+  }
+};
+
+// A row run of a front face in render(): n samples from buffer pixel pix0 (px, iz padded to whole
+// lanes) shaded a batch at a time into `out`, the others counted in `c`.
+void append_run_samples(const ShadeRow& k, const double* px, const double* iz, int n, std::size_t pix0, bool aniso,
+                        ShadeBatch& batch, std::vector<ViewSample>& out, ViewCounters& c) {
+  for (int xb = 0; xb < n; xb += kShadeBatch) {
+    const int m = std::min(kShadeBatch, n - xb);
+    const std::size_t pix = pix0 + static_cast<std::size_t>(xb);
+    shade_batch(k, px + xb, iz + xb, m, aniso, batch);
+    for (int j = 0; j < m; ++j) {
+      switch (batch.cls[j]) {
+        case kSample:
+          out.push_back(ViewSample{batch.u[j], batch.v[j], batch.lod[j], static_cast<std::uint32_t>(pix + static_cast<std::size_t>(j))});
+          break;
+        case kClipped: ++c.clipped; break;
+        case kBackfacing: ++c.backfacing; break;
+        default: ++c.outside_texture; break;
+      }
+    }
+  }
+}
+
 }  // namespace
 
 MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
@@ -683,165 +856,47 @@ void MeshScene::render_spans(const Camera& cam, const ViewParams& p, SpanBuffer&
 }
 
 void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* view, SpanBuffer* spans) const {
-  const bool to_spans = spans != nullptr;
-  const LodRule rule = detail::lod_rule(p);
-  const int div = p.divisor, bw = to_spans ? spans->width : view->width, bh = to_spans ? spans->height : view->height;
-  const std::size_t npix = static_cast<std::size_t>(bw) * static_cast<std::size_t>(bh);
+  const int bw = spans ? spans->width : view->width, bh = spans ? spans->height : view->height;
   Scratch& s = scratch();
-  s.stats = RenderStats{};
+  const std::uint64_t stamp = s.begin(cam, p.divisor, bw, bh, tris_.size());
   s.stats.chunks = static_cast<std::uint32_t>(chunks_.size());
-  s.invz.assign(npix + 4, 0.0);  // + 4: shade_batch reads whole lanes
-  s.id.assign(npix, kNoTri);
-  s.near_cut.assign(npix, 0);
-  s.bw = bw;
-  s.bh = bh;
-  s.tw = (bw + kTile - 1) >> kTileShift;
-  const std::size_t ntiles = static_cast<std::size_t>(s.tw) * static_cast<std::size_t>((bh + kTile - 1) >> kTileShift);
-  s.tile_min.assign(ntiles, 0.0);
-  s.tile_stale.assign(ntiles, 0);
-  s.sx.resize(static_cast<std::size_t>(bw) + 4);
-  s.sy.resize(static_cast<std::size_t>(bh));
-  for (int x = 0; x < bw; ++x) s.sx[static_cast<std::size_t>(x)] = sample_pos(x, div, cam.width);
-  for (int x = bw; x < bw + 4; ++x) s.sx[static_cast<std::size_t>(x)] = s.sx[static_cast<std::size_t>(bw - 1)];
-  for (int y = 0; y < bh; ++y) s.sy[static_cast<std::size_t>(y)] = sample_pos(y, div, cam.height);
-
-  const glm::dvec3 o = cam.pos_m, F = cam.fwd, R = -cam.left, U = cam.up;
-  const double f = cam.focal_px, near = p.near_m, zflag = near * kNearFlagFraction;
-  // Frustum side planes through the camera centre (inward normals), at the image border.
-  const glm::dvec3 planes[5] = {
-      F,                                        // in front of the camera
-      R + (cam.cx / f) * F,                     // right of the left border: x >= −(cx/f)·z
-      -R + ((cam.width - cam.cx) / f) * F,      // left of the right border
-      -U + (cam.cy / f) * F,                    // below the top border: y <= (cy/f)·z
-      U + ((cam.height - cam.cy) / f) * F,      // above the bottom border
-  };
-  const bool skip_back = skips_back_faces(cam, p);
-  CV cv[3], clip_a[4], clip_b[5], tmp[4];
-  PV pv[5];
-  // Chunks in the frustum, nearest first by the least view depth of their box (a linear function
-  // is least at a corner). Drawn front to back, a chunk whose box lies wholly beyond near and,
-  // at every sample its projection can cover, behind what is already drawn there, is skipped:
-  // none of its triangles could win a sample (occlusion culling). The margin kOccludeMargin
-  // covers the rounding of the rasteriser's interpolated 1/z against the box's exact bound.
+  const DepthPass dp(cam, p, s, occlusion_culling_, skips_back_faces(cam, p));
+  // Chunks in the frustum, nearest first by the least view depth of their box. Drawn front to
+  // back, a chunk whose box lies wholly beyond near and behind what is already drawn is skipped
+  // (occlusion culling). `order` is not a Scratch member: a member added there moved the stats,
+  // and raster_poly's register allocation changed with their offsets (+20 % of its profile).
   thread_local std::vector<std::pair<double, std::uint32_t>> order;
   order.clear();
   for (std::uint32_t ci = 0; ci < chunks_.size(); ++ci) {
     const Chunk& ch = chunks_[ci];
-    bool outside = false;
-    for (const glm::dvec3& pl : planes) {
-      const glm::dvec3 corner(pl.x >= 0.0 ? ch.hi.x : ch.lo.x, pl.y >= 0.0 ? ch.hi.y : ch.lo.y,
-                              pl.z >= 0.0 ? ch.hi.z : ch.lo.z);
-      if (glm::dot(corner - o, pl) < 0.0) {
-        outside = true;
-        break;
-      }
-    }
-    if (outside) continue;
+    if (!dp.in_frustum(ch.lo, ch.hi)) continue;
     ++s.stats.chunks_in_frustum;
-    const glm::dvec3 nearest(F.x >= 0.0 ? ch.lo.x : ch.hi.x, F.y >= 0.0 ? ch.lo.y : ch.hi.y, F.z >= 0.0 ? ch.lo.z : ch.hi.z);
-    order.emplace_back(glm::dot(nearest - o, F), ci);
+    order.emplace_back(dp.least_depth(ch.lo, ch.hi), ci);
   }
   if (occlusion_culling_) std::sort(order.begin(), order.end());
-  const auto occluded = [&](const Chunk& ch, double zmin) {
-    double X0 = INFINITY, X1 = -INFINITY, Y0 = INFINITY, Y1 = -INFINITY;
-    for (int c = 0; c < 8; ++c) {
-      const glm::dvec3 q = glm::dvec3(c & 1 ? ch.hi.x : ch.lo.x, c & 2 ? ch.hi.y : ch.lo.y, c & 4 ? ch.hi.z : ch.lo.z) - o;
-      const double iz = 1.0 / glm::dot(q, F);
-      const double X = cam.cx + f * glm::dot(q, R) * iz, Y = cam.cy - f * glm::dot(q, U) * iz;
-      X0 = std::min(X0, X);
-      X1 = std::max(X1, X);
-      Y0 = std::min(Y0, Y);
-      Y1 = std::max(Y1, Y);
-    }
-    int x0, x1, y0, y1;
-    sample_range(X0, X1, div, bw, x0, x1);
-    sample_range(Y0, Y1, div, bh, y0, y1);
-    // True also when the projection covers no sample at all.
-    return s.all_nearer(x0, x1, y0, y1, (1.0 / zmin) * (1.0 + kOccludeMargin));
-  };
-  // One triangle: clip at near, project, occlusion-test, rasterise.
-  const auto draw_tri = [&](std::uint32_t k) {
-    const Tri& t = tris_[k];
-    ++s.stats.triangles_visited;
-    const bool front = glm::dot(o - t.p[0], t.n) > 0.0;
-    if (!front && skip_back) {
-      ++s.stats.back_faces_skipped;
-      return;
-    }
-    bool all_near = true, any_flag = false;
-    for (int c = 0; c < 3; ++c) {
-      const glm::dvec3 q = t.p[c] - o;
-      cv[c] = CV{glm::dot(q, R), glm::dot(q, U), glm::dot(q, F)};
-      all_near = all_near && cv[c].z >= near;
-      any_flag = any_flag || cv[c].z >= zflag;
-    }
-    if (!any_flag) return;  // wholly behind the camera or nearer than near/1024
-    const std::uint32_t tag = front ? k : (k | kBackBit);
-    const auto project = [&](const CV* poly, int n) {
-      for (int c = 0; c < n; ++c) {
-        const double iz = 1.0 / poly[c].z;
-        pv[c] = PV{cam.cx + f * poly[c].x * iz, cam.cy - f * poly[c].y * iz, iz};
-      }
-    };
-    if (all_near) {
-      project(cv, 3);
-      if (occlusion_culling_) {
-        // The chunk test at triangle granularity (same bound and margin): of the ~3,700
-        // triangles in the chunks a street-level town view draws, ~40 win a sample.
-        int x0, x1, y0, y1;
-        sample_range(std::min({pv[0].X, pv[1].X, pv[2].X}), std::max({pv[0].X, pv[1].X, pv[2].X}), div, bw, x0, x1);
-        sample_range(std::min({pv[0].Y, pv[1].Y, pv[2].Y}), std::max({pv[0].Y, pv[1].Y, pv[2].Y}), div, bh, y0, y1);
-        const double tz = std::min({cv[0].z, cv[1].z, cv[2].z});
-        if (s.all_nearer(x0, x1, y0, y1, (1.0 / tz) * (1.0 + kOccludeMargin))) {
-          ++s.stats.triangles_occluded;
-          return;
-        }
-      }
-      ++s.stats.triangles_rasterised;
-      raster_poly(pv, 3, tag, true, div, bw, bh, s);
-      return;
-    }
-    const int na = clip_poly(cv, 3, near, true, clip_a);
-    if (na >= 3) {
-      ++s.stats.triangles_rasterised;
-      project(clip_a, na);
-      raster_poly(pv, na, tag, true, div, bw, bh, s);
-    }
-    const int nt = clip_poly(cv, 3, near, false, tmp);
-    const int nb = nt >= 3 ? clip_poly(tmp, nt, zflag, true, clip_b) : 0;
-    if (nb >= 3) {
-      project(clip_b, nb);
-      raster_poly(pv, nb, 0, false, div, bw, bh, s);
-    }
-  };
   // Warm start: last frame's visible triangles first (this thread's previous render of a scene
   // of this size — a hint only: any triangle may be drawn in any order, the tie rule makes the
   // buffer the same). At 60 Hz they cover nearly the same samples again, so the depth is close
   // to final before the chunks start and most chunks fail the occlusion test at once.
-  if (s.drawn_stamp.size() != tris_.size()) {
-    s.drawn_stamp.assign(tris_.size(), 0);
-    s.hint_stamp.assign(tris_.size(), 0);
-    s.shade_stamp.assign(tris_.size(), 0);
-    s.shade.resize(tris_.size());
-    s.hint.clear();
-  }
-  const std::uint64_t stamp = ++s.frame;
   if (occlusion_culling_)
     for (const std::uint32_t k : s.hint) {
       s.drawn_stamp[k] = stamp;
-      draw_tri(k);
+      dp.draw(tris_[k].p, tris_[k].n, k);
     }
   for (const auto& [zmin, ci] : order) {
     const Chunk& ch = chunks_[ci];
-    if (occlusion_culling_ && zmin > near && occluded(ch, zmin)) {
+    if (occlusion_culling_ && zmin > p.near_m && dp.occluded(ch.lo, ch.hi, zmin)) {
       ++s.stats.chunks_occluded;
       continue;
     }
     for (std::uint32_t k = ch.first; k < ch.first + ch.count; ++k)
-      if (s.drawn_stamp[k] != stamp) draw_tri(k);
+      if (s.drawn_stamp[k] != stamp) dp.draw(tris_[k].p, tris_[k].n, k);
   }
+  resolve(cam, p, view, spans);
+}
 
-  // Resolve: classify every buffer pixel and shade the visible front faces exactly. The ray of
+void MeshScene::resolve(const Camera& cam, const ViewParams& p, ViewBuffer* view, SpanBuffer* spans) const {
+  // Classify every buffer pixel and shade the visible front faces exactly. The ray of
   // full-resolution pixel (px, py) is d = D0 + px·ddx + py·ddy (Camera::ray_dir); on a triangle's
   // plane everything a sample needs is a ratio of functions affine in (px, py), so each triangle
   // that owns a sample gets its coefficients once per frame and a sample costs one division:
@@ -849,6 +904,11 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
   //   texel u = tu0 + gu·(o − p0) + t·(gu·d)   (the hit point is o + t·d; gu·d is affine too),
   //   dT/dx (Igehy's ray differential, lod.h): t·(gu·ddx − (ddx·n)(gu·d)/(d·n)), likewise v, y.
   // Algebraically the ray-plane intersection and plane_footprint_lod; the rounding differs by ulps.
+  Scratch& s = scratch();
+  const bool to_spans = spans != nullptr;
+  const LodRule rule = detail::lod_rule(p);
+  const int bw = s.bw, bh = s.bh;
+  const std::uint64_t stamp = s.frame;
   const double far_iz = 1.0 / p.far_m;
   s.hint.clear();  // this frame's visible triangles, for the next frame's warm start
   const auto seen = [&](std::uint32_t k) {
@@ -895,27 +955,10 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
       const ShadeRow k = shade_row(h, py, rule, far_iz, extent_);
       ++s.stats.resolve_runs;
       s.stats.resolve_samples += static_cast<std::uint64_t>(xe - x);
-      if (to_spans) {
+      if (to_spans)
         span_run(k, s.sx.data() + x, s.invz.data() + idx, xe - x, static_cast<std::uint32_t>(idx), rule.anisotropic, so);
-      } else {
-        for (int xb = x; xb < xe; xb += kShadeBatch) {
-          const int n = std::min(kShadeBatch, xe - xb);
-          const std::size_t pix0 = row + static_cast<std::size_t>(xb);
-          shade_batch(k, s.sx.data() + xb, s.invz.data() + pix0, n, rule.anisotropic, s.batch);
-          for (int j = 0; j < n; ++j) {
-            switch (s.batch.cls[j]) {
-              case kSample: {
-                const auto pix = static_cast<std::uint32_t>(pix0 + static_cast<std::size_t>(j));
-                view->samples.push_back(ViewSample{s.batch.u[j], s.batch.v[j], s.batch.lod[j], pix});
-                break;
-              }
-              case kClipped: ++c.clipped; break;
-              case kBackfacing: ++c.backfacing; break;
-              default: ++c.outside_texture; break;
-            }
-          }
-        }
-      }
+      else
+        append_run_samples(k, s.sx.data() + x, s.invz.data() + idx, xe - x, idx, rule.anisotropic, s.batch, view->samples, c);
       x = xe;
     }
   }

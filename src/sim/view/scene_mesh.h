@@ -99,8 +99,10 @@ class MeshScene final : public IScene {
     std::uint32_t first = 0, count = 0;
   };
   // render (view: the begun per-sample buffer) and render_spans (spans: its fields set but the
-  // spans'): rasterise, then resolve into samples or spans.
+  // spans'): the depth pass into this thread's scratch, then resolve.
   void render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* view, SpanBuffer* spans) const;
+  // The scratch's depth and faces of the render under way into samples (view) or spans.
+  void resolve(const Camera& cam, const ViewParams& p, ViewBuffer* view, SpanBuffer* spans) const;
 
   TextureExtent extent_;
   std::vector<Tri> tris_;

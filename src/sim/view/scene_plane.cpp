@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "core/error.h"
 #include "sim/view/render_util.h"
 #include "sim/view/simd.h"
 #include "sim/view/span_build.h"
@@ -705,6 +706,12 @@ void PlaneScene::render_spans(const Camera& cam, const ViewParams& p, SpanBuffer
   if (build) fc.built = true;
   out.samples = n_samples;
   out.counters = c;
+}
+
+// The table's "plane" (scene.cpp).
+std::unique_ptr<IScene> make_plane_scene(const SceneConfig& cfg, TextureExtent extent) {
+  if (!std::isfinite(cfg.plane_z_m)) throw InputError("plane_z_m", "must be finite");
+  return std::make_unique<PlaneScene>(GroundTexture{cfg.origin_x_m, cfg.origin_y_m, cfg.texels_per_m, extent}, cfg.plane_z_m);
 }
 
 }  // namespace vtsim

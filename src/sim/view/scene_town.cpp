@@ -7,6 +7,7 @@
 
 #include "core/error.h"
 #include "core/tile_key.h"
+#include "sim/view/scene_mesh.h"
 
 namespace vtsim {
 
@@ -148,6 +149,11 @@ Mesh generate_town(const SceneConfig& cfg) {
       }
     }
   return std::move(b.mesh);
+}
+
+// The table's "town" (scene.cpp).
+std::unique_ptr<IScene> make_town_scene(const SceneConfig& cfg, TextureExtent extent) {
+  return std::make_unique<MeshScene>(generate_town(cfg), extent);
 }
 
 }  // namespace vtsim

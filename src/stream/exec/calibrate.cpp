@@ -156,6 +156,182 @@ DiskModel fit_disk_model(const std::vector<ReadPoint>& points, int io_threads, s
   return m;
 }
 
+namespace {
+
+// The store's mean read (its records rounded up to whole 4 KiB blocks), bytes.
+double store_mean_read_bytes(const TileStore& store) {
+  std::uint64_t read_bytes = 0, tiles = 0;
+  for (const auto& t : store.totals()) read_bytes += t.read_bytes, tiles += t.tiles;
+  return static_cast<double>(read_bytes) / static_cast<double>(tiles);
+}
+
+// The request sizes to measure, bytes, ascending: `sizes` as asked (empty: 4, 16, 64, 256 KiB) and
+// the store's typical read. Throws InputError("--sizes") for a size that is not a positive multiple of
+// 4096 or exceeds the data region.
+std::vector<std::uint32_t> calibration_sizes(std::vector<std::uint32_t> sizes, std::uint32_t typical,
+                                             std::uint64_t data_bytes) {
+  if (sizes.empty()) sizes = {4096, 16384, 65536, 262144};
+  if (std::find(sizes.begin(), sizes.end(), typical) == sizes.end()) sizes.push_back(typical);
+  std::sort(sizes.begin(), sizes.end());
+  for (std::uint32_t s : sizes) {
+    if (s == 0 || s % store::kAlign != 0) throw InputError("--sizes", fmt::format("{} is not a positive multiple of 4096", s));
+    if (s > data_bytes) throw InputError("--sizes", fmt::format("{} bytes is larger than the store's data region ({} bytes)", s, data_bytes));
+  }
+  return sizes;
+}
+
+// The reads in flight to measure, ascending: `conc` as asked (empty: 1, 2, 4, 8) and io_threads.
+// Throws InputError("--concurrency") outside 1..256.
+std::vector<int> calibration_concurrency(std::vector<int> conc, int io_threads) {
+  if (conc.empty()) conc = {1, 2, 4, 8};
+  if (std::find(conc.begin(), conc.end(), io_threads) == conc.end()) conc.push_back(io_threads);
+  std::sort(conc.begin(), conc.end());
+  for (int k : conc)
+    if (k < 1 || k > 256) throw InputError("--concurrency", fmt::format("{} is outside 1..256", k));
+  return conc;
+}
+
+// `per_layer` random tiles of each layer (fewer when the layer has fewer), read through the page
+// cache: the records the decode measurements replay.
+std::vector<std::vector<Sample>> sample_decode_tiles(const TileStore& store, std::uint32_t per_layer, std::uint64_t seed) {
+  ReadFile f = open_for_read(store.path(), false).file;
+  std::mt19937_64 rng(seed);
+  std::vector<std::vector<Sample>> by_layer(store.layer_count());
+  const std::uint64_t slots = store.geometry().tiles_per_layer;
+  for (std::uint32_t L = 0; L < store.layer_count(); ++L)
+    for (std::uint32_t i = 0; i < std::min<std::uint64_t>(per_layer, slots); ++i) {
+      const TileKey k = store.geometry().key_of_slot(L * slots + rng() % slots);
+      const TileLocation loc = store.locate(k);
+      Sample s;
+      s.key = k;
+      s.stored = loc.stored_bytes;
+      s.decoded = loc.decoded_bytes;
+      s.record.resize(loc.read_bytes);
+      if (f.pread_full(s.record.data(), loc.read_bytes, loc.offset) < loc.stored_bytes)
+        throw InputError(store.path() + ": " + store::describe(k), "short read while sampling tiles");
+      by_layer[L].push_back(std::move(s));
+    }
+  return by_layer;
+}
+
+// One worker on one layer (= one codec): the decode pool's work (checksum, then decode) on this
+// thread, over the samples again and again for `seconds` and at least once each.
+DecodePoint measure_layer_decode(const TileStore& store, std::uint32_t L, const std::vector<Sample>& samples, double seconds,
+                                 const std::shared_ptr<TileBufferPool>& tile_buffers) {
+  std::uint64_t n = 0;
+  const auto t0 = Clock::now();
+  const auto deadline = t0 + std::chrono::duration<double>(seconds);
+  double stored = 0, decoded = 0;
+  while (Clock::now() < deadline || n < samples.size())
+    for (const Sample& s : samples) {
+      const DecodeResult r = decode_record(store, s.key, s.record.data(), s.record.size(), /*verify=*/true, tile_buffers);
+      if (r.fault != Fault::none) throw InputError(r.error, "calibration decode failed");
+      stored += s.stored;
+      decoded += s.decoded;
+      ++n;
+    }
+  const double secs = std::chrono::duration<double>(Clock::now() - t0).count();
+  DecodePoint p;
+  p.what = fmt::format("layer {} ({})", store.layer(L).name, codec_name(store.layer(L).codec));
+  p.workers = 1;
+  p.tiles = n;
+  p.us_per_tile = secs * 1e6 / static_cast<double>(n);
+  p.tiles_per_s = static_cast<double>(n) / secs;
+  p.decoded_MBps = decoded / secs / 1e6;
+  p.stored_bytes = stored / static_cast<double>(n);
+  p.decoded_bytes = decoded / static_cast<double>(n);
+  return p;
+}
+
+// The pool's worker counts to measure, ascending: powers of two up to max(decode_workers, 2), and
+// decode_workers.
+std::vector<int> pool_worker_counts(int decode_workers) {
+  std::vector<int> workers_list;
+  for (int w = 1; w <= std::max(decode_workers, 2); w *= 2) workers_list.push_back(w);
+  if (std::find(workers_list.begin(), workers_list.end(), decode_workers) == workers_list.end()) workers_list.push_back(decode_workers);
+  std::sort(workers_list.begin(), workers_list.end());
+  return workers_list;
+}
+
+// The decode pool with `w` workers for `seconds`, fed the layers' samples in turn (every layer of a
+// tile, as a replay requests them); `buffers` holds records of the largest sample.
+DecodePoint measure_decode_pool(const TileStore& store, const std::vector<std::vector<Sample>>& by_layer, int w, double seconds,
+                                const std::shared_ptr<BufferPool>& buffers) {
+  WallClock clock;
+  std::atomic<std::uint64_t> done{0}, failed{0};
+  std::uint64_t submitted = 0;
+  double decoded = 0;
+  const auto t0 = Clock::now();
+  {
+    DecodePool pool(store, w, clock, [&](DecodeResult&& r) {
+      if (r.fault != Fault::none) failed.fetch_add(1);
+      done.fetch_add(1, std::memory_order_release);
+    });
+    const auto deadline = t0 + std::chrono::duration<double>(seconds);
+    // Keep 32 tasks per worker queued: this thread refills after sleeping >= 50 us, and with only a
+    // few tasks (~25 us each) per worker the workers ran dry between refills, which measured the
+    // refill loop rather than the pool (2 workers "reached 1.05x one worker" on 2 idle cores).
+    std::size_t i = 0;
+    std::vector<const Sample*> order;
+    for (std::size_t j = 0; j < by_layer[0].size(); ++j)
+      for (const auto& v : by_layer)
+        if (j < v.size()) order.push_back(&v[j]);
+    while (Clock::now() < deadline) {
+      while (submitted - done.load(std::memory_order_acquire) < static_cast<std::uint64_t>(32 * w)) {
+        const Sample& s = *order[i++ % order.size()];
+        RecordBuffer b = buffers->acquire();
+        std::copy(s.record.begin(), s.record.end(), b.data());
+        DecodeTask t{submitted + 1, s.key, 0, std::move(b), s.record.size()};
+        pool.submit(t);
+        ++submitted;
+        decoded += s.decoded;
+      }
+      std::this_thread::sleep_for(std::chrono::microseconds(50));
+    }
+    while (done.load(std::memory_order_acquire) < submitted) std::this_thread::sleep_for(std::chrono::microseconds(50));
+  }
+  const double secs = std::chrono::duration<double>(Clock::now() - t0).count();
+  if (failed.load()) throw InputError(store.path(), "calibration decode failed in the pool");
+  DecodePoint p;
+  p.what = "pool (layer mix)";
+  p.workers = w;
+  p.tiles = submitted;
+  p.tiles_per_s = static_cast<double>(submitted) / secs;
+  p.us_per_tile = secs * 1e6 * w / static_cast<double>(submitted);
+  p.decoded_MBps = decoded / secs / 1e6;
+  p.decoded_bytes = decoded / static_cast<double>(submitted);
+  return p;
+}
+
+// The decode model from the per-layer means on one worker (layer_us: us per tile; layer_decoded:
+// decoded bytes per tile) and the pool's measured tiles/s at `workers` (0: not measured). Cost per
+// tile on one worker: per_tile + bytes / throughput by least squares over layers when their decoded
+// sizes differ, else a per-tile cost only. Then scaled by the pool's measured speed-up at `workers`
+// (workers share cores with IO and the frame loop). How it went goes to `notes`.
+DecodeModel fit_decode_model(const std::vector<double>& layer_us, const std::vector<double>& layer_decoded, int workers,
+                             double pool_tiles_per_s, std::vector<std::string>& notes) {
+  double per_tile = 0, per_byte = 0;
+  const bool sizes_differ = std::adjacent_find(layer_decoded.begin(), layer_decoded.end(), std::not_equal_to<>()) != layer_decoded.end();
+  if (sizes_differ) fit_line(layer_decoded, layer_us, per_tile, per_byte);
+  if (!sizes_differ || per_tile < 0 || per_byte <= 0) {
+    per_tile = std::accumulate(layer_us.begin(), layer_us.end(), 0.0) / static_cast<double>(layer_us.size());
+    per_byte = 0;
+  }
+  const double solo_tiles_per_s = 1e6 / (per_tile + per_byte * std::accumulate(layer_decoded.begin(), layer_decoded.end(), 0.0) /
+                                                       static_cast<double>(layer_decoded.size()));
+  const double scale = pool_tiles_per_s > 0 ? workers * solo_tiles_per_s / pool_tiles_per_s : 1.0;
+  DecodeModel m;
+  m.per_tile_us = per_tile * scale;
+  m.throughput_MBps = per_byte > 0 ? 1.0 / (per_byte * scale) : 0.0;
+  m.workers = workers;
+  notes.push_back(fmt::format("decode: {:.1f} us per tile on one worker; {} workers reach {:.2f}x one worker, so each counts "
+                              "{:.1f} us per tile",
+                              1e6 / solo_tiles_per_s, workers, pool_tiles_per_s / solo_tiles_per_s, m.per_tile_us));
+  return m;
+}
+
+}  // namespace
+
 Calibration calibrate(const TileStore& store, const CalibrateOptions& o, const CalibrateProgress& progress) {
   if (o.io_threads < 1 || o.io_threads > 256) throw InputError("--io-threads", "must be in 1..256");
   if (o.decode_workers < 1 || o.decode_workers > 256) throw InputError("--decode-workers", "must be in 1..256");
@@ -171,25 +347,10 @@ Calibration calibrate(const TileStore& store, const CalibrateOptions& o, const C
   c.direct = d.file.direct();
   c.direct_warning = d.warning;
   const std::uint64_t lo = store.header().data_offset, hi = store.header().file_bytes;
-  const auto totals = store.totals();
-  std::uint64_t read_bytes = 0, tiles = 0;
-  for (const auto& t : totals) read_bytes += t.read_bytes, tiles += t.tiles;
-  c.mean_read_bytes = static_cast<double>(read_bytes) / static_cast<double>(tiles);
+  c.mean_read_bytes = store_mean_read_bytes(store);
   const auto typical = static_cast<std::uint32_t>(std::max<std::uint64_t>(store::kAlign, store::round_up(static_cast<std::uint64_t>(c.mean_read_bytes), store::kAlign)));
-  std::vector<std::uint32_t> sizes = o.sizes;
-  if (sizes.empty()) sizes = {4096, 16384, 65536, 262144};
-  if (std::find(sizes.begin(), sizes.end(), typical) == sizes.end()) sizes.push_back(typical);
-  std::sort(sizes.begin(), sizes.end());
-  for (std::uint32_t s : sizes) {
-    if (s == 0 || s % store::kAlign != 0) throw InputError("--sizes", fmt::format("{} is not a positive multiple of 4096", s));
-    if (s > hi - lo) throw InputError("--sizes", fmt::format("{} bytes is larger than the store's data region ({} bytes)", s, hi - lo));
-  }
-  std::vector<int> conc = o.concurrency;
-  if (conc.empty()) conc = {1, 2, 4, 8};
-  if (std::find(conc.begin(), conc.end(), o.io_threads) == conc.end()) conc.push_back(o.io_threads);
-  std::sort(conc.begin(), conc.end());
-  for (int k : conc)
-    if (k < 1 || k > 256) throw InputError("--concurrency", fmt::format("{} is outside 1..256", k));
+  const std::vector<std::uint32_t> sizes = calibration_sizes(o.sizes, typical, hi - lo);
+  const std::vector<int> conc = calibration_concurrency(o.concurrency, o.io_threads);
   for (std::uint32_t s : sizes)
     for (int k : conc) {
       say(fmt::format("reads of {} KiB, {} in flight", s / 1024, k));
@@ -197,137 +358,29 @@ Calibration calibrate(const TileStore& store, const CalibrateOptions& o, const C
     }
 
   // ---- decode ----
-  ReadFile f = open_for_read(store.path(), false).file;
-  std::mt19937_64 rng(o.seed);
-  std::vector<std::vector<Sample>> by_layer(store.layer_count());
-  const std::uint64_t per_layer = store.geometry().tiles_per_layer;
-  for (std::uint32_t L = 0; L < store.layer_count(); ++L)
-    for (std::uint32_t i = 0; i < std::min<std::uint64_t>(o.decode_sample, per_layer); ++i) {
-      const TileKey k = store.geometry().key_of_slot(L * per_layer + rng() % per_layer);
-      const TileLocation loc = store.locate(k);
-      Sample s;
-      s.key = k;
-      s.stored = loc.stored_bytes;
-      s.decoded = loc.decoded_bytes;
-      s.record.resize(loc.read_bytes);
-      if (f.pread_full(s.record.data(), loc.read_bytes, loc.offset) < loc.stored_bytes)
-        throw InputError(store.path() + ": " + store::describe(k), "short read while sampling tiles");
-      by_layer[L].push_back(std::move(s));
-    }
-  // One worker, per layer (= per codec): the decode pool's work (checksum, then decode) on this thread.
+  const std::vector<std::vector<Sample>> by_layer = sample_decode_tiles(store, o.decode_sample, o.seed);
   auto tile_buffers = std::make_shared<TileBufferPool>();
   std::vector<double> layer_us, layer_decoded;
   for (std::uint32_t L = 0; L < store.layer_count(); ++L) {
     say(fmt::format("decode layer {} ({}), one worker", store.layer(L).name, codec_name(store.layer(L).codec)));
-    std::uint64_t n = 0;
-    const auto t0 = Clock::now();
-    const auto deadline = t0 + std::chrono::duration<double>(o.seconds_per_point);
-    double stored = 0, decoded = 0;
-    while (Clock::now() < deadline || n < by_layer[L].size())
-      for (const Sample& s : by_layer[L]) {
-        const DecodeResult r = decode_record(store, s.key, s.record.data(), s.record.size(), /*verify=*/true, tile_buffers);
-        if (r.fault != Fault::none) throw InputError(r.error, "calibration decode failed");
-        stored += s.stored;
-        decoded += s.decoded;
-        ++n;
-      }
-    const double secs = std::chrono::duration<double>(Clock::now() - t0).count();
-    DecodePoint p;
-    p.what = fmt::format("layer {} ({})", store.layer(L).name, codec_name(store.layer(L).codec));
-    p.workers = 1;
-    p.tiles = n;
-    p.us_per_tile = secs * 1e6 / static_cast<double>(n);
-    p.tiles_per_s = static_cast<double>(n) / secs;
-    p.decoded_MBps = decoded / secs / 1e6;
-    p.stored_bytes = stored / static_cast<double>(n);
-    p.decoded_bytes = decoded / static_cast<double>(n);
-    c.decodes.push_back(p);
-    layer_us.push_back(p.us_per_tile);
-    layer_decoded.push_back(p.decoded_bytes);
+    c.decodes.push_back(measure_layer_decode(store, L, by_layer[L], o.seconds_per_point, tile_buffers));
+    layer_us.push_back(c.decodes.back().us_per_tile);
+    layer_decoded.push_back(c.decodes.back().decoded_bytes);
   }
-  // The decode pool by worker count, on the mix of layers the replay requests (every layer of a tile).
   std::size_t max_record = 0;
   for (const auto& v : by_layer)
     for (const auto& s : v) max_record = std::max(max_record, s.record.size());
   auto buffers = std::make_shared<BufferPool>(max_record, 4096);
-  std::vector<int> workers_list;
-  for (int w = 1; w <= std::max(o.decode_workers, 2); w *= 2) workers_list.push_back(w);
-  if (std::find(workers_list.begin(), workers_list.end(), o.decode_workers) == workers_list.end()) workers_list.push_back(o.decode_workers);
-  std::sort(workers_list.begin(), workers_list.end());
   double pool_tiles_per_s_at_w = 0;
-  for (int w : workers_list) {
+  for (int w : pool_worker_counts(o.decode_workers)) {
     say(fmt::format("decode pool, {} workers", w));
-    WallClock clock;
-    std::atomic<std::uint64_t> done{0}, failed{0};
-    std::uint64_t submitted = 0;
-    double decoded = 0;
-    const auto t0 = Clock::now();
-    {
-      DecodePool pool(store, w, clock, [&](DecodeResult&& r) {
-        if (r.fault != Fault::none) failed.fetch_add(1);
-        done.fetch_add(1, std::memory_order_release);
-      });
-      const auto deadline = t0 + std::chrono::duration<double>(o.seconds_per_point);
-      // Keep 32 tasks per worker queued: this thread refills after sleeping >= 50 us, and with only a
-      // few tasks (~25 us each) per worker the workers ran dry between refills, which measured the
-      // refill loop rather than the pool (2 workers "reached 1.05x one worker" on 2 idle cores).
-      std::size_t i = 0;
-      std::vector<const Sample*> order;
-      for (std::size_t j = 0; j < by_layer[0].size(); ++j)
-        for (const auto& v : by_layer)
-          if (j < v.size()) order.push_back(&v[j]);
-      while (Clock::now() < deadline) {
-        while (submitted - done.load(std::memory_order_acquire) < static_cast<std::uint64_t>(32 * w)) {
-          const Sample& s = *order[i++ % order.size()];
-          RecordBuffer b = buffers->acquire();
-          std::copy(s.record.begin(), s.record.end(), b.data());
-          DecodeTask t{submitted + 1, s.key, 0, std::move(b), s.record.size()};
-          pool.submit(t);
-          ++submitted;
-          decoded += s.decoded;
-        }
-        std::this_thread::sleep_for(std::chrono::microseconds(50));
-      }
-      while (done.load(std::memory_order_acquire) < submitted) std::this_thread::sleep_for(std::chrono::microseconds(50));
-    }
-    const double secs = std::chrono::duration<double>(Clock::now() - t0).count();
-    if (failed.load()) throw InputError(store.path(), "calibration decode failed in the pool");
-    DecodePoint p;
-    p.what = "pool (layer mix)";
-    p.workers = w;
-    p.tiles = submitted;
-    p.tiles_per_s = static_cast<double>(submitted) / secs;
-    p.us_per_tile = secs * 1e6 * w / static_cast<double>(submitted);
-    p.decoded_MBps = decoded / secs / 1e6;
-    p.decoded_bytes = decoded / static_cast<double>(submitted);
-    c.decodes.push_back(p);
-    if (w == o.decode_workers) pool_tiles_per_s_at_w = p.tiles_per_s;
+    c.decodes.push_back(measure_decode_pool(store, by_layer, w, o.seconds_per_point, buffers));
+    if (w == o.decode_workers) pool_tiles_per_s_at_w = c.decodes.back().tiles_per_s;
   }
 
-  // ---- fit: disk ----
+  // ---- fit ----
   c.disk = fit_disk_model(c.reads, o.io_threads, typical, &c.notes);
-
-  // ---- fit: decode ----
-  // Cost per tile on one worker, from the per-layer means: per_tile + bytes / throughput by least
-  // squares over layers when their decoded sizes differ, else a per-tile cost only. Then scaled by
-  // the pool's measured speed-up at decode_workers (workers share cores with IO and the frame loop).
-  double per_tile = 0, per_byte = 0;
-  const bool sizes_differ = std::adjacent_find(layer_decoded.begin(), layer_decoded.end(), std::not_equal_to<>()) != layer_decoded.end();
-  if (sizes_differ) fit_line(layer_decoded, layer_us, per_tile, per_byte);
-  if (!sizes_differ || per_tile < 0 || per_byte <= 0) {
-    per_tile = std::accumulate(layer_us.begin(), layer_us.end(), 0.0) / static_cast<double>(layer_us.size());
-    per_byte = 0;
-  }
-  const double solo_tiles_per_s = 1e6 / (per_tile + per_byte * std::accumulate(layer_decoded.begin(), layer_decoded.end(), 0.0) /
-                                                       static_cast<double>(layer_decoded.size()));
-  const double scale = pool_tiles_per_s_at_w > 0 ? o.decode_workers * solo_tiles_per_s / pool_tiles_per_s_at_w : 1.0;
-  c.decode.per_tile_us = per_tile * scale;
-  c.decode.throughput_MBps = per_byte > 0 ? 1.0 / (per_byte * scale) : 0.0;
-  c.decode.workers = o.decode_workers;
-  c.notes.push_back(fmt::format("decode: {:.1f} us per tile on one worker; {} workers reach {:.2f}x one worker, so each counts "
-                                "{:.1f} us per tile",
-                                1e6 / solo_tiles_per_s, o.decode_workers, pool_tiles_per_s_at_w / solo_tiles_per_s,
-                                c.decode.per_tile_us));
+  c.decode = fit_decode_model(layer_us, layer_decoded, o.decode_workers, pool_tiles_per_s_at_w, c.notes);
   return c;
 }
 

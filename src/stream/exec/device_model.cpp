@@ -5,22 +5,26 @@
 
 namespace vtsim {
 
-const std::vector<DevicePreset>& disk_presets() {
+const Registry<DevicePreset>& disk_presets() {
   // Round figures of typical devices; override any field in the config.
-  static const std::vector<DevicePreset> presets = {
-      {"hdd", "7200 rpm disk: ~8 ms seek + rotation, ~150 MB/s sequential, one head", {8000.0, 150.0, 1}},
-      {"sata_ssd", "SATA SSD: ~100 us read latency, 530 MB/s (SATA III limit), NCQ depth 32", {100.0, 530.0, 32}},
-      {"nvme", "PCIe 3.0 x4 NVMe SSD: ~80 us read latency, ~3000 MB/s, deep queues", {80.0, 3000.0, 64}},
-      {"optical", "2x Blu-ray (PS3-class): ~100 ms seek, 9 MB/s (72 Mbit/s), one head", {100000.0, 9.0, 1}},
-      {"unconstrained", "instant and unlimited: for closed-form checks", {0.0, 0.0, 0}},
-  };
+  static const Registry<DevicePreset> presets(
+      "disk preset",
+      {
+          {"hdd", "7200 rpm disk: ~8 ms seek + rotation, ~150 MB/s sequential, one head", {8000.0, 150.0, 1}},
+          {"sata_ssd", "SATA SSD: ~100 us read latency, 530 MB/s (SATA III limit), NCQ depth 32", {100.0, 530.0, 32}},
+          {"nvme", "PCIe 3.0 x4 NVMe SSD: ~80 us read latency, ~3000 MB/s, deep queues", {80.0, 3000.0, 64}},
+          {"optical", "2x Blu-ray (PS3-class): ~100 ms seek, 9 MB/s (72 Mbit/s), one head", {100000.0, 9.0, 1}},
+          {"unconstrained", "instant and unlimited: for closed-form checks", {0.0, 0.0, 0}},
+      });
   return presets;
 }
 
-const DevicePreset* find_disk_preset(const std::string& name) {
-  for (const auto& p : disk_presets())
-    if (p.name == name) return &p;
-  return nullptr;
+DiskModel disk_model(const DiskConfig& c) {
+  DiskModel d = disk_presets().at(c.preset).disk;
+  if (c.latency_us >= 0) d.latency_us = c.latency_us;
+  if (c.bandwidth_MBps >= 0) d.bandwidth_MBps = c.bandwidth_MBps;
+  if (c.channels >= 0) d.channels = c.channels;
+  return d;
 }
 
 double disk_throughput_Bps(const DiskModel& d, double bytes_per_request) {

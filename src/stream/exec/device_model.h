@@ -5,8 +5,10 @@
 // fills the same structs.
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
+#include "core/registry.h"
 #include "core/time.h"
 
 namespace vtsim {
@@ -28,24 +30,36 @@ struct DecodeModel {
   int workers = 2;               // decode threads; 0 = unlimited
 };
 
-// Upload to VRAM: a per-frame budget (bytes and/or tiles; 0 = unlimited) over a link of finite
-// bandwidth. Uploads issued in a frame are visible in that frame; the link caps a frame's bytes at
-// link bandwidth x frame period.
+// Upload to VRAM: a per-frame budget (bytes and/or tiles) over a link of finite bandwidth. Uploads
+// issued in a frame are visible in that frame; the link caps a frame's bytes at link bandwidth x
+// frame period. The fields are the config's [upload] section.
 struct UploadModel {
-  std::uint64_t bytes_per_frame = 0;  // budget, bytes per frame; 0 = unlimited
-  int tiles_per_frame = 16;           // budget, tiles per frame; 0 = unlimited (Unity Clipmap: MaxUploadsPerFrame)
-  double link_MBps = 12000.0;         // host -> VRAM link bandwidth, MB/s; 0 = unlimited (~PCIe 3.0 x16)
+  int tiles_per_frame = 16;              // budget, tiles per frame; -1 = no tile limit (Unity Clipmap: MaxUploadsPerFrame)
+  std::int64_t bytes_per_frame = -1;     // budget, bytes per frame; -1 = no byte limit
+  double link_MBps = 12000.0;            // host -> VRAM link bandwidth, MB/s; 0 = unlimited (~PCIe 3.0 x16)
 };
 
+// A disk preset: a named DiskModel with what it stands for.
 struct DevicePreset {
-  std::string name;
-  std::string why;  // what it stands for, with the source of its figures
+  std::string_view name;
+  std::string_view why;  // what it stands for, with the source of its figures
   DiskModel disk;
 };
 
 // hdd, sata_ssd, nvme, optical, unconstrained (instant, unlimited: for closed-form checks).
-const std::vector<DevicePreset>& disk_presets();
-const DevicePreset* find_disk_preset(const std::string& name);
+// Adding a preset is one line in device_model.cpp.
+const Registry<DevicePreset>& disk_presets();
+
+// The config's [disk] section: a preset, and any of its fields overridden (-1 = the preset's).
+struct DiskConfig {
+  std::string preset = "nvme";     // a name of disk_presets()
+  double latency_us = -1.0;        // per-request latency, us; -1 = the preset's
+  double bandwidth_MBps = -1.0;    // shared transfer bandwidth, MB/s; 0 = unlimited; -1 = the preset's
+  int channels = -1;               // requests in service at once; 0 = unlimited; -1 = the preset's
+};
+// The preset with the overrides applied. Throws std::invalid_argument (Registry::at) for an
+// unknown preset.
+DiskModel disk_model(const DiskConfig& c);
 
 // Sustainable bytes/s of the disk for requests of `bytes` each (Little's law over the channels,
 // capped by the bus): used by throttling to predict how long a backlog takes.

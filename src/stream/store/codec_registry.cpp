@@ -1,7 +1,9 @@
-// The codec table: adding a codec is one impl/codec_<name>.cpp plus one line in kCodecs.
+// The codec table: adding a codec is one impl/codec_<name>.cpp plus one line in codecs() (and
+// its make function declared above it).
 // Ids are part of the file format (docs/store-format.md §3): never renumber one.
 #include <charconv>
 #include <string>
+#include <vector>
 
 #include "core/error.h"
 #include "stream/store/i_codec.h"
@@ -14,25 +16,28 @@ std::unique_ptr<ICodec> make_lz4_codec(int level);
 std::unique_ptr<ICodec> make_png_codec(int level);
 std::unique_ptr<ICodec> make_jpeg_codec(int quality);
 
+const Registry<CodecInfo>& codecs() {
+  // Why each default parameter: docs/store-format.md §3.
+  static const Registry<CodecInfo> table(
+      "codec",
+      {
+          {store::CodecId::raw, "raw", "raw", "uncompressed texels: no decode cost, the most disk bytes", 0, make_raw_codec},
+          {store::CodecId::zstd, "zstd", "zstd[:1-22]", "Zstandard, lossless (level 9 by default): small tiles, decode speed barely depends on the level",
+           9, make_zstd_codec},
+          {store::CodecId::lz4, "lz4", "lz4[:0|3-12]", "LZ4, lossless (0 = fast LZ4, 3-12 = LZ4HC level): the fastest decode, larger tiles", 0,
+           make_lz4_codec},
+          {store::CodecId::png, "png", "png[:0-9]", "PNG through OpenImageIO, lossless (zlib level 6 by default): slow decode, allocates per call",
+           6, make_png_codec},
+          {store::CodecId::jpeg, "jpeg", "jpeg[:1-100]", "JPEG through OpenImageIO, lossy (quality 90 by default; also jpg): 1 or 3 channels",
+           90, make_jpeg_codec},
+      });
+  return table;
+}
+
 namespace {
 
-struct CodecEntry {
-  store::CodecId id;
-  std::string_view name;
-  int default_param;  // why each default: see docs/store-format.md §3
-  std::unique_ptr<ICodec> (*make)(int);
-};
-
-constexpr CodecEntry kCodecs[] = {
-    {store::CodecId::raw, "raw", 0, make_raw_codec},
-    {store::CodecId::zstd, "zstd", 9, make_zstd_codec},
-    {store::CodecId::lz4, "lz4", 0, make_lz4_codec},
-    {store::CodecId::png, "png", 6, make_png_codec},
-    {store::CodecId::jpeg, "jpeg", 90, make_jpeg_codec},
-};
-
-const CodecEntry* entry(store::CodecId id) {
-  for (const auto& e : kCodecs)
+const CodecInfo* entry(store::CodecId id) {
+  for (const auto& e : codecs().entries())
     if (e.id == id) return &e;
   return nullptr;
 }
@@ -40,7 +45,7 @@ const CodecEntry* entry(store::CodecId id) {
 }  // namespace
 
 std::unique_ptr<ICodec> make_codec(store::CodecId id, int param, const std::string& where) {
-  const CodecEntry* e = entry(id);
+  const CodecInfo* e = entry(id);
   if (!e) throw InputError(where, "unknown codec id " + std::to_string(static_cast<std::uint32_t>(id)));
   try {
     return e->make(param);
@@ -50,31 +55,36 @@ std::unique_ptr<ICodec> make_codec(store::CodecId id, int param, const std::stri
 }
 
 int default_codec_param(store::CodecId id) {
-  const CodecEntry* e = entry(id);
+  const CodecInfo* e = entry(id);
   return e ? e->default_param : 0;
 }
 
 bool codec_from_name(std::string_view name, store::CodecId& out) {
   if (name == "jpg") name = "jpeg";
-  for (const auto& e : kCodecs)
-    if (e.name == name) {
-      out = e.id;
-      return true;
-    }
-  return false;
+  const CodecInfo* e = codecs().find(name);
+  if (e) out = e->id;
+  return e != nullptr;
 }
 
 std::string_view codec_name(store::CodecId id) {
-  const CodecEntry* e = entry(id);
+  const CodecInfo* e = entry(id);
   return e ? e->name : std::string_view("unknown");
 }
 
 const ICodec& decoder_for(store::CodecId id) {
-  // Decoding does not depend on the parameter; one shared immutable object per id.
-  static const std::unique_ptr<ICodec> decoders[] = {
-      make_raw_codec(0), make_zstd_codec(1), make_lz4_codec(0), make_png_codec(6), make_jpeg_codec(90)};
+  // Decoding does not depend on the parameter: one shared immutable object per id, made with the
+  // default parameter.
+  static const std::vector<std::unique_ptr<ICodec>> decoders = [] {
+    std::vector<std::unique_ptr<ICodec>> d;
+    for (const CodecInfo& e : codecs().entries()) {
+      const auto i = static_cast<std::size_t>(e.id);
+      if (d.size() <= i) d.resize(i + 1);
+      d[i] = e.make(e.default_param);
+    }
+    return d;
+  }();
   const auto i = static_cast<std::uint32_t>(id);
-  if (i >= std::size(decoders)) throw CodecError("unknown codec id " + std::to_string(i));
+  if (i >= decoders.size() || !decoders[i]) throw CodecError("unknown codec id " + std::to_string(i));
   return *decoders[i];
 }
 
@@ -83,9 +93,7 @@ CodecSpec parse_codec_spec(std::string_view text, const std::string& where) {
   const auto colon = text.find(':');
   const std::string_view name = text.substr(0, colon);
   if (!codec_from_name(name, spec.id)) {
-    std::string known;
-    for (const auto& e : kCodecs) known += (known.empty() ? "" : ", ") + std::string(e.name);
-    throw InputError(where, "unknown codec '" + std::string(name) + "' (known: " + known + ")");
+    throw InputError(where, "unknown codec '" + std::string(name) + "' (known: " + codecs().names() + ")");
   }
   spec.param = default_codec_param(spec.id);
   if (colon != std::string_view::npos) {

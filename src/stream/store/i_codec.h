@@ -18,6 +18,7 @@
 #include <string_view>
 #include <vector>
 
+#include "core/registry.h"
 #include "stream/store/store_format.h"
 
 namespace vtsim {
@@ -44,6 +45,17 @@ class ICodec {
   virtual void decode(const std::uint8_t* bytes, std::size_t size, int w, int h, int channels,
                       std::uint8_t* out) const = 0;
 };
+
+// A codec's entry in the table (codec_registry.cpp).
+struct CodecInfo {
+  store::CodecId id;        // part of the file format: never renumbered
+  std::string_view name;
+  std::string_view spec;    // how --codec writes it with its parameter's range: "zstd[:1-22]"
+  std::string_view why;
+  int default_param;        // docs/store-format.md §3
+  std::unique_ptr<ICodec> (*make)(int param);  // throws InputError for an out-of-range parameter
+};
+const Registry<CodecInfo>& codecs();
 
 // A codec with its parameter (zstd level, lz4hc level or 0 for fast lz4, JPEG quality, PNG zlib
 // level; ignored by raw). Throws InputError naming `where` for an out-of-range parameter.

@@ -2,16 +2,60 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
 
 namespace vtsim {
 
-ClipmapSystem::ClipmapSystem(const ClipmapSystemParams& p) : p_(p), cm_(p.clipmap) {}
+ClipmapSystem::ClipmapSystem(const SystemSetup& s, const ClipmapConfig& c) : s_(s), cm_(params(s, c)) {}
+
+ClipmapParams ClipmapSystem::params(const SystemSetup& s, const ClipmapConfig& c) {
+  ClipmapParams p;
+  static_cast<ClipmapConfig&>(p) = c;
+  p.extent = s.extent;
+  p.tile_size = s.tile_size;
+  p.layers = s.layers;
+  return p;
+}
+
+namespace {
+
+// Largest clip window side in tiles: 256² tiles a level is already far beyond any engine's window
+// (RAGE-style clipmaps keep 8-32 tiles a side), and a frame tracks every tile of every window.
+constexpr int kMaxClipTiles = 256;
+
+[[noreturn]] void bad_clipmap_field(const std::string& key, const std::string& what) {
+  throw InputError("config", "field '" + key + "': " + what);
+}
+
+}  // namespace
+
+void ClipmapSystem::validate(const SystemSetup& s, const ClipmapConfig& c, const ThrottleParams&) {
+  if (c.clipsize % s.tile_size != 0)
+    bad_clipmap_field("clipmap.clipsize", fmt::format("{} is not a multiple of texture.tile_size {}", c.clipsize, s.tile_size));
+  // A window is (clipsize / tile)² tiles per level, all tracked every frame.
+  if (c.clipsize / s.tile_size > kMaxClipTiles)
+    bad_clipmap_field("clipmap.clipsize", fmt::format("{} is more than {} tiles of {} texels a side: use larger tiles",
+                                                      c.clipsize, kMaxClipTiles, s.tile_size));
+  if (s.border != 0)
+    bad_clipmap_field("texture.border", "the clipmap's toroidal windows keep neighbours adjacent: borders must be 0");
+}
+
+int ClipmapSystem::store_levels(const SystemSetup& s, const ClipmapConfig&) { return mip_level_count(s.extent); }
+
+VramArena ClipmapSystem::vram_arena(const SystemSetup& s, const ClipmapConfig& c, std::vector<std::uint32_t> layer_bytes,
+                                    std::uint64_t host_limit) {
+  return VramArena::for_clipmap(params(s, c), std::move(layer_bytes), host_limit);
+}
 
 std::int64_t ClipmapSystem::ground_u(double x_m) const {
-  return static_cast<std::int64_t>(std::floor((x_m - p_.origin_x_m) * p_.texels_per_m));
+  return static_cast<std::int64_t>(std::floor((x_m - s_.origin_x_m) * s_.texels_per_m));
 }
 std::int64_t ClipmapSystem::ground_v(double y_m) const {
-  return static_cast<std::int64_t>(std::floor((y_m - p_.origin_y_m) * p_.texels_per_m));
+  return static_cast<std::int64_t>(std::floor((y_m - s_.origin_y_m) * s_.texels_per_m));
 }
 
 void ClipmapSystem::begin_frame(const SystemFrame& f) {
@@ -19,18 +63,18 @@ void ClipmapSystem::begin_frame(const SystemFrame& f) {
   gu_ = ground_u(f.pose->pos_m.x);
   gv_ = ground_v(f.pose->pos_m.y);
   finest_active_ = std::min(f.finest_needed, cm_.num_levels());
-  if (f.spans) aggregate_feedback(*f.spans, p_.clipmap.tile_size, cm_.num_levels(), uses_);
-  else if (f.view) aggregate_feedback(*f.view, p_.clipmap.tile_size, cm_.num_levels(), uses_);
+  if (f.spans) aggregate_feedback(*f.spans, s_.tile_size, cm_.num_levels(), uses_);
+  else if (f.view) aggregate_feedback(*f.view, s_.tile_size, cm_.num_levels(), uses_);
   else uses_.clear();
-  prefetch_ = p_.prefetch_lookahead_s > 0 && (f.velocity_mps.x != 0.0 || f.velocity_mps.y != 0.0);
+  prefetch_ = s_.prefetch_lookahead_s > 0 && (f.velocity_mps.x != 0.0 || f.velocity_mps.y != 0.0);
   if (prefetch_) {
-    fu_ = ground_u(f.pose->pos_m.x + f.velocity_mps.x * p_.prefetch_lookahead_s);
-    fv_ = ground_v(f.pose->pos_m.y + f.velocity_mps.y * p_.prefetch_lookahead_s);
+    fu_ = ground_u(f.pose->pos_m.x + f.velocity_mps.x * s_.prefetch_lookahead_s);
+    fv_ = ground_v(f.pose->pos_m.y + f.velocity_mps.y * s_.prefetch_lookahead_s);
   }
 }
 
 void ClipmapSystem::missing_bytes_by_level(std::vector<std::uint64_t>& out) const {
-  cm_.missing_bytes_by_level(gu_, gv_, finest_active_, p_.tile_bytes_all_layers, out);
+  cm_.missing_bytes_by_level(gu_, gv_, finest_active_, s_.tile_bytes_all_layers, out);
 }
 
 std::uint64_t ClipmapSystem::importance(int level, std::int64_t x, std::int64_t y) const {
@@ -47,8 +91,8 @@ void ClipmapSystem::emit_needs(std::vector<Need>& out) {
   throttled_ = 0;
   if (cm_.clamp() > finest_active_) {
     std::vector<std::uint64_t> missing;
-    cm_.missing_bytes_by_level(gu_, gv_, finest_active_, p_.tile_bytes_all_layers, missing);
-    const std::uint64_t per_tile = std::max<std::uint64_t>(1, p_.tile_bytes_all_layers / static_cast<std::uint64_t>(p_.clipmap.layers));
+    cm_.missing_bytes_by_level(gu_, gv_, finest_active_, s_.tile_bytes_all_layers, missing);
+    const std::uint64_t per_tile = std::max<std::uint64_t>(1, s_.tile_bytes_all_layers / static_cast<std::uint64_t>(s_.layers));
     for (int l = finest_active_; l < cm_.clamp() && l < cm_.num_levels(); ++l)
       throttled_ += static_cast<std::uint32_t>(missing[static_cast<std::size_t>(l)] / per_tile);
   }
@@ -66,19 +110,19 @@ bool ClipmapSystem::commit(TileKey key, int frame) {
   if (key.layer() == 0 && !evicted_at_.empty()) {
     auto it = evicted_at_.find(pack(key.level(), key.x(), key.y()));
     if (it != evicted_at_.end()) {
-      if (frame - it->second <= p_.thrash_frames) ++thrash_;
+      if (frame - it->second <= s_.thrash_frames) ++thrash_;
       evicted_at_.erase(it);
     }
   }
   if (evicted_at_.size() > 65536) {  // forget evictions too old to count as thrash
     for (auto it = evicted_at_.begin(); it != evicted_at_.end();)
-      it = frame - it->second > p_.thrash_frames ? evicted_at_.erase(it) : std::next(it);
+      it = frame - it->second > s_.thrash_frames ? evicted_at_.erase(it) : std::next(it);
   }
   return true;
 }
 
 std::uint64_t ClipmapSystem::evicted_unsampled_bytes() const {
-  return cm_.stats().evicted_unsampled * (p_.tile_bytes_all_layers / static_cast<std::uint64_t>(p_.clipmap.layers));
+  return cm_.stats().evicted_unsampled * (s_.tile_bytes_all_layers / static_cast<std::uint64_t>(s_.layers));
 }
 
 nlohmann::json ClipmapSystem::stats_json() const {

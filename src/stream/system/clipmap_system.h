@@ -3,26 +3,32 @@
 // non-resident tiles of the active levels' windows (pyramid first: coarse before fine), screen
 // importance comes from the feedback, and look-ahead prefetch fetches the band the windows will
 // enter (Yao 2007 §4-2). docs/clipmap.md.
+#include <string_view>
 #include <unordered_map>
 
 #include "cache/clipmap.h"
+#include "cache/vram_arena.h"
 #include "stream/system/feedback.h"
 #include "stream/system/i_system.h"
 
 namespace vtsim {
 
-struct ClipmapSystemParams {
-  ClipmapParams clipmap;
-  double texels_per_m = 128.0;           // ground texel density, level 0
-  double origin_x_m = 0.0, origin_y_m = 0.0;  // world position of texel (0, 0)
-  std::uint64_t tile_bytes_all_layers = 0;    // decoded bytes of one tile, all layers summed
-  double prefetch_lookahead_s = 0.0;     // 0 = off
-  int thrash_frames = 60;
-};
-
 class ClipmapSystem final : public IStreamingSystem {
  public:
-  explicit ClipmapSystem(const ClipmapSystemParams& p);
+  ClipmapSystem(const SystemSetup& s, const ClipmapConfig& c);
+  // What the systems' table (sim/run/systems.cpp) reads.
+  using Config = ClipmapConfig;  // the config's [clipmap] section
+  // The clipmap structure's parameters (cache/clipmap.h): the section plus the texture.
+  static ClipmapParams params(const SystemSetup& s, const ClipmapConfig& c);
+  // Cross-field checks; throws InputError("config", "field 'clipmap.clipsize': ...").
+  static void validate(const SystemSetup& s, const ClipmapConfig& c, const ThrottleParams& throttle);
+  // The levels a store must hold: every level down to 1×1 (the clipmap samples all of them).
+  static int store_levels(const SystemSetup& s, const ClipmapConfig& c);
+  static constexpr std::string_view kStoreLevels = "a clipmap samples every level down to 1×1";
+  // The real clock's VRAM: every level's window of tile slots; the config field that sizes it.
+  static VramArena vram_arena(const SystemSetup& s, const ClipmapConfig& c, std::vector<std::uint32_t> layer_bytes,
+                              std::uint64_t host_limit);
+  static constexpr std::string_view kVramField = "clipmap.clipsize";
 
   int num_levels() const override { return cm_.num_levels(); }
   int resident_level(std::int64_t u, std::int64_t v, int desired_level) const override {
@@ -56,7 +62,7 @@ class ClipmapSystem final : public IStreamingSystem {
  private:
   std::uint64_t importance(int level, std::int64_t x, std::int64_t y) const;
 
-  ClipmapSystemParams p_;
+  SystemSetup s_;
   Clipmap cm_;
   std::int64_t gu_ = 0, gv_ = 0, fu_ = 0, fv_ = 0;
   bool prefetch_ = false;

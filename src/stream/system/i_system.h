@@ -7,6 +7,7 @@
 #include <glm/vec3.hpp>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cache/i_residency.h"
@@ -23,6 +24,21 @@ namespace vtsim {
 // IStreamingSystem::frame_counter_names; unused entries stay 0).
 inline constexpr std::size_t kSystemCounters = 12;
 using SystemCounters = std::array<double, kSystemCounters>;
+
+// What every streaming system is built from, whatever its kind: the texture and its tiles, where
+// it lies on the ground, and the run's settings every system reads. Each system adds its own
+// config section (ClipmapConfig, VtConfig); sim/run/systems.h makes both from the replay config.
+struct SystemSetup {
+  TextureExtent extent{1 << 20, 1 << 20};    // level-0 texels (the scene's texture)
+  int tile_size = 128;                       // T, payload texels a side (VT: the page size P)
+  int border = 0;                            // B, border texels a side (stored T + 2B)
+  int layers = 1;                            // texture layers streamed per tile (albedo, normal, ...)
+  std::uint64_t tile_bytes_all_layers = 0;   // decoded bytes of one tile, all layers summed
+  double texels_per_m = 128.0;               // ground texel density at level 0
+  double origin_x_m = 0.0, origin_y_m = 0.0; // world position of texel (0, 0), m
+  double prefetch_lookahead_s = 0.0;         // look-ahead along the motion, s; 0 = off
+  int thrash_frames = 60;                    // evicted then needed within this many frames = thrash
+};
 
 struct SystemFrame {
   int frame = 0;
@@ -68,6 +84,9 @@ class IStreamingSystem : public IResidency {
   // System-specific per-frame counters for the per-frame CSV (names once, values every frame).
   virtual std::vector<std::string> frame_counter_names() const { return {}; }
   virtual void frame_counters(SystemCounters& out) const { out.fill(0.0); }
+  // The pages complete in a physical page pool, each with its slot (what a page table maps: the
+  // real clock checks its VRAM arena against them); empty for a system without a pool.
+  virtual void pool_pages(std::vector<std::pair<TileKey, std::uint32_t>>& out) const { out.clear(); }
   // System-specific counters for the summary ("clipmap" or "vt" section), and the VRAM totals.
   virtual nlohmann::json stats_json() const = 0;
   virtual std::uint64_t vram_evictions() const = 0;

@@ -4,6 +4,11 @@
 #include <bit>
 #include <cmath>
 #include <stdexcept>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
 
 namespace vtsim {
 
@@ -13,19 +18,65 @@ int lock_from(const VtGeometry& g, int locked_levels) { return g.levels() - std:
 
 }  // namespace
 
-VtSystem::VtSystem(const VtSystemParams& p)
-    : p_(p),
-      geo_(p.extent, p.page_size, p.border),
+namespace {
+
+[[noreturn]] void bad_vt_field(const std::string& key, const std::string& what) {
+  throw InputError("config", "field '" + key + "': " + what);
+}
+
+}  // namespace
+
+void VtSystem::validate(const SystemSetup& s, const VtConfig& c, const ThrottleParams& throttle) {
+  if (s.tile_size < 2 || s.tile_size % 2 != 0)
+    bad_vt_field("texture.tile_size", fmt::format("{}: a VT page must be even (a page lies inside one parent page)", s.tile_size));
+  if (s.border > s.tile_size)
+    bad_vt_field("texture.border", fmt::format("{} texels is larger than the page ({} texels)", s.border, s.tile_size));
+  // Partial edge pages are allowed (docs/vt.md): no divisibility check on texture.width/height.
+  try {
+    const VtGeometry g(s.extent, s.tile_size, s.border);
+    if (c.locked_levels > g.levels())
+      bad_vt_field("vt.locked_levels", fmt::format("{} is more than the texture's {} levels", c.locked_levels, g.levels()));
+    const std::uint64_t locked = g.coarsest_pages(c.locked_levels);
+    if (c.pool_pages < locked)
+      bad_vt_field("vt.pool_pages", fmt::format("{} pages is smaller than the {} locked levels ({} pages)", c.pool_pages,
+                                                c.locked_levels, locked));
+  } catch (const std::invalid_argument& e) {
+    bad_vt_field("texture.tile_size", e.what());
+  }
+  // The policies read the pool's occupancy and pressure against these marks.
+  if (throttle.low_water > throttle.high_water)
+    bad_vt_field("throttle.low_water", fmt::format("{} is above throttle.high_water {}", throttle.low_water, throttle.high_water));
+}
+
+int VtSystem::store_levels(const SystemSetup& s, const VtConfig&) {
+  return VtGeometry(s.extent, s.tile_size, s.border).levels();
+}
+
+VramArena VtSystem::vram_arena(const SystemSetup&, const VtConfig& c, std::vector<std::uint32_t> layer_bytes,
+                               std::uint64_t host_limit) {
+  return VramArena::for_pool(c.pool_pages, std::move(layer_bytes), host_limit);
+}
+
+void VtSystem::pool_pages(std::vector<std::pair<TileKey, std::uint32_t>>& out) const {
+  out.clear();
+  for (std::uint32_t s = 0; s < pool_.slots(); ++s)
+    if (const std::optional<TileKey> page = pool_.complete_page(s)) out.emplace_back(*page, s);
+}
+
+VtSystem::VtSystem(const SystemSetup& s, const VtConfig& c)
+    : s_(s),
+      c_(c),
+      geo_(s.extent, s.tile_size, s.border),
       pt_(geo_),
-      pool_(p.pool_pages, p.layers, lock_from(geo_, p.locked_levels)),
+      pool_(c.pool_pages, s.layers, lock_from(geo_, c.locked_levels)),
       memo_(kMemo) {
-  if (p.locked_levels < 0 || p.locked_levels > geo_.levels())
+  if (c.locked_levels < 0 || c.locked_levels > geo_.levels())
     throw std::invalid_argument("vt: locked levels must be in [0, levels]");
-  if (geo_.coarsest_pages(p.locked_levels) > p.pool_pages)
+  if (geo_.coarsest_pages(c.locked_levels) > c.pool_pages)
     throw std::invalid_argument("vt: the pool is smaller than the locked levels");
-  if (p.prefetch_finer_levels < 0 || p.prefetch_finer_levels > 2)
+  if (c.prefetch_finer_levels < 0 || c.prefetch_finer_levels > 2)
     throw std::invalid_argument("vt: prefetch_finer_levels must be 0, 1 or 2");
-  if (p.residency_window_frames < 1) throw std::invalid_argument("vt: residency window must be >= 1 frame");
+  if (c.residency_window_frames < 1) throw std::invalid_argument("vt: residency window must be >= 1 frame");
   pool_.set_hook([this](const PagePool::Removed& r) { on_removed(r); });
   by_level_.resize(static_cast<std::size_t>(geo_.levels()));
   demand_by_level_.assign(static_cast<std::size_t>(geo_.levels()), 0);
@@ -42,7 +93,7 @@ void VtSystem::on_removed(const PagePool::Removed& r) {
     if (evicted_at_.size() > 65536) {  // forget evictions too old to count as thrash
       scratch_keys_.clear();
       evicted_at_.for_each([&](std::uint64_t k, int f) {
-        if (frame_ - f > p_.thrash_frames) scratch_keys_.push_back(k);
+        if (frame_ - f > s_.thrash_frames) scratch_keys_.push_back(k);
       });
       for (std::uint64_t k : scratch_keys_) evicted_at_.erase(k);
     }
@@ -51,7 +102,7 @@ void VtSystem::on_removed(const PagePool::Removed& r) {
   }
 }
 
-int VtSystem::coarsest_clamp() const { return geo_.levels() - std::max(1, p_.locked_levels); }
+int VtSystem::coarsest_clamp() const { return geo_.levels() - std::max(1, c_.locked_levels); }
 
 // The wanted set: every sample's page at floor(lod + bias), every coarser ancestor, the locked
 // levels. Built level by level from the finest: a level's pages are sorted and merged (samples
@@ -129,7 +180,7 @@ void VtSystem::build_wanted() {
     flush();
   }
   // Locked levels are always wanted.
-  for (int l = std::max(0, n - p_.locked_levels); l < n; ++l) {
+  for (int l = std::max(0, n - c_.locked_levels); l < n; ++l) {
     const VtLevel& L = geo_.level(l);
     for (std::int64_t y = 0; y < L.pages_y; ++y)
       for (std::int64_t x = 0; x < L.pages_x; ++x) by_level_[static_cast<std::size_t>(l)].push_back(Wanted{page_key(l, x, y), 0, false});
@@ -176,12 +227,12 @@ void VtSystem::begin_frame(const SystemFrame& f) {
   const auto slots = static_cast<double>(pool_.slots());
   pressure_ = static_cast<double>(wanted_.size()) / slots;
   // Visible residency (Unreal): pages used in the window of frames before this one.
-  occupancy_ = static_cast<double>(pool_.used_within(frame_ - 1, p_.residency_window_frames)) / slots;
+  occupancy_ = static_cast<double>(pool_.used_within(frame_ - 1, c_.residency_window_frames)) / slots;
   std::fill(missing_by_level_.begin(), missing_by_level_.end(), 0);
-  const auto per_layer = p_.page_bytes_all_layers / static_cast<std::uint64_t>(p_.layers);
+  const auto per_layer = s_.tile_bytes_all_layers / static_cast<std::uint64_t>(s_.layers);
   for (const Wanted& w : wanted_) {
     const std::uint32_t have = pool_.resident_mask(w.page);
-    const int missing = p_.layers - std::popcount(have);
+    const int missing = s_.layers - std::popcount(have);
     if (missing > 0) missing_by_level_[w.page.level()] += per_layer * static_cast<std::uint64_t>(missing);
   }
 }
@@ -220,7 +271,7 @@ void VtSystem::emit_needs(std::vector<Need>& out) {
   if (built_bias_ != bias_) build_wanted();
   fc_ = FrameCounts{};
   throttled_tiles_ = 0;
-  const auto layers = static_cast<std::uint32_t>(p_.layers);
+  const auto layers = static_cast<std::uint32_t>(s_.layers);
 
   // 1. Mark the wanted pages in the pool used (rescuing pending victims); collect the others.
   wanted_set_.clear();
@@ -298,11 +349,11 @@ void VtSystem::emit_needs(std::vector<Need>& out) {
   }
 
   // 4. Prefetch (Unreal): pages one or two levels finer than a sample's own page, into RAM only.
-  if (p_.prefetch_finer_levels > 0) {
+  if (c_.prefetch_finer_levels > 0) {
     for (const Wanted& w : wanted_) {
       if (!w.desired) continue;
       const int l = static_cast<int>(w.page.level());
-      for (int d = 1; d <= p_.prefetch_finer_levels && l - d >= std::max(0, clamp_); ++d) {
+      for (int d = 1; d <= c_.prefetch_finer_levels && l - d >= std::max(0, clamp_); ++d) {
         const std::int64_t n = std::int64_t{1} << d;
         for (std::int64_t cy = w.page.y() * n; cy < (w.page.y() + 1) * n; ++cy)
           for (std::int64_t cx = w.page.x() * n; cx < (w.page.x() + 1) * n; ++cx) {
@@ -341,7 +392,7 @@ bool VtSystem::commit(TileKey key, int frame) {
   ++layer_commits_;
   if (c.first_layer) {
     if (int* at = evicted_at_.find(page.bits)) {
-      if (frame - *at <= p_.thrash_frames) ++thrash_;
+      if (frame - *at <= s_.thrash_frames) ++thrash_;
       evicted_at_.erase(page.bits);
     }
   }
@@ -415,7 +466,7 @@ void VtSystem::span_resident_levels(const ViewSpan* s, std::size_t count, std::i
 }
 
 std::uint64_t VtSystem::evicted_unsampled_bytes() const {
-  return evicted_unsampled_layers_ * (p_.page_bytes_all_layers / static_cast<std::uint64_t>(p_.layers));
+  return evicted_unsampled_layers_ * (s_.tile_bytes_all_layers / static_cast<std::uint64_t>(s_.layers));
 }
 
 std::vector<std::string> VtSystem::frame_counter_names() const {
@@ -446,11 +497,11 @@ nlohmann::json VtSystem::stats_json() const {
   return {{"levels", geo_.levels()},
           {"page_size", geo_.page_size()},
           {"border", geo_.border()},
-          {"page_bytes", p_.page_bytes_all_layers},
+          {"page_bytes", s_.tile_bytes_all_layers},
           {"pool_pages", pool_.slots()},
-          {"pool_bytes", static_cast<std::uint64_t>(pool_.slots()) * p_.page_bytes_all_layers},
-          {"locked_levels", p_.locked_levels},
-          {"locked_pages", geo_.coarsest_pages(p_.locked_levels)},
+          {"pool_bytes", static_cast<std::uint64_t>(pool_.slots()) * s_.tile_bytes_all_layers},
+          {"locked_levels", c_.locked_levels},
+          {"locked_pages", geo_.coarsest_pages(c_.locked_levels)},
           {"page_table",
            {{"dense_entries", pt_.dense_entries()},
             {"dense_bytes", pt_.dense_bytes()},

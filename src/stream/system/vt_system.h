@@ -25,32 +25,41 @@
 // O(1) amortised (memoised per page between page-table changes). Thread-safety: none (the frame
 // loop). Invalidation: wanted() is rebuilt by begin_frame and emit_needs.
 #include <cstdint>
+#include <string_view>
 #include <vector>
 
 #include "cache/page_pool.h"
 #include "cache/page_table.h"
+#include "cache/vram_arena.h"
 #include "stream/system/i_system.h"
 
 namespace vtsim {
 
-struct VtSystemParams {
-  TextureExtent extent{1 << 20, 1 << 20};  // level-0 texels
-  int page_size = 128;                    // P: payload texels a side (even)
-  int border = 0;                         // B: border texels a side (stored P + 2B)
-  int layers = 1;                         // layers per page (albedo, normal, ...), one slot for all
-  std::uint64_t page_bytes_all_layers = 0;  // decoded bytes of one stored page, all layers
-  std::uint32_t pool_pages = 1024;        // M: physical pool slots
+// The config's [vt] section.
+struct VtConfig {
+  std::uint32_t pool_pages = 1024;        // M: physical pool slots (RAGE-like: a 4096² texture of 128² pages)
   int locked_levels = 1;                  // coarsest levels requested first and never evicted
-  int prefetch_finer_levels = 0;          // 0, 1 or 2 levels finer than desired into RAM
+  int prefetch_finer_levels = 0;          // 0, 1 or 2 levels finer than desired into RAM (Unreal VT)
   int residency_window_frames = 15;       // a page used within this many frames counts as visible
-  int thrash_frames = 60;                 // evicted then uploaded again within this many = thrash
 };
 
 class VtSystem final : public IStreamingSystem {
  public:
-  // Throws std::invalid_argument for impossible parameters (pool smaller than the locked levels,
-  // odd page size, ...); the replay config names the field before it gets here.
-  explicit VtSystem(const VtSystemParams& p);
+  // The page size P is s.tile_size (even), its border B s.border. Throws std::invalid_argument for
+  // impossible parameters (pool smaller than the locked levels, odd page size, ...); the replay
+  // config names the field before it gets here (validate).
+  VtSystem(const SystemSetup& s, const VtConfig& c);
+  // What the systems' table (sim/run/systems.cpp) reads.
+  using Config = VtConfig;  // the config's [vt] section
+  // Cross-field checks, the pool's water marks included; throws InputError("config", "field '...': ...").
+  static void validate(const SystemSetup& s, const VtConfig& c, const ThrottleParams& throttle);
+  // The levels a store must hold: every level down to the first that is a single page.
+  static int store_levels(const SystemSetup& s, const VtConfig& c);
+  static constexpr std::string_view kStoreLevels = "a virtual texture needs every level down to a single page";
+  // The real clock's VRAM: the physical page pool; the config field that sizes it.
+  static VramArena vram_arena(const SystemSetup& s, const VtConfig& c, std::vector<std::uint32_t> layer_bytes,
+                              std::uint64_t host_limit);
+  static constexpr std::string_view kVramField = "vt.pool_pages";
 
   int num_levels() const override { return geo_.levels(); }
   int resident_level(std::int64_t u, std::int64_t v, int desired_level) const override;
@@ -80,6 +89,7 @@ class VtSystem final : public IStreamingSystem {
   std::uint64_t vram_evictions() const override { return evicted_layers_; }
   std::uint64_t vram_thrash() const override { return thrash_; }
   std::uint64_t evicted_unsampled_bytes() const override;
+  void pool_pages(std::vector<std::pair<TileKey, std::uint32_t>>& out) const override;
 
   const VtGeometry& geometry() const { return geo_; }
   const PageTable& page_table() const { return pt_; }
@@ -112,7 +122,8 @@ class VtSystem final : public IStreamingSystem {
   void on_removed(const PagePool::Removed& r);
   int resolve_from(int from, std::int64_t u, std::int64_t v) const;
 
-  VtSystemParams p_;
+  SystemSetup s_;
+  VtConfig c_;
   VtGeometry geo_;
   PageTable pt_;
   PagePool pool_;

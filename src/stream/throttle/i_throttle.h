@@ -1,18 +1,22 @@
 #pragma once
 // Throttling / residency policies: given the backlog and what the device can serve, decide the
 // MaxTextureLOD clamp (the finest level requested and sampled; Yao 2007 §4-4) and, for virtual
-// textures, a feedback LOD bias. One policy per file in stream/throttle/impl/, registered in one table
-// (stream/throttle/throttle_registry.cpp). docs/pipeline.md, "MaxTextureLOD throttling".
+// textures, a feedback LOD bias. One policy per file in stream/throttle/impl/, registered by one line in
+// stream/throttle/throttle_registry.cpp. docs/pipeline.md, "MaxTextureLOD throttling".
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
+#include "core/registry.h"
 #include "core/time.h"
 
 namespace vtsim {
 
+// The config's [throttle] section.
 struct ThrottleParams {
+  std::string policy = "deadline"; // which policy (throttle_policies())
   double deadline_ms = 250.0;   // a level whose backlog takes longer than this to serve is clamped
   double relax_factor = 0.5;    // relax one level once the finer backlog fits in deadline × this ...
   int relax_frames = 15;        // ... for this many consecutive frames (hysteresis)
@@ -62,13 +66,14 @@ class IThrottlePolicy {
 };
 
 struct ThrottlePolicyInfo {
-  const char* name;
-  const char* why;
+  std::string_view name;
+  std::string_view why;
   std::unique_ptr<IThrottlePolicy> (*make)(const ThrottleParams&);
 };
 
-const std::vector<ThrottlePolicyInfo>& throttle_policies();
-// nullptr if no policy has that name.
-std::unique_ptr<IThrottlePolicy> make_throttle_policy(const std::string& name, const ThrottleParams& p);
+// The policies, one line each in stream/throttle/throttle_registry.cpp.
+const Registry<ThrottlePolicyInfo>& throttle_policies();
+// The policy p.policy names, with p. Throws std::invalid_argument (Registry::at) for an unknown name.
+std::unique_ptr<IThrottlePolicy> make_throttle_policy(const ThrottleParams& p);
 
 }  // namespace vtsim

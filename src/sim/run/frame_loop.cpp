@@ -1,0 +1,397 @@
+#include "sim/run/frame_loop.h"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <glm/gtc/quaternion.hpp>
+
+#include "core/camera.h"
+#include "core/error.h"
+#include "sim/run/render_ahead.h"
+#include "sim/run/systems.h"
+#include "sim/trace/trace_resample.h"
+#include "sim/view/scene.h"
+#include "stream/exec/sim_executor.h"
+#include "stream/system/i_system.h"
+#include "stream/throttle/i_throttle.h"
+
+namespace vtsim {
+
+namespace {
+
+double peak_rss_MB() {
+  rusage ru{};
+  getrusage(RUSAGE_SELF, &ru);
+  return static_cast<double>(ru.ru_maxrss) / 1024.0;  // Linux reports KiB
+}
+
+// Angle between two orientations, radians (shortest arc).
+double rotation_angle(const glm::dquat& a, const glm::dquat& b) {
+  const double d = std::min(1.0, std::fabs(glm::dot(a, b)));
+  return 2.0 * std::acos(d);
+}
+
+bool same_view(const Pose& a, const Pose& b) {
+  return a.pos_m == b.pos_m && a.q.w == b.q.w && a.q.x == b.q.x && a.q.y == b.q.y && a.q.z == b.q.z &&
+         a.vfov_deg == b.vfov_deg;
+}
+
+ViewParams popin_params(const ReplayConfig& cfg) {
+  ViewParams pp = view_params(cfg.view);
+  if (cfg.view.popin_divisor > 0) pp.divisor = cfg.view.popin_divisor;
+  return pp;
+}
+
+bool separate_popin(const ReplayConfig& cfg) {
+  return cfg.view.popin_divisor > 0 && cfg.view.popin_divisor != cfg.view.divisor;
+}
+
+}  // namespace
+
+FramePlan plan_frames(const ReplayConfig& cfg, const Trace& trace_in) {
+  if (trace_in.poses.empty()) throw InputError(trace_in.name, "the trace has no poses");
+  FramePlan p;
+  p.trace = cfg.run.fps > 0 ? resample(trace_in, cfg.run.fps) : trace_in;
+  p.frames = static_cast<int>(p.trace.poses.size());
+  if (p.frames == 0) throw InputError(trace_in.name, "the trace has no poses");
+  const auto& poses = p.trace.poses;
+  p.t0_s = poses.front().t_s;
+  p.period_s = cfg.run.fps > 0 ? 1.0 / cfg.run.fps
+                               : (p.frames > 1 ? (poses.back().t_s - p.t0_s) / (p.frames - 1) : 1.0 / 60.0);
+  p.duration_s = (poses.back().t_s - p.t0_s) + p.period_s;
+  p.feedback_every = cfg.view.feedback_every;
+  const Pose* last = nullptr;
+  for (int f = 0; f < p.frames; f += p.feedback_every) {
+    const Pose& pose = poses[static_cast<std::size_t>(f)];
+    if (last && same_view(pose, *last)) continue;
+    p.render_frames.push_back(f);
+    last = &pose;
+  }
+  return p;
+}
+
+// ---- ViewStream ----
+
+ViewStream::ViewStream(const ReplayConfig& cfg, const FramePlan& plan, const IScene& scene, int block_shift,
+                       bool keep_samples, int render_threads)
+    : plan_(plan), scene_(scene), vp_(view_params(cfg.view)), pp_(popin_params(cfg)),
+      separate_popin_(separate_popin(cfg)), threads_(render_threads) {
+  fb_.block_shift = pb_.block_shift = block_shift;
+  fb_.keep_samples = pb_.keep_samples = keep_samples;
+  if (threads_ > 0 && !plan_.render_frames.empty()) {
+    const auto camera_of = [&plan](std::size_t j) {
+      return make_camera(plan.trace.poses[static_cast<std::size_t>(plan.render_frames[j])], plan.trace.image_width,
+                         plan.trace.image_height);
+    };
+    ahead_ = std::make_unique<RenderAhead>(scene_, plan_.render_frames.size(), camera_of, vp_,
+                                           separate_popin_ ? &pp_ : nullptr, block_shift, keep_samples, threads_);
+  }
+  view_.feedback = &fb_;
+  view_.popin = separate_popin_ ? &pb_ : &fb_;
+}
+
+ViewStream::~ViewStream() = default;
+
+int ViewStream::resolve_threads(const ReplayConfig& cfg, const FramePlan& plan, bool real_clock) {
+  // The real clock's cores belong to its IO and decode threads unless the config asks.
+  const int wanted = real_clock && cfg.view.render_threads < 0 ? 0 : RenderAhead::resolve_threads(cfg.view.render_threads);
+  const ViewParams pp = popin_params(cfg);
+  return RenderAhead::cap_threads(wanted, RenderAhead::slot_bytes(plan.trace.image_width, plan.trace.image_height,
+                                                                  view_params(cfg.view), separate_popin(cfg) ? &pp : nullptr));
+}
+
+void ViewStream::warm_up(bool keep_samples) {
+  if (plan_.render_frames.empty()) return;
+  if (ahead_) {
+    ahead_->wait_rendered(static_cast<std::size_t>(threads_));
+    return;
+  }
+  const Camera cam = make_camera(plan_.trace.poses[static_cast<std::size_t>(plan_.render_frames[0])],
+                                 plan_.trace.image_width, plan_.trace.image_height);
+  fb_.keep_samples = pb_.keep_samples = keep_samples;
+  scene_.render_spans(cam, vp_, fb_);
+  if (separate_popin_) scene_.render_spans(cam, pp_, pb_);
+}
+
+const FrameView& ViewStream::frame(int f, bool keep_samples) {
+  view_.frame = f;
+  view_.pose = &plan_.trace.poses[static_cast<std::size_t>(f)];
+  view_.measured = plan_.measured(f);
+  view_.fresh = next_render_ < plan_.render_frames.size() && plan_.render_frames[next_render_] == f;
+  if (!view_.fresh) return view_;  // the last rendered buffers stand in
+  // Shade samples in the render (not afterwards, from the spans) while a consumer reads them.
+  if (keep_samples != fb_.keep_samples) {
+    fb_.keep_samples = pb_.keep_samples = keep_samples;
+    if (ahead_) ahead_->set_keep_samples(keep_samples);
+  }
+  if (ahead_) {
+    RenderAhead::Buffers& b = ahead_->next();
+    view_.feedback = &b.feedback;
+    view_.popin = separate_popin_ ? &b.popin : &b.feedback;
+  } else {
+    const Camera cam = make_camera(*view_.pose, plan_.trace.image_width, plan_.trace.image_height);
+    scene_.render_spans(cam, vp_, fb_);
+    if (separate_popin_) scene_.render_spans(cam, pp_, pb_);
+  }
+  ++next_render_;
+  return view_;
+}
+
+// ---- SystemRun ----
+
+SystemRun::SystemRun(const ReplayConfig& cfg, const FramePlan& plan, const IScene& scene, const ReplayEnv& env)
+    : cfg_(cfg), plan_(plan), env_(env), system_(make_system(cfg, scene.texture())) {
+  num_levels_ = system_->num_levels();
+  finest_needed_ = num_levels_;
+  TileSizer sizer = env.sizer;
+  if (!sizer) {
+    std::vector<TileSizes> by_layer;
+    for (const auto& L : cfg.texture.layers.specs) by_layer.push_back({tile_disk_bytes(cfg, L), tile_decoded_bytes(cfg, L)});
+    sizer = [by_layer](TileKey k) { return by_layer[k.layer() < by_layer.size() ? k.layer() : 0]; };
+  }
+  IExecutor* exec = env.executor;
+  if (!exec) {
+    sim_ = std::make_unique<SimExecutor>(disk_model(cfg.disk), cfg.decode, static_cast<std::size_t>(cfg.io.max_in_flight),
+                                         cfg.io.faults);
+    exec = sim_.get();
+  }
+  PipelineConfig pc;
+  pc.ram_bytes = static_cast<std::uint64_t>(cfg.ram.capacity_MiB * 1048576.0);
+  pc.max_retries = cfg.io.max_retries;
+  pc.retry_backoff_frames = cfg.io.retry_backoff_frames;
+  pc.thrash_frames = cfg.metrics.thrash_frames;
+  pipe_ = std::make_unique<Pipeline>(pc, *exec, sizer);
+  const ThrottlePolicyInfo* policy = throttle_policies().find(cfg.throttle.policy);
+  if (!policy) throw InputError("config", "field 'throttle.policy': " + throttle_policies().unknown(cfg.throttle.policy));
+  throttle_ = policy->make(cfg.throttle);
+
+  // The upload budget the config and the link allow per frame.
+  budget_ = UploadBudget{cfg.upload.bytes_per_frame < 0 ? 0 : static_cast<std::uint64_t>(cfg.upload.bytes_per_frame),
+                         cfg.upload.tiles_per_frame < 0 ? 0 : cfg.upload.tiles_per_frame};
+  link_Bps_ = cfg.upload.link_MBps * 1e6;
+  if (cfg.upload.link_MBps > 0) {
+    const auto link_bytes = static_cast<std::uint64_t>(cfg.upload.link_MBps * 1e6 * plan.period_s);
+    budget_.bytes = budget_.bytes ? std::min(budget_.bytes, link_bytes) : link_bytes;
+  }
+  service_ = service_Bps();
+  res_.metrics.set_system_columns(system_->frame_counter_names());
+}
+
+SystemRun::~SystemRun() = default;
+
+// What the pipeline can bring into VRAM per second: its bottleneck (for throttling).
+double SystemRun::service_Bps() const {
+  double mean_disk = 0, mean_dec = 0;
+  const auto& layers = cfg_.texture.layers.specs;
+  for (const auto& L : layers) {
+    mean_disk += static_cast<double>(tile_disk_bytes(cfg_, L));
+    mean_dec += static_cast<double>(tile_decoded_bytes(cfg_, L));
+  }
+  mean_disk /= static_cast<double>(layers.size());
+  mean_dec /= static_cast<double>(layers.size());
+  double service = disk_throughput_Bps(disk_model(cfg_.disk), mean_disk) * (mean_dec / mean_disk);
+  service = std::min(service, decode_throughput_Bps(cfg_.decode, mean_dec));
+  if (budget_.bytes) service = std::min(service, static_cast<double>(budget_.bytes) / plan_.period_s);
+  if (budget_.tiles) service = std::min(service, budget_.tiles * mean_dec / plan_.period_s);
+  return std::isfinite(service) ? service : 0.0;  // 0: unlimited
+}
+
+int SystemRun::block_shift() const { return std::bit_width(static_cast<unsigned>(cfg_.texture.tile_size)) - 1; }
+
+bool SystemRun::keep_samples() const { return !system_->uses_spans() || system_->wants_samples(); }
+
+void SystemRun::begin_frame(int f, Ticks now) {
+  frame_ = f;
+  now_ = now;
+  c0_ = pipe_->counters();
+  pipe_->begin_frame(f, now);
+}
+
+// Cuts, fast turns and the velocity (for look-ahead) between the previous pose and this one.
+glm::dvec3 SystemRun::motion(int f, FrameRow& row) {
+  glm::dvec3 vel(0.0);
+  if (f == 0) return vel;
+  const Pose& pose = plan_.trace.poses[static_cast<std::size_t>(f)];
+  const Pose& prev = plan_.trace.poses[static_cast<std::size_t>(f - 1)];
+  const double dt = pose.t_s - prev.t_s;
+  const glm::dvec3 d = pose.pos_m - prev.pos_m;
+  cut_ = glm::length(d) > cfg_.metrics.cut_m;
+  const double ang = dt > 0 ? rotation_angle(prev.q, pose.q) / dt * 180.0 / 3.14159265358979323846 : 0.0;
+  const bool turn = ang > cfg_.metrics.turn_deg_per_s;
+  row.event = cut_ || (turn && !in_turn_);
+  in_turn_ = turn;
+  if (!cut_ && dt > 0) vel = d / dt;
+  return vel;
+}
+
+// The policy sees the backlog, the pool and the service rate, and sets the clamp and bias.
+void SystemRun::throttle(const glm::dvec3& velocity, const FrameView& view, FrameRow& row) {
+  const SpanBuffer& fb = *view.feedback;
+  const SystemFrame sf{frame_, now_, view.pose, velocity, fb.has_samples ? &fb.view : nullptr, finest_needed_, &fb};
+  system_->begin_frame(sf);
+  system_->missing_bytes_by_level(missing_);
+  ThrottleInput ti;
+  ti.frame = frame_;
+  ti.now = now_;
+  ti.frame_period_s = plan_.period_s;
+  ti.num_levels = num_levels_;
+  ti.finest_needed = finest_needed_;
+  ti.coarsest_clamp = system_->coarsest_clamp();
+  ti.missing_bytes_by_level = missing_;
+  ti.service_Bps = service_;
+  ti.discontinuity = cut_;
+  ti.pool_occupancy = system_->pool_occupancy();
+  ti.pool_pressure = system_->pool_pressure();
+  system_->pool_demand(ti.pool_demand_by_level, ti.pool_slots);
+  const ThrottleDecision dec = throttle_->update(ti);
+  if (dec.clamp != clamp_ || dec.bias != bias_)
+    res_.metrics.add_throttle_change({frame_, row.t_s, clamp_, dec.clamp, dec.bias, dec.reason});
+  clamp_ = dec.clamp;
+  bias_ = dec.bias;
+  system_->apply_throttle(dec);
+}
+
+// Commits the frame's uploads; each accepted tile's latency is recorded.
+void SystemRun::commit_uploads(FrameRow& row) {
+  for (const UploadItem& u : uploads_) {
+    if (!system_->commit(u.key, frame_)) continue;
+    TileLatency lat;
+    lat.total = now_ - u.needed_time;
+    lat.frames = frame_ - u.needed_frame;
+    lat.queue = u.queue_ticks;
+    lat.io = u.io_ticks;
+    lat.decode_wait = u.decode_wait_ticks;
+    lat.decode = u.decode_ticks;
+    lat.upload_wait = u.ram_ticks;
+    lat.upload = transfer_ticks(u.bytes, link_Bps_);
+    lat.level = static_cast<std::uint8_t>(u.key.level());
+    lat.ram_hit = u.ram_hit;
+    res_.metrics.add_latency(lat);
+    level_upload_[u.key.level()] += u.bytes;
+    row.upload_bytes += u.bytes;
+    ++row.uploads;
+    if (env_.on_upload) env_.on_upload(u, system_->vram_slot(u.key));
+  }
+}
+
+void SystemRun::step(const FrameView& view) {
+  if (view.fresh) finest_needed_ = finest_level(*view.feedback, num_levels_);
+  FrameRow row;
+  row.frame = frame_;
+  row.t_s = view.pose->t_s - plan_.t0_s;
+  const glm::dvec3 velocity = motion(frame_, row);
+  if (system_->wants_samples()) materialise_samples(*view.feedback);
+  throttle(velocity, view, row);
+
+  needs_.clear();
+  system_->emit_needs(needs_);
+  pipe_->set_needs(needs_);
+  pipe_->dispatch();
+
+  uploads_.clear();
+  pipe_->take_uploads(budget_, uploads_);
+  // Pop-in is measured on what the screen samples before and after this frame's commits.
+  const SpanBuffer& mb = *view.popin;
+  if (view.measured && !uploads_.empty()) {
+    system_->set_mark_sampled(false);
+    resident_levels(mb, *system_, lv_before_);
+  }
+  commit_uploads(row);
+  if (view.measured) {
+    system_->set_mark_sampled(true);
+    resident_levels(mb, *system_, lv_after_);
+    const PopinFrame pf = popin_stats(mb, lv_after_, uploads_.empty() ? nullptr : &lv_before_, num_levels_);
+    row.measured = true;
+    row.samples = static_cast<std::uint32_t>(pf.samples);
+    row.blurry = static_cast<std::uint32_t>(pf.blurry);
+    row.deficit_sum = pf.mean_deficit * static_cast<double>(pf.samples);
+    row.pops = static_cast<std::uint32_t>(pf.visible_pops);
+  }
+  const PipelineCounters& c1 = pipe_->counters();
+  row.clamp = clamp_;
+  row.bias = bias_;
+  row.finest_needed = finest_needed_;
+  row.disk_bytes = c1.disk_bytes - c0_.disk_bytes;
+  row.decoded_bytes = c1.decoded_bytes - c0_.decoded_bytes;
+  row.needs = static_cast<std::uint32_t>(needs_.size());
+  row.live_requests = static_cast<std::uint32_t>(pipe_->live_requests());
+  row.ram_bytes = pipe_->ram_bytes_used();
+  row.throttled_needs = system_->throttled_needs();
+  system_->frame_counters(row.system);
+  res_.metrics.add_frame(row);
+}
+
+ReplayResult SystemRun::summarize(const RunCost& cost) {
+  MetricsCollector& m = res_.metrics;
+  const PipelineCounters& c = pipe_->counters();
+  for (int l = 0; l < num_levels_; ++l) m.add_level_bytes(l, c.disk_bytes_by_level[l], level_upload_[l]);
+  const double duration_s = plan_.duration_s;
+  const auto MBps = [&](std::uint64_t bytes) { return static_cast<double>(bytes) / duration_s / 1e6; };
+  nlohmann::json& s = res_.summary;
+  s["vtsim_version"] = VTSIM_VERSION;
+  s["system"] = cfg_.run.system;
+  s["clock"] = env_.clock_name;
+  s["trace"] = {{"name", plan_.trace.name},
+                {"frames", plan_.frames},
+                {"duration_s", duration_s},
+                {"fps", 1.0 / plan_.period_s},
+                {"image", {plan_.trace.image_width, plan_.trace.image_height}}};
+  s["bandwidth"] = {
+      {"disk_read_MBps", MBps(c.disk_bytes)},
+      {"decoded_MBps", MBps(c.decoded_bytes)},
+      {"upload_MBps", MBps(c.upload_bytes)},
+      {"prefetch_read_MBps", MBps(c.prefetch_disk_bytes)},
+      {"disk_read_bytes", c.disk_bytes},
+      {"decoded_bytes", c.decoded_bytes},
+      {"upload_bytes", c.upload_bytes},
+      {"prefetch_read_bytes", c.prefetch_disk_bytes},
+      {"disk_reads", c.disk_reads},
+      {"uploads", c.uploads},
+      {"upload_bytes_per_frame", m.upload_per_frame_json()["bytes"]},
+      {"upload_tiles_per_frame", m.upload_per_frame_json()["tiles"]},
+      {"per_level", m.per_level_json(duration_s)},
+      {"wasted", {{"read_bytes_cancelled_after_io", c.wasted_read_bytes},
+                  {"uploaded_bytes_never_sampled", system_->evicted_unsampled_bytes()},
+                  {"cancelled_before_io", c.cancelled_queued},
+                  {"cancelled_after_io", c.cancelled_after_read},
+                  {"dropped_before_upload", c.dropped_before_upload}}}};
+  s["latency_ms"] = m.latency_json();
+  s["popin"] = m.popin_json(cfg_.metrics.sharp_margin);
+  const double lookups = static_cast<double>(c.ram_hits + c.ram_misses);
+  s["cache"] = {{"ram_hit_ratio", lookups > 0 ? static_cast<double>(c.ram_hits) / lookups : 0.0},
+                {"ram_hits", c.ram_hits},
+                {"ram_misses", c.ram_misses},
+                {"ram_evictions", c.ram_evictions},
+                {"ram_evicted_bytes", c.ram_evicted_bytes},
+                {"ram_thrash", c.ram_thrash},
+                {"prefetch_requests", c.prefetch_requests},
+                {"prefetch_hits", c.prefetch_hits},
+                {"vram_evictions", system_->vram_evictions()},
+                {"vram_thrash", system_->vram_thrash()},
+                {"requests", c.requests},
+                {"needs", c.needs}};
+  s["throttle"] = m.throttle_json();
+  s["throttle"]["policy"] = cfg_.throttle.policy;
+  s["faults"] = {{"faults", c.faults},
+                 {"retries", c.retries},
+                 {"failed_tiles", c.failed_tiles},
+                 {"io_error", c.fault_by_kind[static_cast<int>(Fault::io_error)]},
+                 {"short_read", c.fault_by_kind[static_cast<int>(Fault::short_read)]},
+                 {"checksum", c.fault_by_kind[static_cast<int>(Fault::checksum)]},
+                 {"decode_error", c.fault_by_kind[static_cast<int>(Fault::decode_error)]},
+                 {"bad_record", c.fault_by_kind[static_cast<int>(Fault::bad_record)]}};
+  s[cfg_.run.system] = system_->stats_json();
+  if (env_.on_finish) env_.on_finish(*system_);
+  s["run"] = {{"wall_s", cost.wall_s},
+              {"render_threads", cost.render_threads},
+              {"loop_cpu_s", cost.loop_cpu_s},
+              {"frames_per_s", cost.wall_s > 0 ? plan_.frames / cost.wall_s : 0.0},
+              {"x_realtime", cost.wall_s > 0 ? duration_s / cost.wall_s : 0.0},
+              {"peak_rss_MB", peak_rss_MB()}};
+  return std::move(res_);
+}
+
+}  // namespace vtsim
