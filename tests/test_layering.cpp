@@ -7,7 +7,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
-#include <regex>
+#include <cctype>
 #include <string>
 #include <vector>
 
@@ -20,16 +20,33 @@ struct Room {
   std::string path;  // "src/stream/exec"
 };
 
+// Rows "| 3 | `src/stream/store` | ..." of the doc's table. (No std::regex: GCC 12 warns inside
+// it at -O1 under the sanitizers.)
 std::vector<Room> rooms_from_doc(const std::string& doc) {
   std::vector<Room> rooms;
-  static const std::regex row(R"(^\|\s*(\d+)\s*\|\s*`(src/[A-Za-z0-9_/]+)`\s*\|)");
   std::size_t b = 0;
   while (b < doc.size()) {
     const std::size_t e = std::min(doc.find('\n', b), doc.size());
-    std::smatch m;
     const std::string line = doc.substr(b, e - b);
-    if (std::regex_search(line, m, row)) rooms.push_back({std::stoi(m[1].str()), m[2].str()});
     b = e + 1;
+    // "| <digits> | `src/<path>` |"
+    std::size_t i = 0;
+    const auto skip_spaces = [&] {
+      while (i < line.size() && line[i] == ' ') ++i;
+    };
+    if (line.empty() || line[0] != '|') continue;
+    ++i;
+    skip_spaces();
+    const std::size_t d0 = i;
+    while (i < line.size() && std::isdigit(static_cast<unsigned char>(line[i]))) ++i;
+    if (i == d0) continue;
+    const int floor = std::stoi(line.substr(d0, i - d0));
+    skip_spaces();
+    if (line.compare(i, 3, "| `") != 0) continue;
+    i += 3;
+    const std::size_t close = line.find('`', i);
+    if (close == std::string::npos || line.compare(i, 4, "src/") != 0) continue;
+    rooms.push_back({floor, line.substr(i, close - i)});
   }
   return rooms;
 }
@@ -51,7 +68,6 @@ struct Include {
 
 std::vector<Include> includes_of(const std::filesystem::path& root) {
   std::vector<Include> out;
-  static const std::regex inc(R"re(^\s*#\s*include\s*"([^"]+)")re");
   for (const auto& e : std::filesystem::recursive_directory_iterator(root / "src")) {
     const std::string ext = e.path().extension().string();
     if (!e.is_regular_file() || (ext != ".h" && ext != ".cpp")) continue;
@@ -61,8 +77,15 @@ std::vector<Include> includes_of(const std::filesystem::path& root) {
     const std::string rel = std::filesystem::relative(e.path(), root).generic_string();
     while (std::getline(in, text)) {
       ++n;
-      std::smatch m;
-      if (std::regex_search(text, m, inc)) out.push_back({rel, n, "src/" + m[1].str()});
+      // #include "path" (quoted: the project's own headers)
+      std::size_t i = text.find_first_not_of(" \t");
+      if (i == std::string::npos || text[i] != '#') continue;
+      i = text.find_first_not_of(" \t", i + 1);
+      if (i == std::string::npos || text.compare(i, 7, "include") != 0) continue;
+      i = text.find_first_not_of(" \t", i + 7);
+      if (i == std::string::npos || text[i] != '"') continue;
+      const std::size_t close = text.find('"', i + 1);
+      if (close != std::string::npos) out.push_back({rel, n, "src/" + text.substr(i + 1, close - i - 1)});
     }
   }
   std::sort(out.begin(), out.end(), [](const Include& a, const Include& b) { return a.file != b.file ? a.file < b.file : a.line < b.line; });
