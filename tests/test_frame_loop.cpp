@@ -30,7 +30,7 @@ Trace town_walk_prefix(double seconds) {
 }  // namespace
 
 TEST_CASE("frame loop: systems stepped on one view each give exactly their replay alone") {
-  const Trace walk = town_walk_prefix(6.0);
+  const Trace walk = town_walk_prefix(4.0);
   // Configs that share the view ([view], scene, tile size, run.fps) and differ in everything else:
   // the system, the policy, the budgets, the devices, a feedback bias that reads every sample.
   const std::vector<std::vector<std::string>> sets = {

@@ -22,7 +22,7 @@ struct FormatInfo {
 // Block-compressed formats store 4×4 texel blocks of 8 (BC1, BC4) or 16 bytes (BC3, BC5, BC7).
 constexpr FormatInfo kFormats[] = {
     {"rgba8", 4.0}, {"rgb8", 3.0}, {"rg8", 2.0}, {"r8", 1.0}, {"rgba16f", 8.0},
-    {"bc1", 0.5},   {"bc4", 0.5},  {"bc3", 1.0}, {"bc5", 1.0}, {"bc7", 1.0},
+    {"bc1", 0.5},   {"bc3", 1.0},  {"bc4", 0.5}, {"bc5", 1.0}, {"bc7", 1.0},
 };
 
 }  // namespace
@@ -53,9 +53,11 @@ std::vector<LayerSpec> parse_layers(const std::string& spec) {
     bool known = false;
     for (const auto& fi : kFormats)
       if (f[1] == fi.name) L.bytes_per_texel = fi.bytes_per_texel, known = true;
-    if (!known)
-      throw std::invalid_argument("layer '" + part + "': unknown format '" + f[1] +
-                                  "' (rgba8, rgb8, rg8, r8, rgba16f, bc1, bc3, bc4, bc5, bc7)");
+    if (!known) {
+      std::string names;
+      for (const auto& fi : kFormats) names += (names.empty() ? "" : ", ") + std::string(fi.name);
+      throw std::invalid_argument("layer '" + part + "': unknown format '" + f[1] + "' (" + names + ")");
+    }
     if (f.size() == 3) {
       std::size_t pos = 0;
       double r = 0;
