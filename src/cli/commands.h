@@ -23,5 +23,7 @@ void register_store_commands(CLI::App& app);
 void register_calibrate_commands(CLI::App& app);
 void register_compare_commands(CLI::App& app);
 void register_vt_commands(CLI::App& app);
+void register_sweep_commands(CLI::App& app);
+void register_tune_commands(CLI::App& app);
 
 }  // namespace vtsim::cli

@@ -36,6 +36,8 @@ int main(int argc, char** argv) {
   vtsim::cli::register_calibrate_commands(app);
   vtsim::cli::register_compare_commands(app);
   vtsim::cli::register_vt_commands(app);
+  vtsim::cli::register_sweep_commands(app);
+  vtsim::cli::register_tune_commands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

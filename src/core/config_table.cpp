@@ -106,7 +106,9 @@ namespace {
 // header counts alone. Values and comments are skipped. vtsim's keys have at most two dots.
 constexpr int kMaxNesting = 16;
 
-void check_key_nesting(const std::string& text, const std::string& path) {
+}  // namespace
+
+void check_toml_nesting(const std::string& text, const std::string& path) {
   enum class Mode { key, value };
   Mode mode = Mode::key;
   std::vector<char> open;   // '{' inline tables, '[' arrays (not table headers)
@@ -169,6 +171,8 @@ void check_key_nesting(const std::string& text, const std::string& path) {
   }
 }
 
+namespace {
+
 // prefix: the enclosing table's dotted key, nullptr at the root (a table may be named "").
 void flatten(const toml::table& t, const std::string* prefix, const std::string& path,
              std::vector<TomlEntry>& out, std::vector<TomlEmptyTable>* empty_tables) {
@@ -200,7 +204,7 @@ void flatten(const toml::table& t, const std::string* prefix, const std::string&
 
 std::vector<TomlEntry> read_toml_entries(const std::string& path, std::vector<TomlEmptyTable>* empty_tables) {
   const std::string text = read_regular_file(path, 16u << 20, "not a vtsim TOML file");
-  check_key_nesting(text, path);
+  check_toml_nesting(text, path);
   toml::table tbl;
   try {
     tbl = toml::parse(text, path);

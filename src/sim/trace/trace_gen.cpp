@@ -1,6 +1,9 @@
 #include "sim/trace/trace_gen.h"
 
 #include <fmt/core.h>
+#include <fmt/ranges.h>
+
+#include <charconv>
 
 #include <cmath>
 #include <numbers>
@@ -239,6 +242,82 @@ Trace generate_trace(const TraceGenParams& p) {
   }
   validate_trace(trace, "generate_trace");
   return trace;
+}
+
+}  // namespace vtsim
+
+namespace vtsim {
+
+namespace {
+
+// "a<sep>b" -> two finite doubles, or InputError naming the key.
+glm::dvec2 parse_pair(const std::string& s, char sep, const std::string& where, const std::string& key) {
+  const std::size_t k = s.find(sep);
+  double v[2] = {0, 0};
+  const std::string parts[2] = {s.substr(0, k), k == std::string::npos ? std::string() : s.substr(k + 1)};
+  for (int i = 0; i < 2; ++i) {
+    const auto [p, ec] = std::from_chars(parts[i].data(), parts[i].data() + parts[i].size(), v[i]);
+    if (k == std::string::npos || parts[i].empty() || ec != std::errc() || p != parts[i].data() + parts[i].size() ||
+        !std::isfinite(v[i]))
+      throw InputError(where, fmt::format("{}='{}' is not two numbers separated by '{}'", key, s, sep));
+  }
+  return {v[0], v[1]};
+}
+
+}  // namespace
+
+TraceGenParams parse_gen_line(const std::string& line, const std::string& where) {
+  std::vector<std::string> tokens;
+  for (std::size_t b = 0; b < line.size();) {
+    const std::size_t e = line.find_first_of(" \t", b);
+    if (e != b) tokens.push_back(line.substr(b, e == std::string::npos ? std::string::npos : e - b));
+    if (e == std::string::npos) break;
+    b = e + 1;
+  }
+  if (tokens.empty()) throw InputError(where, "an empty generator line (e.g. \"walk duration_s=600 start_m=30,8\")");
+  const TraceKind kind = parse_trace_kind(tokens[0], where);
+  TraceGenParams p = default_gen_params(kind);
+  bool duration = false, speed = false, radius = false;
+  double* const reals[] = {&p.duration_s, &p.fps,      &p.speed_mps, &p.heading_deg, &p.height_m,
+                           &p.pitch_deg,  &p.vfov_deg, &p.turn_deg,  &p.turn_s,      &p.event_s,
+                           &p.jump_m,     &p.jump_heading_deg, &p.radius_m};
+  const char* const names[] = {"duration_s", "fps",     "speed_mps", "heading_deg", "height_m",
+                               "pitch_deg",  "vfov_deg", "turn_deg",  "turn_s",      "event_s",
+                               "jump_m",     "jump_heading_deg", "radius_m"};
+  for (std::size_t i = 1; i < tokens.size(); ++i) {
+    const std::size_t eq = tokens[i].find('=');
+    if (eq == std::string::npos || eq == 0)
+      throw InputError(where, fmt::format("'{}' is not key=value (keys: {}, start_m, image)", tokens[i], fmt::join(names, ", ")));
+    const std::string key = tokens[i].substr(0, eq), value = tokens[i].substr(eq + 1);
+    if (key == "start_m") {
+      p.start_m = parse_pair(value, ',', where, key);
+      continue;
+    }
+    if (key == "image") {
+      const glm::dvec2 wh = parse_pair(value, 'x', where, key);
+      if (wh.x != std::floor(wh.x) || wh.y != std::floor(wh.y) || wh.x < 1 || wh.y < 1 || wh.x > 65536 || wh.y > 65536)
+        throw InputError(where, fmt::format("image='{}': sides must be integers in [1, 65536]", value));
+      p.image_width = static_cast<int>(wh.x);
+      p.image_height = static_cast<int>(wh.y);
+      continue;
+    }
+    std::size_t k = 0;
+    while (k < std::size(names) && key != names[k]) ++k;
+    if (k == std::size(names))
+      throw InputError(where, fmt::format("unknown generator key '{}' (keys: {}, start_m, image)", key, fmt::join(names, ", ")));
+    double x = 0;
+    const auto [ptr, ec] = std::from_chars(value.data(), value.data() + value.size(), x);
+    if (value.empty() || ec != std::errc() || ptr != value.data() + value.size() || !std::isfinite(x))
+      throw InputError(where, fmt::format("{}='{}' is not a finite number", key, value));
+    *reals[k] = x;
+    duration = duration || k == 0;
+    speed = speed || k == 2;
+    radius = radius || k == 12;
+  }
+  // As `vtsim trace gen`: an orbit keeps one lap over its duration unless a speed is given.
+  if (kind == TraceKind::orbit && !speed && std::isfinite(p.duration_s) && p.duration_s > 0 && (duration || radius))
+    p.speed_mps = 2.0 * std::numbers::pi * p.radius_m / (duration ? p.duration_s : default_gen_params(kind).duration_s);
+  return p;
 }
 
 }  // namespace vtsim

@@ -57,4 +57,10 @@ TraceGenParams default_gen_params(TraceKind kind);
 // Throws InputError("<field>", ...) for a parameter out of range (the field name as in the struct).
 Trace generate_trace(const TraceGenParams& p);
 
+// A generator line, as a generated trace's name writes it: "walk duration_s=600 start_m=30,8"
+// (the kind, then key=value with the TraceGenParams field names; start_m=X,Y, image=WxH). Keys
+// not given keep the kind's defaults; an orbit keeps one lap per duration unless speed_mps is
+// given, as `vtsim trace gen`. Throws InputError at `where` for an unknown kind or key, a bad value.
+TraceGenParams parse_gen_line(const std::string& line, const std::string& where);
+
 }  // namespace vtsim

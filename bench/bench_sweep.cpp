@@ -1,0 +1,104 @@
+// Sweep speed (docs/sweep.md, docs/performance.md): a 16-config sweep (4 × 4) over a walk at
+// feedback divisor 8, simulated clock, the view rendered once per frame and the 16 streaming
+// systems stepped on it (sim/sweep/lockstep.h), against the 16 separate replays it replaces.
+// Cases, for the VT over the town (4 pool sizes × 4 upload budgets) and the clipmap over the
+// plane (4 RAM sizes × 4 upload budgets):
+//  - <sys>16_vs_separate   one core: the lockstep sweep against 16 run_replay calls (each renders
+//                          its own view in the loop), side by side; ratio = separate / sweep;
+//  - <sys>16_1core         one core, against real time × 16 (ratio = × real time per config;
+//                          the sweep issue's targets: VT >= 150, clipmap >= 1,500);
+//  - <sys>16_2core         two threads (a team stepping the systems, render-ahead on one more),
+//                          against one core side by side (target >= 1.8).
+// Every case checks that the sweep's rows equal the separate replays' summaries.
+// Defaults: the 10-minute walk, 3 repetitions, no warm-up; --quick: 60 s.
+// Usage: build/bench/bench_sweep [--quick] [--reps N] [--filter S] [--json FILE]
+#include <fmt/format.h>
+
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "harness.h"
+#include "sim/run/replay.h"
+#include "sim/sweep/lockstep.h"
+#include "sim/trace/trace_gen.h"
+#include "sim/view/scene.h"
+
+using namespace vtsim;
+
+int main(int argc, char** argv) {
+  std::vector<char*> args(argv, argv + argc);
+  bool has_warmup = false;
+  for (int i = 1; i < argc; ++i) has_warmup = has_warmup || std::strcmp(argv[i], "--warmup") == 0;
+  std::string warm = "--warmup", zero = "0";
+  if (!has_warmup) args.insert(args.end(), {warm.data(), zero.data()});
+  bench::Harness h("sweep", static_cast<int>(args.size()), args.data(), 3, 3);
+  const double duration_s = h.pick(600.0, 60.0);
+  h.param("trace_s", duration_s);
+  int status = 0;
+
+  const auto system_cases = [&](const std::string& sys, const std::vector<std::string>& base, const Trace& trace,
+                                const std::string& axis, const std::vector<std::string>& axis_values, double target_1core) {
+    std::vector<ReplayConfig> cfgs;
+    for (const std::string& a : axis_values)
+      for (const char* up : {"2", "4", "8", "16"}) {
+        std::vector<std::string> sets = base;
+        sets.push_back(axis + "=" + a);
+        sets.push_back(std::string("upload.tiles_per_frame=") + up);
+        sets.push_back("view.render_threads=0");
+        cfgs.push_back(load_replay_config("", sets));
+      }
+    std::vector<const ReplayConfig*> ptrs;
+    for (const auto& c : cfgs) ptrs.push_back(&c);
+    const auto scene = make_scene_from_config(cfgs[0]);
+    const double configs = static_cast<double>(cfgs.size());
+    std::vector<LockstepResult> swept;
+    std::vector<nlohmann::json> separate(cfgs.size());
+    const auto lockstep = [&](int threads) {
+      return bench::Side{"lockstep_" + std::to_string(threads), {}, [&, threads] {
+                           swept = run_lockstep(ptrs, trace, *scene, threads);
+                           bench::do_not_optimize(swept);
+                         }};
+    };
+    const bench::Side alone{"separate_replays", {}, [&] {
+                              for (std::size_t i = 0; i < cfgs.size(); ++i) {
+                                ReplayResult r = run_replay(cfgs[i], trace, *scene);
+                                r.summary.erase("run");
+                                separate[i] = std::move(r.summary);
+                              }
+                            }};
+    const auto check = [&](const char* what) {
+      for (std::size_t i = 0; i < cfgs.size() && !separate[i].is_null(); ++i)
+        if (!swept[i].ok || swept[i].summary != separate[i]) {
+          fmt::print(stderr, "bench_sweep: {} config {}: the sweep's row differs from its replay alone\n", what, i);
+          status = 1;
+        }
+    };
+    const bench::Case base_case{.name = "", .metric = bench::Metric::kMsPerRep, .work = 1,
+                                .params = {{"configs", configs}, {"system", sys}, {"base", base}, {"axis", axis}}};
+    bench::Case c = base_case;
+    c.name = sys + "16_vs_separate";
+    if (h.compare(c, lockstep(1), alone)) check("one core");
+    c.name = sys + "16_1core";
+    c.target_ratio = target_1core;
+    const bench::Result* one = h.run_against(c, lockstep(1), "real time × configs", 1000.0 * duration_s * configs);
+    if (one) check("one core");
+    c.name = sys + "16_2core";
+    c.target_ratio = 1.8;
+    if (h.compare(c, lockstep(2), lockstep(1))) check("two cores");
+    if (one) fmt::print("{}: {:.0f}× real time per config on one core ({} configs, {:.0f} s trace)\n", sys, one->ratio, configs,
+                        duration_s);
+  };
+
+  TraceGenParams tp = default_gen_params(TraceKind::walk);
+  tp.duration_s = duration_s;
+  tp.start_m = {30.0, 8.0};  // along the town's first street (as bench_vt)
+  system_cases("vt", {"run.system=vt", "scene.kind=town", "view.divisor=8"}, generate_trace(tp), "vt.pool_pages",
+               {"256", "512", "1024", "2048"}, 150.0);
+  TraceGenParams pp = default_gen_params(TraceKind::walk);
+  pp.duration_s = duration_s;
+  system_cases("clipmap", {"run.system=clipmap", "view.divisor=8"}, generate_trace(pp), "ram.capacity_MiB",
+               {"32", "64", "128", "256"}, 1500.0);
+  const int rc = h.finish();
+  return status ? status : rc;
+}

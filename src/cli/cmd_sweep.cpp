@@ -1,0 +1,175 @@
+// vtsim sweep: many configs × many traces, the view rendered once per trace and view group, on
+// every core or as shards joined by `vtsim sweep merge` (docs/sweep.md).
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+
+#include "cli/commands.h"
+#include "core/error.h"
+#include "sim/sweep/sweep.h"
+#include "sim/sweep/tune.h"
+
+namespace vtsim::cli {
+
+namespace {
+
+struct SweepArgs {
+  std::string spec, out = "sweep-out", shard;
+  int jobs = 0;
+  bool quiet = false, progress = false;
+};
+
+void run_sweep_command(const SweepArgs& a) {
+  if (a.spec.empty()) throw InputError("sweep", "a spec file is required: vtsim sweep SPEC.toml -o OUT (docs/sweep.md)");
+  if (a.jobs < 0) throw InputError("--jobs", "must be >= 0 (0: one per core)");
+  const SweepSpec spec = load_sweep_spec(a.spec);
+  SweepOptions o;
+  o.out_dir = a.out;
+  o.jobs = a.jobs;
+  if (!a.shard.empty()) o.shard = parse_shard(a.shard, "--shard");
+  if (!a.quiet && (a.progress || isatty(fileno(stderr)) != 0))
+    o.progress = [](std::size_t done, std::size_t rows, double el, double eta) {
+      fmt::print(stderr, "\rsweep: {}/{} rows done, {:.0f} s elapsed, ~{:.0f} s left   ", done, rows, el, eta);
+    };
+  if (!a.quiet)
+    fmt::print(stderr, "sweep '{}': {} configs × {} traces{}\n", spec.name.empty() ? a.spec : spec.name,
+               spec.points.size(), spec.traces.size(),
+               o.shard.count > 1 ? fmt::format(", shard {}/{}", o.shard.index, o.shard.count) : std::string());
+  const SweepRunStats st = run_sweep(spec, o);
+  if (o.progress) fmt::print(stderr, "\r{:70}\r", "");
+  if (a.quiet) return;
+  fmt::print("{} rows ({} run now, {} already done, {} failed) in {} tasks: {:.1f} s wall, {:.1f} s CPU", st.rows,
+             st.rows - st.rows_skipped, st.rows_skipped, st.rows_failed, st.tasks, st.wall_s, st.cpu_s);
+  if (st.cpu_s > 0 && st.replayed_s > 0) fmt::print(", {:.0f}x real time per row on one core", st.replayed_s / st.cpu_s);
+  fmt::print("\n");
+  if (o.shard.count == 1)
+    fmt::print("wrote {0}/rows.jsonl, {0}/rows.csv, {0}/report.html, {0}/sweep.json\n", a.out);
+  else
+    fmt::print("wrote shard {}/{} to {} (join the shards with `vtsim sweep merge -o OUT DIR...`)\n", o.shard.index,
+               o.shard.count, a.out);
+  if (st.rows_failed > 0) throw Exit{kExitFailure};
+}
+
+}  // namespace
+
+void register_sweep_commands(CLI::App& app) {
+  auto a = std::make_shared<SweepArgs>();
+  auto* c = app.add_subcommand("sweep", "Replay many configs × many traces: rows, CSV and a report (docs/sweep.md)");
+  c->add_option("spec", a->spec, "sweep spec (TOML: traces, base config, [grid] axes, [[configs]])");
+  c->add_option("-o,--out", a->out, "output directory (rows.jsonl, rows.csv, report.html; restartable)")->capture_default_str();
+  c->add_option("--jobs,-j", a->jobs, "threads (0: one per core)")->capture_default_str();
+  c->add_option("--shard", a->shard, "run the slice I/N (0-based) of the work, or 'slurm' (from SLURM_ARRAY_TASK_*)");
+  c->add_flag("--quiet,-q", a->quiet, "print nothing (files are still written)");
+  c->add_flag("--progress", a->progress, "show progress even when stderr is not a terminal");
+  c->footer("A killed sweep restarted with the same -o skips the tasks it finished. Exit 1 when a row failed.");
+
+  auto merge_dirs = std::make_shared<std::vector<std::string>>();
+  auto merge_out = std::make_shared<std::string>();
+  auto* m = c->add_subcommand("merge", "Join shard directories into the outputs of the unsharded sweep");
+  m->add_option("shards", *merge_dirs, "shard directories (every shard of one spec, once)")->required();
+  m->add_option("-o,--out", *merge_out, "output directory")->required();
+  m->callback([merge_dirs, merge_out] {
+    merge_sweep(*merge_dirs, *merge_out);
+    fmt::print("merged {} shards into {}/rows.jsonl, rows.csv, report.html, sweep.json\n", merge_dirs->size(), *merge_out);
+  });
+  c->callback([a, m] {
+    if (m->parsed()) return;
+    run_sweep_command(*a);
+  });
+}
+
+}  // namespace vtsim::cli
+
+namespace vtsim::cli {
+
+namespace {
+
+struct TuneArgs {
+  std::string spec, out = "tune-out", store;
+  int jobs = 0;
+  bool quiet = false;
+};
+
+void run_tune_command(const TuneArgs& a) {
+  if (a.jobs < 0) throw InputError("--jobs", "must be >= 0 (0: one per core)");
+  const SweepSpec spec = load_sweep_spec(a.spec);
+  const std::vector<Trace> traces = load_sweep_traces(spec);
+  std::size_t replays = 0;
+  const bool show = !a.quiet && isatty(fileno(stderr)) != 0;
+  const TuneResult r = run_tune(spec, [&](const std::vector<int>& configs) {
+    replays += configs.size();
+    if (show) fmt::print(stderr, "\rtune: {} configs replayed on {} traces", replays, traces.size());
+    return replay_points(spec, traces, configs, a.jobs);
+  });
+  if (show) fmt::print(stderr, "\r{:60}\r", "");
+  nlohmann::json out = {{"schema", "vtsim.tune/1"},
+                        {"spec", a.spec},
+                        {"grid", r.grid},
+                        {"replayed", r.replayed.size()},
+                        {"inferred", r.inferred},
+                        {"monotonicity_failures", r.monotonicity_failures},
+                        {"constraints", nlohmann::json::array()},
+                        {"front", nlohmann::json::array()}};
+  for (const auto& c : spec.tune.constraints) out["constraints"].push_back(c.text);
+  std::string table = fmt::format("{:>6}", "config");
+  for (const auto& k : spec.axis_keys) table += fmt::format("  {:>22}", k);
+  for (const auto& c : spec.tune.constraints) table += fmt::format("  {:>22}", c.metric);
+  table += "\n";
+  for (int p : r.front) {
+    nlohmann::json f = {{"config", p}, {"values", nlohmann::json::object()}, {"worst", r.replayed.at(p).worst}};
+    table += fmt::format("{:>6}", p);
+    for (const auto& [k, v] : spec.points[static_cast<std::size_t>(p)].values) {
+      f["values"][k] = v;
+      table += fmt::format("  {:>22}", v);
+    }
+    for (double w : r.replayed.at(p).worst) table += fmt::format("  {:>22.4g}", w);
+    table += "\n";
+    out["front"].push_back(std::move(f));
+  }
+  const int rec = recommended_config(spec, r.front);
+  out["recommended"] = rec;
+  if (!a.store.empty() && rec >= 0) out["real_check"] = tune_real_check(spec, traces, rec, a.store);
+  std::error_code ec;
+  std::filesystem::create_directories(a.out, ec);
+  if (ec) throw InputError(a.out, "cannot create the output directory: " + ec.message());
+  {
+    std::ofstream f(std::filesystem::path(a.out) / "tune.json", std::ios::binary | std::ios::trunc);
+    f << out.dump(2) << "\n";
+    if (!f.flush()) throw InputError(a.out + "/tune.json", "write failed");
+  }
+  if (a.quiet) return;
+  fmt::print("{} configs meet every constraint at least cost (of {} in the grid); {} replayed ({:.0f}% of the grid), "
+             "{} answered by monotonicity; {} monotonicity failures\n",
+             r.front.size(), r.grid, r.replayed.size(), 100.0 * static_cast<double>(r.replayed.size()) / static_cast<double>(r.grid),
+             r.inferred, r.monotonicity_failures.size());
+  if (!r.front.empty()) fmt::print("{}", table);
+  if (rec >= 0) fmt::print("recommended: config {}\n", rec);
+  if (out.contains("real_check")) {
+    const auto& rc = out["real_check"];
+    fmt::print("real clock on {}: simulated {}, real {}\n", a.store, rc["sim_pass"].get<bool>() ? "passes" : "fails",
+               rc["real_pass"].get<bool>() ? "passes" : "fails");
+    for (const auto& c : rc["constraints"])
+      fmt::print("  {:<40} simulated {:>10.4g}  real {:>10.4g}  gap {:+.4g}\n", c["constraint"].get<std::string>(),
+                 c["sim"].get<double>(), c["real"].get<double>(), c["gap"].get<double>());
+  }
+  fmt::print("wrote {}/tune.json\n", a.out);
+}
+
+}  // namespace
+
+void register_tune_commands(CLI::App& app) {
+  auto a = std::make_shared<TuneArgs>();
+  auto* c = app.add_subcommand("tune", "Find the cheapest configs of a sweep spec's grid that meet its [tune] constraints");
+  c->add_option("spec", a->spec, "sweep spec with a [tune] section (docs/sweep.md, \"Tuning\")")->required();
+  c->add_option("-o,--out", a->out, "output directory (tune.json)")->capture_default_str();
+  c->add_option("--jobs,-j", a->jobs, "threads (0: one per core)")->capture_default_str();
+  c->add_option("--store", a->store, "also replay the recommended config in the real clock on this tile store and report the gap");
+  c->add_flag("--quiet,-q", a->quiet, "print nothing (tune.json is still written)");
+  c->callback([a] { run_tune_command(*a); });
+}
+
+}  // namespace vtsim::cli

@@ -1,0 +1,608 @@
+#include "sim/sweep/sweep.h"
+
+#include <fmt/format.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <condition_variable>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include "core/error.h"
+#include "core/input_file.h"
+#include "sim/run/replay.h"
+#include "sim/sweep/lockstep.h"
+#include "sim/sweep/sweep_report.h"
+#include "sim/view/scene.h"
+
+namespace vtsim {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kSchema = "vtsim.sweep/1";
+// Configs stepped on one view at most: each run keeps its per-frame rows and latencies in memory
+// (~100 B per frame and ~100 B per tile: a 10-minute 60 Hz trace is ~4 MB per run).
+constexpr std::size_t kMaxTaskConfigs = 32;
+constexpr std::uint64_t kMaxJsonBytes = 1ull << 32;
+
+double process_cpu_s() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+// Writes a file whole or not at all: a temporary beside it, then rename.
+void write_atomic(const fs::path& path, const std::string& text) {
+  const fs::path tmp = path.string() + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw InputError(tmp.string(), "cannot open for writing");
+    out << text;
+    if (!out.flush()) throw InputError(tmp.string(), "write failed");
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) throw InputError(path.string(), "cannot rename " + tmp.string() + " over it: " + ec.message());
+}
+
+nlohmann::json parse_json(const std::string& text, const std::string& where) {
+  try {
+    return nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(where, std::string("not valid JSON: ") + e.what());
+  }
+}
+
+std::string hex64(std::uint64_t h) { return fmt::format("{:016x}", h); }
+
+// The work of a spec in work order: trace by trace, view group by view group (in the order of
+// their first config), config by config. A shard is a contiguous block of it, so it renders each
+// view it touches once.
+struct WorkItem {
+  int trace = 0;
+  int config = 0;
+  int group = 0;
+};
+
+struct Task {
+  std::size_t first = 0, count = 0;  // work items [first, first + count)
+  int trace = 0;
+  std::vector<int> configs;
+};
+
+std::vector<WorkItem> work_order(const SweepSpec& spec) {
+  std::map<std::string, int> group_of_key;
+  std::vector<int> group(spec.points.size());
+  std::vector<std::vector<int>> members;
+  for (const SweepPoint& p : spec.points) {
+    auto [it, added] = group_of_key.emplace(view_key(p.cfg), static_cast<int>(members.size()));
+    if (added) members.emplace_back();
+    members[static_cast<std::size_t>(it->second)].push_back(p.index);
+    group[static_cast<std::size_t>(p.index)] = it->second;
+  }
+  std::vector<WorkItem> items;
+  for (int t = 0; t < static_cast<int>(spec.traces.size()); ++t)
+    for (std::size_t g = 0; g < members.size(); ++g)
+      for (int c : members[g]) items.push_back({t, c, static_cast<int>(g)});
+  return items;
+}
+
+std::pair<std::size_t, std::size_t> shard_range(std::size_t items, const SweepShard& s) {
+  const auto n = static_cast<std::size_t>(s.count), i = static_cast<std::size_t>(s.index);
+  return {items * i / n, items * (i + 1) / n};
+}
+
+std::vector<Task> make_tasks(const std::vector<WorkItem>& items, std::size_t b, std::size_t e) {
+  std::vector<Task> tasks;
+  for (std::size_t k = b; k < e; ++k) {
+    const WorkItem& w = items[k];
+    const bool extend = !tasks.empty() && tasks.back().trace == w.trace && items[tasks.back().first].group == w.group &&
+                        tasks.back().count < kMaxTaskConfigs;
+    if (!extend) tasks.push_back({k, 0, w.trace, {}});
+    tasks.back().count++;
+    tasks.back().configs.push_back(w.config);
+  }
+  return tasks;
+}
+
+std::string part_name(const Task& t) { return fmt::format("items-{:08}-{:03}.jsonl", t.first, t.count); }
+
+// The spec as the report and the merge need it (no costs measured yet).
+nlohmann::json spec_meta(const SweepSpec& spec, const std::vector<Trace>& traces, const std::string& hash) {
+  nlohmann::json m;
+  m["schema"] = kSchema;
+  m["name"] = spec.name;
+  m["spec_hash"] = hash;
+  m["metrics"] = spec.metrics;
+  m["axis_keys"] = spec.axis_keys;
+  m["axes"] = nlohmann::json::array();
+  for (const SweepAxis& a : spec.grid) m["axes"].push_back({{"key", a.key}, {"values", a.values}});
+  m["traces"] = nlohmann::json::array();
+  for (std::size_t t = 0; t < spec.traces.size(); ++t)
+    m["traces"].push_back({{"trace", t},
+                           {"name", traces[t].name},
+                           {"source", spec.traces[t].text},
+                           {"generated", spec.traces[t].generated},
+                           {"poses", traces[t].poses.size()}});
+  m["configs"] = nlohmann::json::array();
+  for (const SweepPoint& p : spec.points) {
+    nlohmann::json values = nlohmann::json::object();
+    for (const auto& [k, v] : p.values) values[k] = v;
+    std::uint64_t tile_bytes = 0;
+    for (const LayerSpec& L : p.cfg.texture.layers.specs) tile_bytes += tile_decoded_bytes(p.cfg, L);
+    m["configs"].push_back({{"config", p.index},
+                            {"values", values},
+                            {"system", p.cfg.run.system},
+                            {"tile_bytes", tile_bytes},
+                            {"ram_MiB", p.cfg.ram.capacity_MiB},
+                            {"upload_tiles_per_frame", std::max<std::int64_t>(0, p.cfg.upload.tiles_per_frame)},
+                            {"upload_bytes_per_frame", std::max<std::int64_t>(0, p.cfg.upload.bytes_per_frame)}});
+  }
+  m["rows"] = spec.points.size() * spec.traces.size();
+  return m;
+}
+
+// A config's cost axes (docs/sweep.md): VRAM for tiles (the VT pool; the clipmap stack), RAM,
+// the upload budget (0: no limit). From the first row that ran.
+void add_costs(nlohmann::json& meta, const std::vector<nlohmann::json>& rows) {
+  const std::size_t T = meta["traces"].size();
+  for (auto& c : meta["configs"]) {
+    const std::size_t i = c["config"].get<std::size_t>();
+    double pool = 0;
+    for (std::size_t t = 0; t < T; ++t) {
+      const nlohmann::json& r = rows[i * T + t];
+      if (r["status"] != "ok") continue;
+      const nlohmann::json& s = r["summary"];
+      if (s.contains("vt")) pool = s["vt"].value("pool_bytes", 0.0);
+      else if (s.contains("clipmap"))
+        pool = s["clipmap"].value("stack_levels", 0.0) * std::pow(s["clipmap"].value("window_tiles", 0.0), 2.0) *
+               c["tile_bytes"].get<double>();
+      break;
+    }
+    c["cost"] = {{"pool_MiB", pool / 1048576.0},
+                 {"ram_MiB", c["ram_MiB"]},
+                 {"upload_tiles_per_frame", c["upload_tiles_per_frame"]},
+                 {"upload_MiB_per_frame", c["upload_bytes_per_frame"].get<double>() / 1048576.0}};
+  }
+}
+
+const nlohmann::json* at_path(const nlohmann::json& j, const std::string& dotted) {
+  const nlohmann::json* p = &j;
+  for (std::size_t b = 0;;) {
+    const std::size_t e = dotted.find('.', b);
+    const std::string k = dotted.substr(b, e == std::string::npos ? std::string::npos : e - b);
+    if (!p->is_object() || !p->contains(k)) return nullptr;
+    p = &(*p)[k];
+    if (e == std::string::npos) return p;
+    b = e + 1;
+  }
+}
+
+std::string csv_field(const std::string& s) {
+  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
+  std::string o = "\"";
+  for (char c : s) o += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return o + "\"";
+}
+
+std::string csv_value(const nlohmann::json* v) {
+  if (!v || v->is_null()) return "";
+  if (v->is_number_float()) return fmt::format("{}", v->get<double>());
+  if (v->is_string()) return v->get<std::string>();
+  return v->dump();
+}
+
+std::string rows_csv(const nlohmann::json& meta, const std::vector<nlohmann::json>& rows) {
+  std::string out = "row,config,trace,trace_name";
+  const auto keys = meta["axis_keys"].get<std::vector<std::string>>();
+  const auto metrics = meta["metrics"].get<std::vector<std::string>>();
+  for (const auto& k : keys) out.append(",").append(csv_field(k));
+  out += ",status";
+  for (const auto& m : metrics) out.append(",").append(csv_field(m));
+  out += ",error\n";
+  for (const nlohmann::json& r : rows) {
+    const std::size_t t = r["trace"].get<std::size_t>();
+    out += fmt::format("{},{},{},{}", r["row"].get<std::size_t>(), r["config"].get<int>(), t,
+                       csv_field(meta["traces"][t]["name"].get<std::string>()));
+    for (const auto& k : keys) {
+      std::string v = r["values"].value(k, std::string());
+      if (v.size() >= 2 && v.front() == '"' && v.back() == '"') v = v.substr(1, v.size() - 2);  // TOML string
+      out.append(",").append(csv_field(v));
+    }
+    const bool ok = r["status"] == "ok";
+    out.append(",").append(r["status"].get<std::string>());
+    for (const auto& m : metrics) out.append(",").append(csv_field(ok ? csv_value(at_path(r["summary"], m)) : std::string()));
+    out.append(",").append(csv_field(ok ? std::string() : r.value("error", std::string())) + "\n");
+  }
+  return out;
+}
+
+// The joined outputs of a whole sweep: rows in row order (config-major), from the spec's meta.
+void write_joined(nlohmann::json meta, std::vector<nlohmann::json> rows, const fs::path& out, const nlohmann::json& cost) {
+  std::sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) { return a["row"] < b["row"]; });
+  add_costs(meta, rows);
+  std::string jsonl;
+  for (const auto& r : rows) jsonl += r.dump() + "\n";
+  write_atomic(out / "rows.jsonl", jsonl);
+  write_atomic(out / "rows.csv", rows_csv(meta, rows));
+  write_atomic(out / "report.html", sweep_report_html(meta, rows));
+  nlohmann::json s = {{"schema", kSchema}, {"meta", meta}, {"cost", cost}};
+  write_atomic(out / "sweep.json", s.dump(2) + "\n");
+}
+
+// Reads a part file: its header and rows. InputError naming file:line.
+struct Part {
+  std::size_t first = 0, count = 0;
+  std::vector<nlohmann::json> rows;
+};
+Part read_part(const fs::path& path, const std::string& hash) {
+  const std::string text = read_regular_file(path.string(), kMaxJsonBytes, "not a sweep part");
+  Part p;
+  std::size_t line = 0;
+  for (std::size_t b = 0; b < text.size();) {
+    std::size_t e = text.find('\n', b);
+    if (e == std::string::npos) e = text.size();
+    ++line;
+    const std::string where = at_line(path.string(), static_cast<long long>(line));
+    nlohmann::json j = parse_json(text.substr(b, e - b), where);
+    if (line == 1) {
+      if (!j.is_object() || !j.contains("spec_hash") || !j.contains("first") || !j.contains("count"))
+        throw InputError(where, "not a sweep part header");
+      if (j["spec_hash"] != hash)
+        throw InputError(where, fmt::format("a part of another spec (hash {}, this spec {})", j["spec_hash"].dump(), hash));
+      p.first = j["first"].get<std::size_t>();
+      p.count = j["count"].get<std::size_t>();
+    } else {
+      if (!j.is_object() || !j.contains("row")) throw InputError(where, "not a sweep row");
+      p.rows.push_back(std::move(j));
+    }
+    b = e + 1;
+  }
+  if (line == 0) throw InputError(path.string(), "an empty sweep part");
+  if (p.rows.size() != p.count) throw InputError(path.string(), fmt::format("{} rows, its header says {}", p.rows.size(), p.count));
+  return p;
+}
+
+}  // namespace
+
+std::vector<Trace> load_sweep_traces(const SweepSpec& spec) {
+  std::vector<Trace> traces;
+  for (const SweepTraceSource& s : spec.traces) {
+    try {
+      traces.push_back(load_sweep_trace(s));
+    } catch (const InputError& e) {
+      throw InputError(at_line(spec.path, s.line), fmt::format("trace '{}': {}", s.text, e.what()));
+    }
+    if (traces.back().poses.empty()) throw InputError(at_line(spec.path, s.line), "trace '" + s.text + "' has no poses");
+  }
+  return traces;
+}
+
+namespace {
+
+// Scenes made once per scene and texture (the town is generated, a mesh loaded): shared by the
+// tasks that need them, read-only while they render.
+class SceneCache {
+ public:
+  const IScene& get(const ReplayConfig& cfg) {
+    std::string key;  // every scene and texture key (a few more than the scene reads: harmless)
+    for (const auto& f : replay_config_table().fields()) {
+      if (f.key.rfind("scene.", 0) != 0 && f.key.rfind("texture.", 0) != 0) continue;
+      key.append(f.key).append("=").append(f.get(cfg)).append("\n");
+    }
+    std::lock_guard<std::mutex> lock(mu_);
+    auto& slot = scenes_[key];
+    if (!slot) slot = make_scene_from_config(cfg);
+    return *slot;
+  }
+
+ private:
+  std::mutex mu_;
+  std::map<std::string, std::unique_ptr<IScene>> scenes_;
+};
+
+// A row of rows.jsonl: the point, the trace, the summary or the error.
+nlohmann::json make_row(const SweepSpec& spec, int config, int trace, LockstepResult&& res, const std::string& view_error) {
+  const SweepPoint& p = spec.points[static_cast<std::size_t>(config)];
+  nlohmann::json row = {{"row", static_cast<std::size_t>(config) * spec.traces.size() + static_cast<std::size_t>(trace)},
+                        {"config", config},
+                        {"trace", trace},
+                        {"values", nlohmann::json::object()}};
+  for (const auto& [k, v] : p.values) row["values"][k] = v;
+  if (view_error.empty() && res.ok) {
+    row["status"] = "ok";
+    row["summary"] = std::move(res.summary);
+  } else {
+    row["status"] = "error";
+    row["error"] = view_error.empty() ? res.error : view_error;
+  }
+  return row;
+}
+
+}  // namespace
+
+std::vector<std::vector<nlohmann::json>> replay_points(const SweepSpec& spec, const std::vector<Trace>& traces,
+                                                       const std::vector<int>& configs, int jobs) {
+  std::vector<std::vector<nlohmann::json>> out(configs.size(), std::vector<nlohmann::json>(traces.size()));
+  std::map<std::string, std::vector<std::size_t>> groups;
+  for (std::size_t i = 0; i < configs.size(); ++i)
+    groups[view_key(spec.points.at(static_cast<std::size_t>(configs[i])).cfg)].push_back(i);
+  SceneCache scenes;
+  const int threads = jobs > 0 ? jobs : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  for (const auto& [key, members] : groups) {
+    std::vector<const ReplayConfig*> cfgs;
+    for (std::size_t i : members) cfgs.push_back(&spec.points[static_cast<std::size_t>(configs[i])].cfg);
+    for (std::size_t t = 0; t < traces.size(); ++t) {
+      std::vector<LockstepResult> res;
+      std::string view_error;
+      try {
+        res = run_lockstep(cfgs, traces[t], scenes.get(*cfgs[0]), threads);
+      } catch (const std::exception& e) {
+        view_error = e.what();
+        res.assign(cfgs.size(), LockstepResult{});
+      }
+      for (std::size_t k = 0; k < members.size(); ++k)
+        out[members[k]][t] = make_row(spec, configs[members[k]], static_cast<int>(t), std::move(res[k]), view_error);
+    }
+  }
+  return out;
+}
+
+std::string sweep_spec_hash(const SweepSpec& spec, const std::vector<Trace>& traces) {
+  std::uint64_t h = fnv1a64(kSchema);
+  h = fnv1a64(spec.name + "\n" + spec.base_dump, h);
+  for (const SweepPoint& p : spec.points)
+    for (const auto& [k, v] : p.values) h = fnv1a64(fmt::format("{}:{}={}\n", p.index, k, v), h);
+  for (std::size_t t = 0; t < spec.traces.size(); ++t) {
+    h = fnv1a64(spec.traces[t].text + "\n", h);
+    // The trace's content: its poses as loaded (what the replays see), exactly.
+    for (const Pose& p : traces[t].poses)
+      h = fnv1a64(std::string_view(reinterpret_cast<const char*>(&p), sizeof(Pose)), h);
+    h = fnv1a64(fmt::format("{}x{}\n", traces[t].image_width, traces[t].image_height), h);
+  }
+  for (const std::string& m : spec.metrics) h = fnv1a64(m + "\n", h);
+  return hex64(h);
+}
+
+SweepShard parse_shard(const std::string& text, const std::string& where) {
+  SweepShard s;
+  if (text == "slurm") {
+    const char* id = std::getenv("SLURM_ARRAY_TASK_ID");
+    const char* count = std::getenv("SLURM_ARRAY_TASK_COUNT");
+    const char* min = std::getenv("SLURM_ARRAY_TASK_MIN");
+    if (!id || !count)
+      throw InputError(where, "'slurm': SLURM_ARRAY_TASK_ID and SLURM_ARRAY_TASK_COUNT are not set (run it in `sbatch --array`)");
+    const long long i = std::atoll(id) - (min ? std::atoll(min) : 0), n = std::atoll(count);
+    if (n < 1 || i < 0 || i >= n)
+      throw InputError(where, fmt::format("'slurm': task {} of {} (SLURM_ARRAY_TASK_ID - SLURM_ARRAY_TASK_MIN must be in [0, "
+                                          "SLURM_ARRAY_TASK_COUNT); use a contiguous --array=0-{})",
+                                          i, n, n > 0 ? n - 1 : 0));
+    return {static_cast<int>(i), static_cast<int>(n)};
+  }
+  const std::size_t slash = text.find('/');
+  char* end = nullptr;
+  const long long i = slash == std::string::npos ? -1 : std::strtoll(text.c_str(), &end, 10);
+  const bool i_ok = slash != std::string::npos && end == text.c_str() + slash && slash > 0;
+  const long long n = i_ok ? std::strtoll(text.c_str() + slash + 1, &end, 10) : 0;
+  const bool n_ok = i_ok && *end == '\0' && slash + 1 < text.size();
+  if (!n_ok || n < 1 || n > 100000 || i < 0 || i >= n)
+    throw InputError(where, "'" + text + "' is not I/N with 0 <= I < N (e.g. 0/4), or slurm");
+  s.index = static_cast<int>(i);
+  s.count = static_cast<int>(n);
+  return s;
+}
+
+SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
+  const auto wall0 = std::chrono::steady_clock::now();
+  const double cpu0 = process_cpu_s();
+  const std::vector<Trace> traces = load_sweep_traces(spec);
+  const std::string hash = sweep_spec_hash(spec, traces);
+  const fs::path out(opts.out_dir);
+  const fs::path parts = out / "parts";
+  std::error_code ec;
+  fs::create_directories(parts, ec);
+  if (ec) throw InputError(opts.out_dir, "cannot create the output directory: " + ec.message());
+  const fs::path shard_file = out / "shard.json";
+  if (fs::exists(shard_file)) {
+    const nlohmann::json old = parse_json(read_regular_file(shard_file.string(), kMaxJsonBytes, "not a shard file"),
+                                          shard_file.string());
+    if (old.value("spec_hash", std::string()) != hash)
+      throw InputError(shard_file.string(), fmt::format("holds a sweep of another spec (hash {}, this spec {}): give another "
+                                                        "-o, or delete the directory",
+                                                        old.value("spec_hash", std::string("?")), hash));
+    if (old.value("shard", -1) != opts.shard.index || old.value("count", -1) != opts.shard.count)
+      throw InputError(shard_file.string(), fmt::format("holds shard {}/{} of this spec, not {}/{}", old.value("shard", -1),
+                                                        old.value("count", -1), opts.shard.index, opts.shard.count));
+  }
+  const nlohmann::json meta = spec_meta(spec, traces, hash);
+  const std::vector<WorkItem> items = work_order(spec);
+  const auto [b, e] = shard_range(items.size(), opts.shard);
+  const std::vector<Task> tasks = make_tasks(items, b, e);
+  nlohmann::json shard = {{"schema", kSchema}, {"spec_hash", hash}, {"shard", opts.shard.index},
+                          {"count", opts.shard.count}, {"items", {b, e}},  {"complete", false}, {"meta", meta}};
+  write_atomic(shard_file, shard.dump(2) + "\n");
+
+  // Restart: the tasks whose part is on disk are done (a part is renamed into place whole).
+  for (const auto& f : fs::directory_iterator(parts))
+    if (f.path().extension() == ".tmp") fs::remove(f.path(), ec);
+  SweepRunStats st;
+  st.rows = e - b;
+  std::vector<const Task*> todo;
+  std::uint64_t total_frames = 0;
+  std::vector<std::uint64_t> task_frames;
+  for (const Task& t : tasks) {
+    const fs::path p = parts / part_name(t);
+    if (fs::exists(p)) {
+      const Part done = read_part(p, hash);
+      if (done.first == t.first && done.count == t.count) {
+        st.rows_skipped += t.count;
+        continue;
+      }
+    }
+    todo.push_back(&t);
+    const Trace& tr = traces[static_cast<std::size_t>(t.trace)];
+    const double fps = spec.points[static_cast<std::size_t>(t.configs[0])].cfg.run.fps;
+    const double dur = tr.poses.back().t_s - tr.poses.front().t_s;
+    total_frames += t.count * static_cast<std::uint64_t>(fps > 0 ? dur * fps + 1 : static_cast<double>(tr.poses.size()));
+  }
+  st.tasks = todo.size();
+
+  const int jobs = opts.jobs > 0 ? opts.jobs : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  const int parallel = std::max(1, std::min<int>(jobs, static_cast<int>(todo.size())));
+  const int team = std::max(1, jobs / parallel);
+  SceneCache scenes;
+  std::atomic<std::size_t> next{0}, rows_done{0}, failed{0};
+  std::atomic<std::uint64_t> frames_done{0};
+  std::atomic<double> replayed_s{0.0};
+  std::mutex err_mu;
+  std::exception_ptr first_error;
+  const auto worker = [&] {
+    for (;;) {
+      const std::size_t k = next.fetch_add(1);
+      if (k >= todo.size()) return;
+      const Task& t = *todo[k];
+      try {
+        const Trace& trace = traces[static_cast<std::size_t>(t.trace)];
+        std::vector<const ReplayConfig*> cfgs;
+        for (int c : t.configs) cfgs.push_back(&spec.points[static_cast<std::size_t>(c)].cfg);
+        std::vector<LockstepResult> res;
+        std::string scene_error;
+        try {
+          res = run_lockstep(cfgs, trace, scenes.get(*cfgs[0]), team, &frames_done);
+        } catch (const std::exception& ex) {
+          scene_error = ex.what();  // the view itself failed (scene, trace): every row of the task says so
+          res.assign(cfgs.size(), LockstepResult{});
+        }
+        std::string text = nlohmann::json({{"spec_hash", hash}, {"first", t.first}, {"count", t.count}}).dump() + "\n";
+        for (std::size_t i = 0; i < t.configs.size(); ++i) {
+          nlohmann::json row = make_row(spec, t.configs[i], t.trace, std::move(res[i]), scene_error);
+          if (row["status"] == "ok") replayed_s.fetch_add(row["summary"]["trace"]["duration_s"].get<double>());
+          else failed.fetch_add(1);
+          text += row.dump() + "\n";
+        }
+        write_atomic(parts / part_name(t), text);
+        rows_done.fetch_add(t.count);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(err_mu);
+        if (!first_error) first_error = std::current_exception();
+        next.store(todo.size());  // stop claiming: the output directory is not writable, ...
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  if (opts.progress && !todo.empty()) {
+    // Every worker on a thread of its own; this thread reports progress about once a second.
+    std::mutex mu;
+    std::condition_variable cv;
+    int finished = 0;
+    for (int i = 0; i < parallel; ++i)
+      pool.emplace_back([&] {
+        worker();
+        std::lock_guard<std::mutex> lock(mu);
+        ++finished;
+        cv.notify_one();
+      });
+    std::unique_lock<std::mutex> lock(mu);
+    while (!cv.wait_for(lock, std::chrono::seconds(1), [&] { return finished == parallel; })) {
+      const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+      const double frac = total_frames ? static_cast<double>(frames_done.load()) / static_cast<double>(total_frames) : 1.0;
+      opts.progress(st.rows_skipped + rows_done.load(), st.rows, el, frac > 0 ? el * (1 - frac) / frac : 0.0);
+    }
+  } else {
+    for (int i = 1; i < parallel; ++i) pool.emplace_back(worker);
+    worker();
+  }
+  for (auto& th : pool) th.join();
+  if (first_error) std::rethrow_exception(first_error);
+
+  st.rows_failed = failed.load();
+  st.views_rendered = todo.size();
+  st.replayed_s = replayed_s.load();
+  st.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  st.cpu_s = process_cpu_s() - cpu0;
+  const nlohmann::json cost = {{"wall_s", st.wall_s},       {"cpu_s", st.cpu_s},     {"jobs", jobs},
+                               {"rows_run", st.rows - st.rows_skipped}, {"rows_skipped", st.rows_skipped},
+                               {"views_rendered", st.views_rendered}, {"replayed_s", st.replayed_s}};
+  shard["complete"] = true;
+  shard["cost"] = cost;
+  write_atomic(shard_file, shard.dump(2) + "\n");
+  if (opts.shard.count == 1) {
+    std::vector<nlohmann::json> rows;
+    for (const Task& t : tasks) {
+      Part p = read_part(parts / part_name(t), hash);
+      for (auto& r : p.rows) rows.push_back(std::move(r));
+    }
+    write_joined(meta, std::move(rows), out, cost);
+  }
+  return st;
+}
+
+void merge_sweep(const std::vector<std::string>& shard_dirs, const std::string& out_dir) {
+  if (shard_dirs.empty()) throw InputError("merge", "no shard directories given");
+  nlohmann::json meta;
+  std::string hash;
+  int count = -1;
+  std::map<int, std::string> seen;
+  std::vector<nlohmann::json> rows;
+  std::vector<std::pair<std::size_t, std::size_t>> covered;  // item ranges of the parts
+  nlohmann::json cost = {{"wall_s", 0.0}, {"cpu_s", 0.0}, {"shards", nlohmann::json::array()}};
+  for (const std::string& d : shard_dirs) {
+    const fs::path f = fs::path(d) / "shard.json";
+    if (!fs::exists(f)) throw InputError(d, "not a sweep shard directory (no shard.json)");
+    const nlohmann::json s = parse_json(read_regular_file(f.string(), kMaxJsonBytes, "not a shard file"), f.string());
+    if (s.value("schema", std::string()) != kSchema) throw InputError(f.string(), std::string("not a ") + kSchema + " shard");
+    const std::string h = s.value("spec_hash", std::string());
+    if (hash.empty()) hash = h, meta = s["meta"], count = s.value("count", -1);
+    if (h != hash)
+      throw InputError(f.string(), fmt::format("a shard of another spec (hash {}; {} has {})", h, seen.begin()->second, hash));
+    if (s.value("count", -1) != count)
+      throw InputError(f.string(), fmt::format("a shard of {} (the others are of {})", s.value("count", -1), count));
+    const int index = s.value("shard", -1);
+    if (auto [it, added] = seen.emplace(index, d); !added)
+      throw InputError(f.string(), fmt::format("shard {}/{} again (also in {})", index, count, it->second));
+    if (!s.value("complete", false))
+      throw InputError(f.string(), fmt::format("shard {}/{} is incomplete (run it again with the same -o to finish)", index, count));
+    if (s.contains("cost")) {
+      cost["wall_s"] = cost["wall_s"].get<double>() + s["cost"].value("wall_s", 0.0);
+      cost["cpu_s"] = cost["cpu_s"].get<double>() + s["cost"].value("cpu_s", 0.0);
+      cost["shards"].push_back(s["cost"]);
+    }
+    const auto range = s["items"].get<std::vector<std::size_t>>();
+    for (const auto& pf : fs::directory_iterator(fs::path(d) / "parts")) {
+      if (pf.path().extension() != ".jsonl") continue;
+      Part p = read_part(pf.path(), hash);
+      if (p.first < range[0] || p.first + p.count > range[1])
+        throw InputError(pf.path().string(), fmt::format("items {}..{} lie outside shard {}'s {}..{}", p.first,
+                                                         p.first + p.count, index, range[0], range[1]));
+      covered.emplace_back(p.first, p.first + p.count);
+      for (auto& r : p.rows) rows.push_back(std::move(r));
+    }
+  }
+  for (int i = 0; i < count; ++i)
+    if (!seen.count(i)) throw InputError("merge", fmt::format("shard {}/{} is missing", i, count));
+  std::sort(covered.begin(), covered.end());
+  const std::size_t R = meta["rows"].get<std::size_t>();
+  std::size_t at = 0;
+  for (const auto& [b, e] : covered) {
+    if (b != at) throw InputError("merge", fmt::format("work items {}..{} are {}", std::min(at, b), std::max(at, b),
+                                                       b > at ? "missing" : "in two parts"));
+    at = e;
+  }
+  if (at != R) throw InputError("merge", fmt::format("work items {}..{} are missing", at, R));
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec) throw InputError(out_dir, "cannot create the output directory: " + ec.message());
+  write_joined(meta, std::move(rows), fs::path(out_dir), cost);
+}
+
+}  // namespace vtsim

@@ -1,0 +1,78 @@
+#pragma once
+// Sweeps (docs/sweep.md): every config point of a spec on every trace, one row per (config,
+// trace). View once, systems many: the points that share the view (the view key below) are
+// stepped in lockstep on one rendered view per trace, so the feedback is rendered once per
+// (trace, view group) instead of once per row, and each row is byte-identical to `vtsim replay`
+// with that config alone (the summary without its "run" cost section).
+//
+// Rows are numbered row = trace_index * configs + config_index... see row_index(); the work is cut
+// into tasks, one per (trace, view group, contiguous block of rows). A task's rows are written to
+// OUT/parts/ when it completes (atomically), so a killed sweep restarted on the same OUT skips what
+// it finished and redoes only the tasks that were in flight. A shard (I/N) is a contiguous block of
+// the row order; `merge_sweep` joins the shards' parts into exactly the unsharded outputs.
+//
+// Thread-safety: run_sweep uses `jobs` threads of its own; the functions are not reentrant on
+// one output directory.
+#include <cstdint>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "sim/sweep/sweep_spec.h"
+
+namespace vtsim {
+
+// What must be equal for two configs to share one rendered view: run.fps, the texture's
+// placement and size, the scene, the [view] section but render_threads, and the tile size
+// (spans never cross a tile).
+std::string view_key(const ReplayConfig& cfg);
+
+struct SweepShard {
+  int index = 0;  // 0-based
+  int count = 1;
+};
+// "I/N" (0 <= I < N) or "slurm" (SLURM_ARRAY_TASK_ID - SLURM_ARRAY_TASK_MIN / SLURM_ARRAY_TASK_COUNT).
+SweepShard parse_shard(const std::string& text, const std::string& where);
+
+struct SweepOptions {
+  std::string out_dir;
+  int jobs = 0;                  // 0: one per core
+  SweepShard shard;
+  // Progress (rows done, rows in this shard, seconds elapsed, seconds left estimate), called from
+  // the thread that finishes a task.
+  std::function<void(std::size_t, std::size_t, double, double)> progress;
+};
+
+struct SweepRunStats {
+  std::size_t rows = 0;          // rows of this shard
+  std::size_t rows_skipped = 0;  // already done (restart)
+  std::size_t rows_failed = 0;   // rows whose replay failed (status "error")
+  std::size_t tasks = 0, views_rendered = 0;
+  double wall_s = 0, cpu_s = 0;  // this process
+  double replayed_s = 0;         // trace seconds replayed, summed over rows run now
+};
+
+// Runs a shard of the sweep into opts.out_dir (OUT/parts/, OUT/shard.json); an unsharded run
+// (count 1) also writes the joined outputs: rows.jsonl, rows.csv, report.html, sweep.json.
+// Throws InputError for a trace that fails to load, an out dir of another spec.
+SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts);
+
+// Joins shard directories into out_dir's joined outputs; refuses shards of another spec, a
+// missing or duplicated shard, or an incomplete one (InputError naming the directory).
+void merge_sweep(const std::vector<std::string>& shard_dirs, const std::string& out_dir);
+
+// The spec's traces, loaded or generated; InputError naming spec:line and the trace.
+std::vector<Trace> load_sweep_traces(const SweepSpec& spec);
+
+// Replays the spec's points `configs` on every trace (the points sharing a view stepped in
+// lockstep on it, `jobs` threads) and returns their rows as rows.jsonl has them: one vector per
+// config, one row per trace.
+std::vector<std::vector<nlohmann::json>> replay_points(const SweepSpec& spec, const std::vector<Trace>& traces,
+                                                       const std::vector<int>& configs, int jobs);
+
+// The spec's identity: its expanded points, the base config, the trace sources and their
+// content, the metrics; hex.
+std::string sweep_spec_hash(const SweepSpec& spec, const std::vector<Trace>& traces);
+
+}  // namespace vtsim

@@ -1,0 +1,273 @@
+// Sweeps (docs/sweep.md): specs, view once / systems many against separate replays, shards and
+// their merge, restart after a kill, determinism across thread counts, failures in a row.
+#include <doctest/doctest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+#include "sim/run/replay.h"
+#include "sim/run/systems.h"
+#include "sim/sweep/lockstep.h"
+#include "sim/sweep/sweep.h"
+#include "sim/trace/trace_gen.h"
+#include "sim/trace/trace_io.h"
+#include "sim/view/scene.h"
+#include "store_test_util.h"
+#include "stream/throttle/i_throttle.h"
+#include "test_util.h"
+
+using namespace vtsim;
+
+namespace {
+
+void write_file(const std::string& path, const std::string& text) { std::ofstream(path, std::ios::binary) << text; }
+
+// The error message of loading `text` as a spec ("" when it loads).
+std::string spec_error(const test::TempDir& d, const std::string& text) {
+  write_file(d.file("spec.toml"), text);
+  try {
+    load_sweep_spec(d.file("spec.toml"));
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// A small sweep over two short generated traces: 2 × 2 grid, plus a second view group.
+const char* kSpec = R"(name = "small"
+set = ["view.divisor=16"]
+generate = ["walk duration_s=3", "turn duration_s=3 event_s=1"]
+[[configs]]
+[[configs]]
+"view.divisor" = 32
+[grid]
+"upload.tiles_per_frame" = [4, -1]
+"disk.preset" = ["nvme", "hdd"]
+)";
+
+std::vector<std::string> joined_files(const std::string& dir) {
+  return {test::slurp(dir + "/rows.jsonl"), test::slurp(dir + "/rows.csv"), test::slurp(dir + "/report.html")};
+}
+
+}  // namespace
+
+TEST_CASE("sweep: the lockstep rows equal each config's replay alone, every system × every throttle policy") {
+  Trace walk = load_trace(test::kData + "/town_walk.csv");
+  while (!walk.poses.empty() && walk.poses.back().t_s > 3.0) walk.poses.pop_back();
+  std::vector<ReplayConfig> cfgs;
+  for (const auto& sys_entry : streaming_systems().entries())
+    for (const auto& policy_entry : throttle_policies().entries()) {
+      const std::string system(sys_entry.name), policy(policy_entry.name);
+      std::vector<std::string> sets = {"scene.kind=town", "view.render_threads=0", "run.system=" + system,
+                                       "throttle.policy=" + policy, "upload.tiles_per_frame=6"};
+      if (system == "vt") sets.push_back("vt.pool_pages=96");  // oversubscribed: the VT policies engage
+      cfgs.push_back(load_replay_config("", sets));
+    }
+  REQUIRE(cfgs.size() >= 10);
+  const auto scene = make_scene_from_config(cfgs[0]);
+  std::vector<const ReplayConfig*> ptrs;
+  for (const auto& c : cfgs) ptrs.push_back(&c);
+  for (int threads : {1, 3}) {
+    CAPTURE(threads);
+    const std::vector<LockstepResult> rows = run_lockstep(ptrs, walk, *scene, threads);
+    REQUIRE(rows.size() == cfgs.size());
+    for (std::size_t i = 0; i < cfgs.size(); ++i) {
+      CAPTURE(cfgs[i].run.system);
+      CAPTURE(cfgs[i].throttle.policy);
+      REQUIRE(rows[i].ok);
+      ReplayResult alone = run_replay(cfgs[i], walk, *scene);
+      alone.summary.erase("run");
+      CHECK(rows[i].summary.dump() == alone.summary.dump());
+    }
+  }
+}
+
+TEST_CASE("sweep: configs with another view are refused by the lockstep runner, and view_key ignores render_threads") {
+  const ReplayConfig a = load_replay_config("", {});
+  const ReplayConfig b = load_replay_config("", {"view.divisor=4"});
+  const ReplayConfig c = load_replay_config("", {"view.render_threads=3", "upload.tiles_per_frame=2", "run.system=vt"});
+  CHECK(view_key(a) != view_key(b));
+  CHECK(view_key(a) == view_key(c));
+  const auto scene = make_scene_from_config(a);
+  CHECK_THROWS_AS(run_lockstep({&a, &b}, generate_trace(default_gen_params(TraceKind::walk)), *scene, 1), std::invalid_argument);
+}
+
+TEST_CASE("sweep: a spec expands explicit configs × grid, first axis slowest, in the file's order") {
+  test::TempDir d;
+  write_file(d.file("spec.toml"), kSpec);
+  const SweepSpec s = load_sweep_spec(d.file("spec.toml"));
+  CHECK(s.name == "small");
+  REQUIRE(s.traces.size() == 2);
+  CHECK(s.traces[0].generated);
+  REQUIRE(s.points.size() == 8);
+  REQUIRE(s.grid.size() == 2);
+  CHECK(s.grid[0].key == "upload.tiles_per_frame");  // the file's order, not toml++'s sorted one
+  CHECK(s.points[0].cfg.upload.tiles_per_frame == 4);
+  CHECK(s.points[0].cfg.disk.preset == "nvme");
+  CHECK(s.points[1].cfg.disk.preset == "hdd");
+  CHECK(s.points[2].cfg.upload.tiles_per_frame == -1);
+  CHECK(s.points[0].cfg.view.divisor == 16);
+  CHECK(s.points[4].cfg.view.divisor == 32);
+  CHECK(s.points[4].values.front() == std::pair<std::string, std::string>{"view.divisor", "32"});
+  CHECK(s.axis_keys == std::vector<std::string>{"upload.tiles_per_frame", "disk.preset", "view.divisor"});
+  CHECK(s.metrics == default_sweep_metrics());
+}
+
+TEST_CASE("sweep: spec errors name file:line and the key, before anything runs") {
+  test::TempDir d;
+  const std::string f = d.file("spec.toml");
+  CHECK(test::contains(spec_error(d, "generate = [\"walk\"]\n[grid]\n\"upload.tiles_per_frme\" = [1, 2]\n"),
+                       f + ":3: unknown config key 'upload.tiles_per_frme' (did you mean 'upload.tiles_per_frame'?)"));
+  CHECK(test::contains(spec_error(d, "generate = [\"walk\"]\n[grid]\n\"upload.tiles_per_frame\" = []\n"),
+                       f + ":3: grid key 'upload.tiles_per_frame': an empty axis"));
+  CHECK(test::contains(spec_error(d, "generate = [\"walk\"]\n[grid]\n\"view.divisor\" = [4, 0]\n"), f + ":3: field 'view.divisor'"));
+  CHECK(test::contains(spec_error(d, "generate = [\"walk\"]\ntrace = [\"a.csv\"]\n"), f + ":2: unknown spec key 'trace'"));
+  CHECK(test::contains(spec_error(d, "traces = [\"nothing-*.csv\"]\n"), "matches no file"));
+  CHECK(test::contains(spec_error(d, "generate = [\"walk speed=3\"]\n"), f + ":1: generate: unknown generator key 'speed'"));
+  CHECK(test::contains(spec_error(d, "generate = [\"crawl\"]\n"), "unknown trace kind 'crawl'"));
+  CHECK(test::contains(spec_error(d, "name = \"x\"\n"), "no traces"));
+  CHECK(test::contains(spec_error(d, "generate = [\"walk\"]\n[grid]\n\"disk.preset\" = [\"hdd\", \"floppy\"]\n"),
+                       "unknown disk preset 'floppy'"));
+  // Cross-field checks name the point and its values.
+  CHECK(test::contains(spec_error(d, "generate = [\"walk\"]\n[[configs]]\n\"clipmap.clipsize\" = 100\n"),
+                       f + ": config point 0 (clipmap.clipsize = 100): config: field 'clipmap.clipsize'"));
+  CHECK(spec_error(d, "generate = [\"walk\"]\n") == "");
+}
+
+TEST_CASE("sweep: shards merged give exactly the unsharded outputs, and --jobs changes nothing") {
+  test::TempDir d;
+  write_file(d.file("spec.toml"), kSpec);
+  const SweepSpec spec = load_sweep_spec(d.file("spec.toml"));
+  SweepOptions one;
+  one.out_dir = d.file("one");
+  one.jobs = 1;
+  const SweepRunStats st = run_sweep(spec, one);
+  CHECK(st.rows == 16);
+  CHECK(st.rows_failed == 0);
+  CHECK(st.views_rendered == 4);  // 2 traces × 2 view groups: each view rendered once
+  SweepOptions many = one;
+  many.out_dir = d.file("many");
+  many.jobs = 3;
+  run_sweep(spec, many);
+  CHECK(joined_files(one.out_dir) == joined_files(many.out_dir));
+  std::vector<std::string> shards;
+  for (int i = 0; i < 3; ++i) {
+    SweepOptions o = one;
+    o.out_dir = d.file("shard" + std::to_string(i));
+    o.shard = {i, 3};
+    run_sweep(spec, o);
+    CHECK_FALSE(std::filesystem::exists(o.out_dir + "/rows.jsonl"));  // a shard is joined by merge
+    shards.push_back(o.out_dir);
+  }
+  merge_sweep(shards, d.file("merged"));
+  CHECK(joined_files(one.out_dir) == joined_files(d.file("merged")));
+  // The rows are what `vtsim replay` gives: one row checked against a replay alone.
+  const std::string first = test::slurp(one.out_dir + "/rows.jsonl").substr(0, test::slurp(one.out_dir + "/rows.jsonl").find('\n'));
+  const nlohmann::json row = nlohmann::json::parse(first);
+  ReplayResult alone = run_replay(spec.points[0].cfg, load_sweep_trace(spec.traces[0]), *make_scene_from_config(spec.points[0].cfg));
+  alone.summary.erase("run");
+  CHECK(row["summary"].dump() == alone.summary.dump());
+  CHECK(row["config"] == 0);
+  CHECK(row["trace"] == 0);
+
+  // Merge refuses a missing shard, a shard twice, a shard of another spec, an incomplete one.
+  CHECK_THROWS_WITH_AS(merge_sweep({shards[0], shards[2]}, d.file("m2")), doctest::Contains("shard 1/3 is missing"), InputError);
+  CHECK_THROWS_WITH_AS(merge_sweep({shards[0], shards[1], shards[1]}, d.file("m3")), doctest::Contains("again"), InputError);
+  write_file(d.file("spec2.toml"), std::string(kSpec) + "\"ram.capacity_MiB\" = [64]\n");
+  SweepOptions other = one;
+  other.out_dir = d.file("other");
+  other.shard = {2, 3};
+  run_sweep(load_sweep_spec(d.file("spec2.toml")), other);
+  CHECK_THROWS_WITH_AS(merge_sweep({shards[0], shards[1], other.out_dir}, d.file("m4")), doctest::Contains("another spec"),
+                       InputError);
+  std::string sj = test::slurp(shards[1] + "/shard.json");
+  sj.replace(sj.find("\"complete\": true"), 16, "\"complete\": false");
+  write_file(shards[1] + "/shard.json", sj);
+  CHECK_THROWS_WITH_AS(merge_sweep(shards, d.file("m5")), doctest::Contains("incomplete"), InputError);
+  // A shard directory of one spec is not reused for another.
+  CHECK_THROWS_WITH_AS(run_sweep(load_sweep_spec(d.file("spec2.toml")), one), doctest::Contains("another spec"), InputError);
+}
+
+TEST_CASE("sweep: a killed sweep restarted on the same output redoes only the unfinished tasks") {
+  test::TempDir d;
+  write_file(d.file("spec.toml"), kSpec);
+  const SweepSpec spec = load_sweep_spec(d.file("spec.toml"));
+  SweepOptions o;
+  o.out_dir = d.file("out");
+  o.jobs = 2;
+  run_sweep(spec, o);
+  const std::vector<std::string> before = joined_files(o.out_dir);
+  // What a kill leaves: some parts done, one in flight (a .tmp), no joined outputs.
+  std::vector<std::filesystem::path> parts;
+  for (const auto& f : std::filesystem::directory_iterator(o.out_dir + "/parts")) parts.push_back(f.path());
+  std::sort(parts.begin(), parts.end());
+  REQUIRE(parts.size() == 4);
+  const std::string kept = test::slurp(parts[0].string());
+  std::filesystem::rename(parts[1], parts[1].string() + ".tmp");
+  std::filesystem::remove(parts[3]);
+  for (const char* f : {"/rows.jsonl", "/rows.csv", "/report.html"}) std::filesystem::remove(o.out_dir + f);
+  const SweepRunStats st = run_sweep(spec, o);
+  CHECK(st.rows_skipped == 8);  // parts 0 and 2: 4 rows each
+  CHECK(st.rows - st.rows_skipped == 8);
+  CHECK(test::slurp(parts[0].string()) == kept);
+  CHECK_FALSE(std::filesystem::exists(parts[1].string() + ".tmp"));
+  CHECK(joined_files(o.out_dir) == before);
+}
+
+TEST_CASE("sweep: a row whose replay fails says why in its row, and the others run") {
+  test::TempDir d;
+  write_file(d.file("spec.toml"), "generate = [\"walk duration_s=1\"]\n[[configs]]\n[[configs]]\n"
+                                  "\"scene.kind\" = \"heightfield\"\n\"scene.file\" = \"no-such-height.png\"\n");
+  const SweepSpec spec = load_sweep_spec(d.file("spec.toml"));
+  SweepOptions o;
+  o.out_dir = d.file("out");
+  const SweepRunStats st = run_sweep(spec, o);
+  CHECK(st.rows == 2);
+  CHECK(st.rows_failed == 1);
+  const std::string rows = test::slurp(o.out_dir + "/rows.jsonl");
+  CHECK(test::contains(rows, "\"status\":\"ok\""));
+  CHECK(test::contains(rows, "\"status\":\"error\""));
+  CHECK(test::contains(rows, "no-such-height.png"));
+  CHECK(test::contains(test::slurp(o.out_dir + "/rows.csv"), ",error,"));
+}
+
+TEST_CASE("sweep: shards by I/N or from Slurm's array variables") {
+  CHECK(parse_shard("0/4", "--shard").index == 0);
+  CHECK(parse_shard("3/4", "--shard").count == 4);
+  for (const char* bad : {"4/4", "-1/4", "1/0", "1", "a/b", "1/4x", "/4"}) {
+    CAPTURE(bad);
+    CHECK_THROWS_AS(parse_shard(bad, "--shard"), InputError);
+  }
+  ::setenv("SLURM_ARRAY_TASK_ID", "7", 1);
+  ::setenv("SLURM_ARRAY_TASK_MIN", "5", 1);
+  ::setenv("SLURM_ARRAY_TASK_COUNT", "4", 1);
+  const SweepShard s = parse_shard("slurm", "--shard");
+  CHECK(s.index == 2);
+  CHECK(s.count == 4);
+  ::setenv("SLURM_ARRAY_TASK_ID", "9", 1);
+  CHECK_THROWS_AS(parse_shard("slurm", "--shard"), InputError);
+  ::unsetenv("SLURM_ARRAY_TASK_ID");
+  ::unsetenv("SLURM_ARRAY_TASK_MIN");
+  ::unsetenv("SLURM_ARRAY_TASK_COUNT");
+  CHECK_THROWS_WITH_AS(parse_shard("slurm", "--shard"), doctest::Contains("SLURM_ARRAY_TASK_ID"), InputError);
+}
+
+TEST_CASE("sweep: generator lines are a generated trace's name") {
+  const TraceGenParams p = parse_gen_line("turn duration_s=30 start_m=30,8 turn_deg=-90 image=640x360", "g");
+  CHECK(p.kind == TraceKind::turn);
+  CHECK(p.duration_s == 30.0);
+  CHECK(p.start_m == glm::dvec2(30.0, 8.0));
+  CHECK(p.turn_deg == -90.0);
+  CHECK(p.image_width == 640);
+  const Trace t = generate_trace(default_gen_params(TraceKind::orbit));
+  const Trace again = generate_trace(parse_gen_line(t.name, "g"));
+  CHECK(again.name == t.name);
+  CHECK(again.poses.size() == t.poses.size());
+  CHECK_THROWS_AS(parse_gen_line("walk duration_s=abc", "g"), InputError);
+  CHECK_THROWS_AS(parse_gen_line("walk start_m=1", "g"), InputError);
+  CHECK_THROWS_AS(parse_gen_line("", "g"), InputError);
+}
