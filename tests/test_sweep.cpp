@@ -271,3 +271,12 @@ TEST_CASE("sweep: generator lines are a generated trace's name") {
   CHECK_THROWS_AS(parse_gen_line("walk start_m=1", "g"), InputError);
   CHECK_THROWS_AS(parse_gen_line("", "g"), InputError);
 }
+
+TEST_CASE("sweep: the example specs in docs/examples load") {
+  for (const char* f : {"sweep_vt_town.toml", "tune_vt_town.toml"}) {
+    CAPTURE(f);
+    const SweepSpec s = load_sweep_spec(std::string(VTSIM_SOURCE_DIR) + "/docs/examples/" + f);
+    CHECK(s.points.size() == (s.tune.present ? 36u : 16u));
+    CHECK(load_sweep_traces(s).size() == 2);
+  }
+}

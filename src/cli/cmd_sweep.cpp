@@ -31,16 +31,21 @@ void run_sweep_command(const SweepArgs& a) {
   o.out_dir = a.out;
   o.jobs = a.jobs;
   if (!a.shard.empty()) o.shard = parse_shard(a.shard, "--shard");
-  if (!a.quiet && (a.progress || isatty(fileno(stderr)) != 0))
-    o.progress = [](std::size_t done, std::size_t rows, double el, double eta) {
-      fmt::print(stderr, "\rsweep: {}/{} rows done, {:.0f} s elapsed, ~{:.0f} s left   ", done, rows, el, eta);
+  // A terminal gets one line rewritten each second; a log (--progress) a line every 10 s.
+  const bool tty = isatty(fileno(stderr)) != 0;
+  if (!a.quiet && (a.progress || tty))
+    o.progress = [tty, last = -10.0](std::size_t done, std::size_t rows, double frac, double el, double eta) mutable {
+      if (!tty && el - last < 10.0) return;
+      last = el;
+      fmt::print(stderr, "{}sweep: {:.0f}% ({}/{} rows done), {:.0f} s elapsed, ~{:.0f} s left{}", tty ? "\r" : "",
+                 100.0 * frac, done, rows, el, eta, tty ? "   " : "\n");
     };
   if (!a.quiet)
     fmt::print(stderr, "sweep '{}': {} configs × {} traces{}\n", spec.name.empty() ? a.spec : spec.name,
                spec.points.size(), spec.traces.size(),
                o.shard.count > 1 ? fmt::format(", shard {}/{}", o.shard.index, o.shard.count) : std::string());
   const SweepRunStats st = run_sweep(spec, o);
-  if (o.progress) fmt::print(stderr, "\r{:70}\r", "");
+  if (o.progress && tty) fmt::print(stderr, "\r{:70}\r", "");
   if (a.quiet) return;
   fmt::print("{} rows ({} run now, {} already done, {} failed) in {} tasks: {:.1f} s wall, {:.1f} s CPU", st.rows,
              st.rows - st.rows_skipped, st.rows_skipped, st.rows_failed, st.tasks, st.wall_s, st.cpu_s);

@@ -6,7 +6,7 @@ const std::vector<Target>& targets() {
   static const std::vector<Target> all = {
       {"trace_native", trace_native}, {"trace_import", trace_import}, {"config", config},
       {"compare", compare},           {"store", store},               {"obj", obj},
-      {"store_replay", store_replay}, {"image", image},
+      {"store_replay", store_replay}, {"image", image}, {"sweep_spec", sweep_spec},
   };
   return all;
 }

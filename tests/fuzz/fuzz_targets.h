@@ -58,5 +58,6 @@ void store(const std::uint8_t* data, std::size_t size);
 void obj(const std::uint8_t* data, std::size_t size);
 void store_replay(const std::uint8_t* data, std::size_t size);
 void image(const std::uint8_t* data, std::size_t size);
+void sweep_spec(const std::uint8_t* data, std::size_t size);
 
 }  // namespace vtsim::fuzz

@@ -516,7 +516,7 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
     while (!cv.wait_for(lock, std::chrono::seconds(1), [&] { return finished == parallel; })) {
       const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
       const double frac = total_frames ? static_cast<double>(frames_done.load()) / static_cast<double>(total_frames) : 1.0;
-      opts.progress(st.rows_skipped + rows_done.load(), st.rows, el, frac > 0 ? el * (1 - frac) / frac : 0.0);
+      opts.progress(st.rows_skipped + rows_done.load(), st.rows, frac, el, frac > 0 ? el * (1 - frac) / frac : 0.0);
     }
   } else {
     for (int i = 1; i < parallel; ++i) pool.emplace_back(worker);

@@ -39,9 +39,9 @@ struct SweepOptions {
   std::string out_dir;
   int jobs = 0;                  // 0: one per core
   SweepShard shard;
-  // Progress (rows done, rows in this shard, seconds elapsed, seconds left estimate), called from
-  // the thread that finishes a task.
-  std::function<void(std::size_t, std::size_t, double, double)> progress;
+  // Progress, about once a second from the calling thread: rows done, rows of this shard, the
+  // fraction of the work done (frames stepped), seconds elapsed, seconds left (estimate).
+  std::function<void(std::size_t, std::size_t, double, double, double)> progress;
 };
 
 struct SweepRunStats {

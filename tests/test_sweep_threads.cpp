@@ -1,0 +1,59 @@
+// The sweep's threads (doctest suite "threads", run under TSan): a team of threads stepping the
+// runs of one view while render-ahead renders, and tasks on a pool, give the one-thread results.
+#include <doctest/doctest.h>
+
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "sim/run/replay.h"
+#include "sim/sweep/lockstep.h"
+#include "sim/sweep/sweep.h"
+#include "sim/trace/trace_io.h"
+#include "sim/view/scene.h"
+#include "store_test_util.h"
+#include "test_util.h"
+
+using namespace vtsim;
+
+TEST_SUITE_BEGIN("threads");
+
+TEST_CASE("sweep threads: a stepping team and render-ahead give the one-thread rows") {
+  Trace walk = load_trace(test::kData + "/town_walk.csv");
+  while (!walk.poses.empty() && walk.poses.back().t_s > 1.0) walk.poses.pop_back();
+  std::vector<ReplayConfig> cfgs;
+  for (const char* extra : {"throttle.policy=none", "run.system=vt", "throttle.policy=unreal_bias", "upload.tiles_per_frame=2"}) {
+    std::vector<std::string> sets = {"scene.kind=town", "view.divisor=16", extra};
+    if (std::string(extra) == "throttle.policy=unreal_bias") sets.insert(sets.end(), {"run.system=vt", "vt.pool_pages=64"});
+    cfgs.push_back(load_replay_config("", sets));
+  }
+  std::vector<const ReplayConfig*> ptrs;
+  for (const auto& c : cfgs) ptrs.push_back(&c);
+  const auto scene = make_scene_from_config(cfgs[0]);
+  const auto one = run_lockstep(ptrs, walk, *scene, 1);
+  const auto three = run_lockstep(ptrs, walk, *scene, 3);
+  for (std::size_t i = 0; i < cfgs.size(); ++i) {
+    CAPTURE(i);
+    REQUIRE(one[i].ok);
+    REQUIRE(three[i].ok);
+    CHECK(one[i].summary.dump() == three[i].summary.dump());
+  }
+}
+
+TEST_CASE("sweep threads: tasks on a pool of threads write the same outputs as one thread") {
+  test::TempDir d;
+  std::ofstream(d.file("spec.toml")) << "set = [\"view.divisor=32\"]\ngenerate = [\"walk duration_s=1\", \"turn duration_s=1 "
+                                        "event_s=0.5\"]\n[grid]\n\"upload.tiles_per_frame\" = [2, -1]\n";
+  const SweepSpec spec = load_sweep_spec(d.file("spec.toml"));
+  SweepOptions a, b;
+  a.out_dir = d.file("a");
+  a.jobs = 1;
+  b.out_dir = d.file("b");
+  b.jobs = 3;
+  b.progress = [](std::size_t, std::size_t, double, double, double) {};
+  run_sweep(spec, a);
+  run_sweep(spec, b);
+  CHECK(test::slurp(a.out_dir + "/rows.jsonl") == test::slurp(b.out_dir + "/rows.jsonl"));
+}
+
+TEST_SUITE_END();
