@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # A real single-node Slurm cluster on this machine, for tests and for trying the sweep recipes
-# (docs/sweep-recipes.md) without a cluster:
+# (docs/sweep.md) without a cluster:
 #   scripts/slurm_local.sh start  STATE_DIR   # install slurm-wlm + munge if missing, configure, start
 #   scripts/slurm_local.sh status STATE_DIR   # which daemons run, and sinfo
 #   scripts/slurm_local.sh stop   STATE_DIR   # cancel the cluster's jobs, stop the daemons it started
