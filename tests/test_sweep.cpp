@@ -280,3 +280,27 @@ TEST_CASE("sweep: the example specs in docs/examples load") {
     CHECK(load_sweep_traces(s).size() == 2);
   }
 }
+
+TEST_CASE("sweep CLI: exit 2 for a bad spec or merge, 1 when a row failed, 0 otherwise") {
+  test::TempDir d;
+  write_file(d.file("bad.toml"), "generate = [\"walk\"]\n[grid]\n\"view.divisr\" = [4]\n");
+  test::CliRun r = test::run_vtsim_capture("sweep " + d.file("bad.toml") + " -o " + d.file("o1"), d.file("err"));
+  CHECK(r.code == 2);
+  CHECK(test::contains(r.err, "bad.toml:3: unknown config key 'view.divisr' (did you mean 'view.divisor'?)"));
+  CHECK_FALSE(std::filesystem::exists(d.file("o1")));  // nothing written
+  write_file(d.file("fail.toml"), "generate = [\"walk duration_s=1\"]\n[[configs]]\n[[configs]]\n\"scene.kind\" = \"heightfield\"\n"
+                                  "\"scene.file\" = \"missing.png\"\n");
+  r = test::run_vtsim_capture("sweep " + d.file("fail.toml") + " -o " + d.file("o2") + " -q", d.file("err"));
+  CHECK(r.code == 1);
+  CHECK(std::filesystem::exists(d.file("o2") + "/rows.csv"));
+  write_file(d.file("ok.toml"), "generate = [\"walk duration_s=1\"]\n");
+  r = test::run_vtsim_capture("sweep " + d.file("ok.toml") + " -o " + d.file("o3"), d.file("err"));
+  CHECK(r.code == 0);
+  CHECK(test::contains(r.out, "1 rows (1 run now, 0 already done, 0 failed)"));
+  r = test::run_vtsim_capture("sweep merge -o " + d.file("m") + " " + d.file("o3") + " " + d.file("nothing"), d.file("err"));
+  CHECK(r.code == 2);
+  CHECK(test::contains(r.err, "not a sweep shard directory"));
+  r = test::run_vtsim_capture("sweep " + d.file("ok.toml") + " -o " + d.file("o4") + " --shard 4/4", d.file("err"));
+  CHECK(r.code == 2);
+  CHECK(test::contains(r.err, "--shard: '4/4' is not I/N"));
+}

@@ -46,7 +46,10 @@ void run_sweep_command(const SweepArgs& a) {
                o.shard.count > 1 ? fmt::format(", shard {}/{}", o.shard.index, o.shard.count) : std::string());
   const SweepRunStats st = run_sweep(spec, o);
   if (o.progress && tty) fmt::print(stderr, "\r{:70}\r", "");
-  if (a.quiet) return;
+  if (a.quiet) {
+    if (st.rows_failed > 0) throw Exit{kExitFailure};
+    return;
+  }
   fmt::print("{} rows ({} run now, {} already done, {} failed) in {} tasks: {:.1f} s wall, {:.1f} s CPU", st.rows,
              st.rows - st.rows_skipped, st.rows_skipped, st.rows_failed, st.tasks, st.wall_s, st.cpu_s);
   if (st.cpu_s > 0 && st.replayed_s > 0) fmt::print(", {:.0f}x real time per row on one core", st.replayed_s / st.cpu_s);

@@ -203,6 +203,8 @@ int SystemRun::block_shift() const { return std::bit_width(static_cast<unsigned>
 
 bool SystemRun::keep_samples() const { return !system_->uses_spans() || system_->wants_samples(); }
 
+bool SystemRun::may_keep_samples() const { return keep_samples() || throttle_->may_bias(); }
+
 void SystemRun::begin_frame(int f, Ticks now) {
   frame_ = f;
   now_ = now;

@@ -153,6 +153,9 @@ class SystemRun {
   int block_shift() const;
   // Whether this system reads every sample of the next frame (not only spans).
   bool keep_samples() const;
+  // Whether it may read every sample at some frame of the run (keep_samples now, or a policy that
+  // may bias the feedback): consumers on threads of their own have the samples rendered up front.
+  bool may_keep_samples() const;
 
   // Frame f starts at `now`: completions up to it are collected.
   void begin_frame(int f, Ticks now);

@@ -1,10 +1,14 @@
 #include "sim/sweep/lockstep.h"
 
+#include <algorithm>
 #include <bit>
+#include <mutex>
+#include <thread>
 #include <memory>
 #include <stdexcept>
 
 #include "core/error.h"
+#include "core/camera.h"
 #include "core/view_spans.h"
 #include "sim/run/frame_loop.h"
 #include "stream/system/i_system.h"
@@ -24,53 +28,118 @@ std::string view_key(const ReplayConfig& cfg) {
   return key;
 }
 
-// ---- StepTeam ----
+// ---- the shared view ring ----
 
-StepTeam::StepTeam(int threads) {
-  for (int i = 1; i < threads; ++i) workers_.emplace_back([this] { work(); });
-}
+namespace {
 
-StepTeam::~StepTeam() {
-  generation_.store(kStop, std::memory_order_release);
-  generation_.notify_all();
-  for (auto& t : workers_) t.join();
-}
-
-void StepTeam::pull() {
-  for (;;) {
-    const std::size_t i = next_.fetch_add(1, std::memory_order_relaxed);
-    if (i >= n_) return;
-    (*fn_)(i);
+// Frames rendered once into a ring of slots and read by several consumers, each at its own pace
+// and in frame order. Slot state machine (per slot): free -> (renderer) filled with render j,
+// refs = consumers -> (each consumer moving past j) refs - 1 -> 0: free. `rendered_` counts the
+// renders published (release); a consumer waits on it (atomic wait), the renderer on a slot's refs.
+// A render that throws is published as a failure: every consumer waiting for it throws.
+class ViewRing {
+ public:
+  ViewRing(const ReplayConfig& cfg, const FramePlan& plan, const IScene& scene, int block_shift, bool keep_samples,
+           int consumers)
+      : plan_(plan), scene_(scene), vp_(view_params(cfg.view)), pp_(view_params(cfg.view)),
+        separate_popin_(cfg.view.popin_divisor > 0 && cfg.view.popin_divisor != cfg.view.divisor),
+        consumers_(consumers), slots_(static_cast<std::size_t>(consumers) + 3), held_(static_cast<std::size_t>(consumers), -1),
+        next_(static_cast<std::size_t>(consumers), 0), views_(static_cast<std::size_t>(consumers)) {
+    if (cfg.view.popin_divisor > 0) pp_.divisor = cfg.view.popin_divisor;
+    for (Slot& s : slots_) {
+      s.feedback.block_shift = s.popin.block_shift = block_shift;
+      s.feedback.keep_samples = s.popin.keep_samples = keep_samples;
+    }
+    renderer_ = std::thread([this] { render_all(); });
   }
-}
-
-void StepTeam::work() {
-  std::uint64_t seen = 0;
-  for (;;) {
-    generation_.wait(seen, std::memory_order_acquire);
-    seen = generation_.load(std::memory_order_acquire);
-    if (seen == kStop) return;
-    pull();
-    // Checked out: every index this worker claimed is done, and it claims no more in this call.
-    if (checked_in_.fetch_sub(1, std::memory_order_acq_rel) == 1) checked_in_.notify_one();
+  ~ViewRing() {
+    stop_.store(true);
+    for (Slot& s : slots_) {
+      s.refs.store(0);
+      s.refs.notify_all();
+    }
+    renderer_.join();
   }
-}
+  ViewRing(const ViewRing&) = delete;
+  ViewRing& operator=(const ViewRing&) = delete;
 
-void StepTeam::run(std::size_t n, const std::function<void(std::size_t)>& fn) {
-  n_ = n;
-  fn_ = &fn;
-  next_.store(0, std::memory_order_relaxed);
-  if (workers_.empty()) {
-    pull();
-    return;
+  // Consumer c's view of frame f (frames in order 0, 1, ...). Valid until its next call.
+  const FrameView& frame(int c, int f) {
+    const auto ci = static_cast<std::size_t>(c);
+    FrameView& v = views_[ci];
+    v.frame = f;
+    v.pose = &plan_.trace.poses[static_cast<std::size_t>(f)];
+    v.measured = plan_.measured(f);
+    const std::size_t j = next_[ci];
+    v.fresh = j < plan_.render_frames.size() && plan_.render_frames[j] == f;
+    if (!v.fresh) return v;  // the last rendered buffers stand in
+    release(c);
+    for (std::size_t r = rendered_.load(std::memory_order_acquire); r <= j; r = rendered_.load(std::memory_order_acquire)) {
+      if (r == kFailed) throw std::runtime_error("the view's render failed: " + error_);
+      rendered_.wait(r, std::memory_order_acquire);
+    }
+    Slot& s = slots_[j % slots_.size()];
+    v.feedback = &s.feedback;
+    v.popin = separate_popin_ ? &s.popin : &s.feedback;
+    held_[ci] = static_cast<long long>(j);
+    next_[ci] = j + 1;
+    return v;
   }
-  checked_in_.store(workers_.size(), std::memory_order_relaxed);
-  generation_.fetch_add(1, std::memory_order_release);
-  generation_.notify_all();
-  pull();
-  for (std::size_t c = checked_in_.load(std::memory_order_acquire); c != 0; c = checked_in_.load(std::memory_order_acquire))
-    checked_in_.wait(c, std::memory_order_acquire);
-}
+  // Consumer c is done with the buffers it holds (after its last frame, or on leaving early).
+  void release(int c) {
+    const auto ci = static_cast<std::size_t>(c);
+    if (held_[ci] < 0) return;
+    Slot& s = slots_[static_cast<std::size_t>(held_[ci]) % slots_.size()];
+    held_[ci] = -1;
+    if (s.refs.fetch_sub(1, std::memory_order_acq_rel) == 1) s.refs.notify_one();
+  }
+ private:
+  struct Slot {
+    SpanBuffer feedback, popin;
+    std::atomic<int> refs{0};
+  };
+  static constexpr std::size_t kFailed = ~std::size_t{0};
+
+  void render_all() {
+    try {
+      for (std::size_t j = 0; j < plan_.render_frames.size(); ++j) {
+        Slot& s = slots_[j % slots_.size()];
+        for (int r = s.refs.load(std::memory_order_acquire); r != 0; r = s.refs.load(std::memory_order_acquire)) {
+          if (stop_.load()) return;
+          s.refs.wait(r, std::memory_order_acquire);
+        }
+        if (stop_.load()) return;
+        const Pose& pose = plan_.trace.poses[static_cast<std::size_t>(plan_.render_frames[j])];
+        const Camera cam = make_camera(pose, plan_.trace.image_width, plan_.trace.image_height);
+        scene_.render_spans(cam, vp_, s.feedback);
+        if (separate_popin_) scene_.render_spans(cam, pp_, s.popin);
+        s.refs.store(consumers_, std::memory_order_release);  // every consumer takes every render
+        rendered_.store(j + 1, std::memory_order_release);
+        rendered_.notify_all();
+      }
+    } catch (const std::exception& e) {
+      error_ = e.what();
+      rendered_.store(kFailed, std::memory_order_release);
+      rendered_.notify_all();
+    }
+  }
+
+  const FramePlan& plan_;
+  const IScene& scene_;
+  ViewParams vp_, pp_;
+  bool separate_popin_;
+  int consumers_;
+  std::vector<Slot> slots_;
+  std::vector<long long> held_;      // per consumer: the render it holds, -1 none
+  std::vector<std::size_t> next_;    // per consumer: the next render it takes
+  std::vector<FrameView> views_;     // per consumer
+  std::atomic<std::size_t> rendered_{0};
+  std::atomic<bool> stop_{false};
+  std::string error_;                // written before rendered_ = kFailed (release)
+  std::thread renderer_;
+};
+
+}  // namespace
 
 // ---- run_lockstep ----
 
@@ -84,72 +153,95 @@ std::vector<LockstepResult> run_lockstep(const std::vector<const ReplayConfig*>&
   const FramePlan plan = plan_frames(*cfgs[0], trace);
   const ReplayEnv env;
   std::vector<std::unique_ptr<SystemRun>> runs(cfgs.size());
-  const auto fail = [&](std::size_t i, std::string what) {
-    out[i].ok = false;
-    out[i].error = std::move(what);
-    out[i].summary = nullptr;
-    runs[i].reset();
-  };
   for (std::size_t i = 0; i < cfgs.size(); ++i) {
     try {
       runs[i] = std::make_unique<SystemRun>(*cfgs[i], plan, scene, env);
-      out[i].ok = true;
     } catch (const std::exception& e) {
-      fail(i, e.what());
+      out[i].error = e.what();
     }
   }
   int block_shift = -1;
-  bool keep = false;
+  bool keep = false, may_keep = false;
   for (const auto& r : runs) {
     if (!r) continue;
     block_shift = r->block_shift();
     keep = keep || !r->system().uses_spans();
+    may_keep = may_keep || r->may_keep_samples();
   }
-  if (block_shift < 0) return out;  // every run failed to start
+  if (block_shift < 0) return out;  // no run could start
 
-  // Render-ahead on one thread beside a team; in the loop when the sweep gives this view one core.
-  ReplayConfig vc = *cfgs[0];
-  vc.view.render_threads = threads > 1 ? 1 : 0;
-  StepTeam team(threads);
-  ViewStream view(vc, plan, scene, block_shift, keep, ViewStream::resolve_threads(vc, plan, false));
-  std::vector<std::size_t> live;
-  const FrameView* v = nullptr;
-  int frame = 0;
-  const std::function<void(std::size_t)> step = [&](std::size_t k) {
-    const std::size_t i = live[k];
+  // One run's frame; an exception stops that run alone (its row says why).
+  const auto step = [&](std::size_t i, int f, const FrameView& v) {
+    if (!runs[i] || !out[i].error.empty()) return;
     try {
-      runs[i]->begin_frame(frame, plan.target(frame));
-      runs[i]->step(*v);
+      runs[i]->begin_frame(f, plan.target(f));
+      runs[i]->step(v);
     } catch (const std::exception& e) {
-      out[i].error = e.what();  // this run alone stops; collected after the frame
+      out[i].error = e.what();
     }
   };
-  for (frame = 0; frame < plan.frames; ++frame) {
-    live.clear();
-    bool any_keep = false, any_samples = false;
-    for (std::size_t i = 0; i < runs.size(); ++i) {
-      if (!runs[i]) continue;
-      live.push_back(i);
-      any_keep = any_keep || runs[i]->keep_samples();
-      any_samples = any_samples || runs[i]->system().wants_samples();
+  const int consumers = std::max(1, std::min<int>(threads, static_cast<int>(cfgs.size())));
+  if (threads <= 1) {
+    // One thread: the view rendered in the loop, as run_replay with view.render_threads = 0.
+    ViewStream view(*cfgs[0], plan, scene, block_shift, keep, 0);
+    for (int f = 0; f < plan.frames; ++f) {
+      bool any_keep = false, any_samples = false;
+      std::size_t live = 0;
+      for (std::size_t i = 0; i < runs.size(); ++i) {
+        if (!runs[i] || !out[i].error.empty()) continue;
+        ++live;
+        any_keep = any_keep || runs[i]->keep_samples();
+        any_samples = any_samples || runs[i]->system().wants_samples();
+      }
+      if (live == 0) break;
+      const FrameView& v = view.frame(f, any_keep);
+      if (any_samples) materialise_samples(*v.feedback);  // once, before the runs read them
+      for (std::size_t i = 0; i < runs.size(); ++i) step(i, f, v);
+      if (frames_done) frames_done->fetch_add(live, std::memory_order_relaxed);
     }
-    if (live.empty()) break;
-    v = &view.frame(frame, any_keep);
-    // The runs read the shared buffers only: expand the samples here, once, if any run reads them.
-    if (any_samples) materialise_samples(*v->feedback);
-    team.run(live.size(), step);
-    for (std::size_t i : live)
-      if (!out[i].error.empty()) fail(i, out[i].error);
-    if (frames_done) frames_done->fetch_add(live.size(), std::memory_order_relaxed);
+  } else {
+    // The runs split among consumer threads (run i on consumer i mod n), one renderer. Samples a
+    // run may read are rendered up front: consumers only read the shared buffers.
+    ViewRing ring(*cfgs[0], plan, scene, block_shift, keep || may_keep, consumers);
+    std::vector<std::thread> pool;
+    for (int c = 0; c < consumers; ++c)
+      pool.emplace_back([&, c] {
+        std::vector<std::size_t> mine;
+        for (std::size_t i = static_cast<std::size_t>(c); i < runs.size(); i += static_cast<std::size_t>(consumers))
+          mine.push_back(i);
+        try {
+          for (int f = 0; f < plan.frames; ++f) {
+            const FrameView& v = ring.frame(c, f);
+            std::uint64_t live = 0;
+            for (std::size_t i : mine) {
+              if (runs[i] && runs[i]->system().wants_samples() && !v.feedback->has_samples)
+                out[i].error = "internal: a run reads samples the shared view did not render";
+              step(i, f, v);
+              live += runs[i] && out[i].error.empty() ? 1 : 0;
+            }
+            if (frames_done) frames_done->fetch_add(live, std::memory_order_relaxed);
+          }
+        } catch (const std::exception& e) {
+          for (std::size_t i : mine)
+            if (out[i].error.empty()) out[i].error = e.what();
+        }
+        ring.release(c);
+      });
+    for (auto& t : pool) t.join();
   }
   for (std::size_t i = 0; i < runs.size(); ++i) {
-    if (!runs[i]) continue;
+    if (!runs[i] || !out[i].error.empty()) {
+      out[i].ok = false;
+      runs[i].reset();
+      continue;
+    }
     try {
       ReplayResult r = runs[i]->summarize(RunCost{});
       r.summary.erase("run");
       out[i].summary = std::move(r.summary);
+      out[i].ok = true;
     } catch (const std::exception& e) {
-      fail(i, e.what());
+      out[i].error = e.what();
     }
   }
   return out;

@@ -63,6 +63,9 @@ class IThrottlePolicy {
   virtual ~IThrottlePolicy() = default;
   virtual const char* name() const = 0;
   virtual ThrottleDecision update(const ThrottleInput& in) = 0;
+  // Whether update() may ever return a feedback bias (a VT system then reads every sample): a
+  // sweep stepping systems on threads renders the samples up front for such a group.
+  virtual bool may_bias() const { return false; }
 };
 
 struct ThrottlePolicyInfo {

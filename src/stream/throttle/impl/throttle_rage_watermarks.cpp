@@ -21,6 +21,7 @@ class RageWatermarkThrottle final : public IThrottlePolicy {
  public:
   explicit RageWatermarkThrottle(const ThrottleParams& p) : p_(p) {}
   const char* name() const override { return "rage_watermarks"; }
+  bool may_bias() const override { return true; }
 
   ThrottleDecision update(const ThrottleInput& in) override {
     const double pr = in.pool_pressure;

@@ -23,6 +23,7 @@ class UnrealBiasThrottle final : public IThrottlePolicy {
  public:
   explicit UnrealBiasThrottle(const ThrottleParams& p) : p_(p) {}
   const char* name() const override { return "unreal_bias"; }
+  bool may_bias() const override { return true; }
 
   ThrottleDecision update(const ThrottleInput& in) override {
     const double r = in.pool_occupancy;
