@@ -15,12 +15,16 @@
 #include <fmt/format.h>
 
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
 #include "harness.h"
 #include "sim/run/replay.h"
 #include "sim/sweep/lockstep.h"
+#include "sim/sweep/sweep.h"
+#include "sim/sweep/tune.h"
 #include "sim/trace/trace_gen.h"
 #include "sim/view/scene.h"
 
@@ -99,6 +103,52 @@ int main(int argc, char** argv) {
   pp.duration_s = duration_s;
   system_cases("clipmap", {"run.system=clipmap", "view.divisor=8"}, generate_trace(pp), "ram.capacity_MiB",
                {"32", "64", "128", "256"}, 1500.0);
+  // vtsim tune on a 6 × 6 × 4 grid (VT pool × upload budget × RAM) over two standard town traces,
+  // against the brute force of the same grid (every config replayed, one lockstep pass per trace):
+  // the sweep issue's target is the exact front with <= 25 % of the grid's replays.
+  if (h.selected("tune_6x6x4")) {
+    const std::string dir = std::filesystem::temp_directory_path() / "vtsim-bench-tune";
+    std::filesystem::create_directories(dir);
+    const double tune_s = h.pick(30.0, 10.0);
+    std::ofstream(dir + "/tune.toml") << fmt::format(R"(set = ["run.system=vt", "scene.kind=town", "view.divisor=8"]
+generate = ["walk duration_s={0} start_m=30,8", "turn duration_s={0} start_m=30,8 event_s={1}"]
+[grid]
+"vt.pool_pages" = [48, 64, 96, 128, 192, 256]
+"upload.tiles_per_frame" = [1, 2, 3, 4, 8, 16]
+"ram.capacity_MiB" = [4, 16, 64, 256]
+[tune]
+constraints = ["popin.blurry_fraction_mean <= 0.05", "latency_ms.p99 <= 250"]
+)", tune_s, tune_s / 2);
+    const SweepSpec spec = load_sweep_spec(dir + "/tune.toml");
+    const std::vector<Trace> traces = load_sweep_traces(spec);
+    const TuneResult r = run_tune(spec, [&](const std::vector<int>& c) { return replay_points(spec, traces, c, 1); });
+    std::vector<int> all(spec.points.size());
+    for (std::size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+    const auto rows = replay_points(spec, traces, all, 0);
+    std::vector<bool> pass;
+    std::size_t passing = 0;
+    for (const auto& rr : rows) {
+      pass.push_back(judge(spec.tune, rr).pass);
+      passing += pass.back() ? 1 : 0;
+    }
+    const std::vector<int> brute = brute_force_front(spec, pass);
+    // Monotonicity over the whole grid, from the brute force: pairs of a passing config and a
+    // failing one that is no cheaper on any cost axis.
+    std::size_t violations = 0;
+    for (std::size_t a = 0; a < all.size(); ++a)
+      for (std::size_t b = 0; b < all.size(); ++b)
+        if (a != b && pass[a] && !pass[b] && cheaper_or_equal(spec, static_cast<int>(a), static_cast<int>(b))) ++violations;
+    fmt::print("tune 6x6x4 ({:.0f} s town walk and turn): {} replayed of {} ({:.0f}%), {} inferred, front {} configs, "
+               "brute-force front {} configs: {}; {} passing configs; monotonicity violations in the grid: {}; "
+               "found by tune: {}\n",
+               tune_s, r.replayed.size(), r.grid, 100.0 * static_cast<double>(r.replayed.size()) / static_cast<double>(r.grid),
+               r.inferred, r.front.size(), brute.size(), r.front == brute ? "equal" : "DIFFERENT", passing, violations,
+               r.monotonicity_failures.size());
+    h.param("tune_6x6x4", {{"replayed", r.replayed.size()}, {"grid", r.grid}, {"front_equal", r.front == brute},
+                           {"front", r.front}, {"violations", violations}, {"monotonicity_failures", r.monotonicity_failures}});
+    if (r.front != brute) status = 1;
+    std::filesystem::remove_all(dir);
+  }
   const int rc = h.finish();
   return status ? status : rc;
 }

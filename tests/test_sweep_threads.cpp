@@ -9,8 +9,10 @@
 #include "sim/run/replay.h"
 #include "sim/sweep/lockstep.h"
 #include "sim/sweep/sweep.h"
+#include "sim/sweep/tune.h"
 #include "sim/trace/trace_io.h"
 #include "sim/view/scene.h"
+#include "real_test_util.h"
 #include "store_test_util.h"
 #include "test_util.h"
 
@@ -57,3 +59,23 @@ TEST_CASE("sweep threads: tasks on a pool of threads write the same outputs as o
 }
 
 TEST_SUITE_END();
+
+TEST_CASE("sweep threads: tune's real-clock check replays a config in both clocks on a store and reports each gap") {
+  test::TempDir d;
+  std::ofstream(d.file("spec.toml")) << R"(set = ["texture.texels_per_m=32", "clipmap.clipsize=256", "view.divisor=16"]
+generate = ["static duration_s=1 start_m=16,16 image=640x360"]
+[grid]
+"upload.tiles_per_frame" = [1, 4]
+[tune]
+constraints = ["latency_ms.p99 <= 10000", "bandwidth.uploads >= 1"]
+)";
+  const SweepSpec spec = load_sweep_spec(d.file("spec.toml"));
+  const nlohmann::json r = tune_real_check(spec, load_sweep_traces(spec), 1, test::small_store());
+  CHECK(r["config"] == 1);
+  CHECK(r["sim_pass"] == true);
+  CHECK(r["real_pass"] == true);
+  REQUIRE(r["constraints"].size() == 2);
+  // The simulated clock on the store's tile sizes reads what the real clock read (a still camera).
+  CHECK(r["constraints"][1]["sim"] == r["constraints"][1]["real"]);
+  CHECK(r["constraints"][1]["gap"] == 0.0);
+}

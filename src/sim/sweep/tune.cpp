@@ -112,6 +112,8 @@ std::vector<int> brute_force_front(const SweepSpec& spec, const std::vector<bool
   return g.minimal(s);
 }
 
+bool cheaper_or_equal(const SweepSpec& spec, int a, int b) { return make_grid(spec).le(a, b); }
+
 TuneResult run_tune(const SweepSpec& spec,
                     const std::function<std::vector<std::vector<nlohmann::json>>(const std::vector<int>&)>& evaluate) {
   if (!spec.tune.present || spec.tune.constraints.empty())

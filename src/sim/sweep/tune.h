@@ -53,6 +53,9 @@ TuneResult run_tune(const SweepSpec& spec,
 // other axes). For tests and the brute-force comparison.
 std::vector<int> brute_force_front(const SweepSpec& spec, const std::vector<bool>& pass);
 
+// Config a is no dearer than b on every cost axis and equal on the other axes.
+bool cheaper_or_equal(const SweepSpec& spec, int a, int b);
+
 // The recommended config of a front: the one cheapest on the cost axes together (the least sum of
 // each axis's position in its list, 0 = cheapest, 1 = dearest); ties to the lower index. -1 for
 // an empty front.
