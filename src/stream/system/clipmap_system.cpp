@@ -63,9 +63,9 @@ void ClipmapSystem::begin_frame(const SystemFrame& f) {
   gu_ = ground_u(f.pose->pos_m.x);
   gv_ = ground_v(f.pose->pos_m.y);
   finest_active_ = std::min(f.finest_needed, cm_.num_levels());
-  if (f.spans) aggregate_feedback(*f.spans, s_.tile_size, cm_.num_levels(), uses_);
-  else if (f.view) aggregate_feedback(*f.view, s_.tile_size, cm_.num_levels(), uses_);
-  else uses_.clear();
+  spans_ = f.spans;
+  view_ = f.view;
+  uses_ready_ = false;
   prefetch_ = s_.prefetch_lookahead_s > 0 && (f.velocity_mps.x != 0.0 || f.velocity_mps.y != 0.0);
   if (prefetch_) {
     fu_ = ground_u(f.pose->pos_m.x + f.velocity_mps.x * s_.prefetch_lookahead_s);
@@ -77,7 +77,13 @@ void ClipmapSystem::missing_bytes_by_level(std::vector<std::uint64_t>& out) cons
   cm_.missing_bytes_by_level(gu_, gv_, finest_active_, s_.tile_bytes_all_layers, out);
 }
 
-std::uint64_t ClipmapSystem::importance(int level, std::int64_t x, std::int64_t y) const {
+std::uint64_t ClipmapSystem::importance(int level, std::int64_t x, std::int64_t y) {
+  if (!uses_ready_) {  // the frame's feedback, aggregated once when first asked (uses_)
+    if (spans_) aggregate_feedback(*spans_, s_.tile_size, cm_.num_levels(), uses_);
+    else if (view_) aggregate_feedback(*view_, s_.tile_size, cm_.num_levels(), uses_);
+    else uses_.clear();
+    uses_ready_ = true;
+  }
   const TileKey k(0, static_cast<std::uint32_t>(level), x, y);
   auto it = std::lower_bound(uses_.begin(), uses_.end(), k, [](const TileUse& a, TileKey b) { return a.key < b; });
   return it != uses_.end() && it->key == k ? it->samples : 0;

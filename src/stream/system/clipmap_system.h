@@ -60,7 +60,7 @@ class ClipmapSystem final : public IStreamingSystem {
   std::int64_t ground_v(double y_m) const;
 
  private:
-  std::uint64_t importance(int level, std::int64_t x, std::int64_t y) const;
+  std::uint64_t importance(int level, std::int64_t x, std::int64_t y);
 
   SystemSetup s_;
   Clipmap cm_;
@@ -69,7 +69,13 @@ class ClipmapSystem final : public IStreamingSystem {
   int finest_active_ = 0;
   int frame_ = 0;
   std::uint32_t throttled_ = 0;
-  std::vector<TileUse> uses_;  // this frame's feedback at the clipmap's tile size, sorted by key
+  // This frame's feedback at the clipmap's tile size, sorted by key. Aggregated on the first
+  // importance() call of the frame: only missing window tiles ask, and most frames of a walk
+  // have none (the feedback is then never aggregated).
+  std::vector<TileUse> uses_;
+  const SpanBuffer* spans_ = nullptr;  // this frame's feedback (begin_frame)
+  const ViewBuffer* view_ = nullptr;
+  bool uses_ready_ = false;
   std::unordered_map<std::uint64_t, int> evicted_at_;  // (level, x, y) -> frame its slot was overwritten
   std::uint64_t thrash_ = 0;
 };
