@@ -110,25 +110,40 @@ int VtSystem::coarsest_clamp() const { return geo_.levels() - std::max(1, c_.loc
 void VtSystem::build_wanted() {
   const int n = geo_.levels();
   for (auto& v : by_level_) v.clear();
+  span_data_ = nullptr;  // set below when the spans are aggregated span by span
   const float bias = static_cast<float>(bias_);
   if (spans_ || view_) {
     // Aggregate samples into desired pages: a run of samples on one page costs one hash lookup.
     agg_.clear();
+    desired_.clear();
     std::uint64_t run_key = PageMap<int>::kEmpty;
     std::uint32_t run = 0;
+    std::uint32_t run_page = 0;  // the run's page: its index in desired_
+    // A run's page is found (or added, without samples yet) when the run starts and gets the
+    // run's samples when it ends: pages enter by_level_ in the order they did when added at the
+    // run's end (nothing else is added in between).
+    const auto start = [&](std::uint64_t key) {
+      run_key = key;
+      if (const std::uint32_t* k = agg_.find(key)) {
+        run_page = *k;
+        return;
+      }
+      const auto lvl = static_cast<std::size_t>((key >> 54) & 63u);
+      run_page = static_cast<std::uint32_t>(desired_.size());
+      agg_.put(key, run_page);
+      Desired d;
+      d.page.bits = key;
+      d.index = static_cast<std::uint32_t>(by_level_[lvl].size());
+      desired_.push_back(d);
+      Wanted w;
+      w.page.bits = key;
+      w.samples = 0;
+      w.desired = true;
+      by_level_[lvl].push_back(w);
+    };
     const auto flush = [&] {
       if (run == 0) return;
-      const auto lvl = static_cast<std::size_t>((run_key >> 54) & 63u);
-      if (std::uint32_t* idx = agg_.find(run_key)) {
-        by_level_[lvl][*idx].samples += run;
-      } else {
-        agg_.put(run_key, static_cast<std::uint32_t>(by_level_[lvl].size()));
-        Wanted w;
-        w.page.bits = run_key;
-        w.samples = run;
-        w.desired = true;
-        by_level_[lvl].push_back(w);
-      }
+      by_level_[static_cast<std::size_t>((run_key >> 54) & 63u)][desired_[run_page].index].samples += run;
     };
     const std::int64_t W = geo_.extent().width, H = geo_.extent().height;
     const auto add_sample = [&](const ViewSample& s) {
@@ -140,19 +155,23 @@ void VtSystem::build_wanted() {
         return;
       }
       flush();
-      run_key = key;
+      start(key);
       run = 1;
     };
     // Spans (one page of one level each when cut at pages) stand for their samples when the bias
     // is zero: desired_level(lod + 0, n) = min(span.level, n − 1). Same runs, same order. A span
     // across a page edge goes sample by sample (expand_span).
     if (bias == 0.0f && spans_ && spans_->levels >= n) {
+      span_page_.resize(spans_->spans.size());
+      span_data_ = spans_->spans.data();
+      std::uint32_t* sp_page = span_page_.data();
       for (const ViewSpan& sp : spans_->spans) {
         const int l = std::min(sp.level, n - 1);
         const std::int64_t u0 = std::clamp<std::int64_t>(sp.u_lo, 0, W - 1), u1 = std::clamp<std::int64_t>(sp.u_hi, 0, W - 1);
         const std::int64_t v0 = std::clamp<std::int64_t>(sp.v_lo, 0, H - 1), v1 = std::clamp<std::int64_t>(sp.v_hi, 0, H - 1);
         const std::int64_t px = geo_.page_of(u0 >> l), py = geo_.page_of(v0 >> l);
         if (px != geo_.page_of(u1 >> l) || py != geo_.page_of(v1 >> l)) {
+          *sp_page++ = kNoPage;
           expanded_.clear();
           expand_span(*spans_, sp, expanded_);
           for (const ViewSample& s : expanded_) add_sample(s);
@@ -161,9 +180,10 @@ void VtSystem::build_wanted() {
         const std::uint64_t key = page_key(l, px, py).bits;
         if (key != run_key) {
           flush();
-          run_key = key;
+          start(key);
           run = 0;
         }
+        *sp_page++ = run_page;
         run += sp.count;
       }
     } else {
@@ -413,7 +433,12 @@ std::int64_t VtSystem::vram_slot(TileKey key) const {
 int VtSystem::resolve_from(int from, std::int64_t u, std::int64_t v) const {
   u = std::clamp<std::int64_t>(u, 0, geo_.extent().width - 1);
   v = std::clamp<std::int64_t>(v, 0, geo_.extent().height - 1);
-  const std::int64_t px = geo_.page_of(u >> from), py = geo_.page_of(v >> from);
+  const Memo& m = lookup(from, geo_.page_of(u >> from), geo_.page_of(v >> from));
+  if (mark_sampled_ && m.slot != PageTable::kNoSlot) pool_.mark_sampled(m.slot);
+  return m.level;
+}
+
+const VtSystem::Memo& VtSystem::lookup(int from, std::int64_t px, std::int64_t py) const {
   const std::uint64_t key = page_key(from, px, py).bits;
   const std::uint64_t gen = (pt_.generation() << 20) ^ settings_gen_;
   // Neighbouring samples mostly share a page: the last lookup answers them without hashing.
@@ -428,8 +453,7 @@ int VtSystem::resolve_from(int from, std::int64_t u, std::int64_t v) const {
     }
     last_ = m;
   }
-  if (mark_sampled_ && last_.slot != PageTable::kNoSlot) pool_.mark_sampled(last_.slot);
-  return last_.level;
+  return last_;
 }
 
 int VtSystem::resident_level(std::int64_t u, std::int64_t v, int desired_level) const {
@@ -453,10 +477,30 @@ void VtSystem::resident_levels(const ViewSample* s, std::size_t count, std::int8
 void VtSystem::span_resident_levels(const ViewSpan* s, std::size_t count, std::int8_t* out) const {
   const int n = geo_.levels();
   const std::int64_t W = geo_.extent().width, H = geo_.extent().height;
+  // Pop-in measured on the spans this frame's build_wanted aggregated one by one (the feedback
+  // itself): a span not finer than the clamp samples from its desired page, whose index
+  // build_wanted kept (kNoPage: across pages, as below). Each distinct page is then resolved once
+  // per page-table generation, not looked up in the memo per span; the answers are the memo's.
+  const bool known = s == span_data_ && count == span_page_.size();
+  const std::uint64_t gen = pt_.generation() + 1;  // Desired::gen 0: not resolved
   for (std::size_t i = 0; i < count; ++i) {
     out[i] = -1;
     if (sample_bias_ != 0.0) continue;  // floor(lod + bias) may differ within the span
-    const int from = std::max(std::min(s[i].level, n - 1), std::min(clamp_, n - 1));
+    const int l = std::min(s[i].level, n - 1);
+    const int from = std::max(l, std::min(clamp_, n - 1));
+    if (known && from == l) {
+      if (span_page_[i] == kNoPage) continue;
+      const Desired& d = desired_[span_page_[i]];
+      if (d.gen != gen) {
+        const Memo& m = lookup(from, d.page.x(), d.page.y());
+        d.level = m.level;
+        d.slot = m.slot;
+        d.gen = gen;
+      }
+      if (mark_sampled_ && d.slot != PageTable::kNoSlot) pool_.mark_sampled(d.slot);
+      out[i] = static_cast<std::int8_t>(d.level);
+      continue;
+    }
     const std::int64_t u0 = std::clamp<std::int64_t>(s[i].u_lo, 0, W - 1), u1 = std::clamp<std::int64_t>(s[i].u_hi, 0, W - 1);
     const std::int64_t v0 = std::clamp<std::int64_t>(s[i].v_lo, 0, H - 1), v1 = std::clamp<std::int64_t>(s[i].v_hi, 0, H - 1);
     if (geo_.page_of(u0 >> from) != geo_.page_of(u1 >> from) || geo_.page_of(v0 >> from) != geo_.page_of(v1 >> from))

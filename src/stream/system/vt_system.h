@@ -121,6 +121,9 @@ class VtSystem final : public IStreamingSystem {
   std::uint64_t page_priority(const Wanted& w) const;
   void on_removed(const PagePool::Removed& r);
   int resolve_from(int from, std::int64_t u, std::int64_t v) const;
+  struct Memo;
+  // The memo's entry for page (from, px, py), resolved if it was not (or is stale).
+  const Memo& lookup(int from, std::int64_t px, std::int64_t py) const;
 
   SystemSetup s_;
   VtConfig c_;
@@ -147,7 +150,22 @@ class VtSystem final : public IStreamingSystem {
   std::vector<std::vector<Wanted>> by_level_;
   std::vector<std::uint64_t> demand_by_level_;
   std::vector<std::uint64_t> missing_by_level_;
-  PageMap<std::uint32_t> agg_;          // desired page -> index in by_level_ scratch (aggregation)
+  PageMap<std::uint32_t> agg_;          // desired page -> index in desired_ (aggregation)
+  // The desired pages of the last build_wanted in the order found, and what the screen samples
+  // for each (span_resident_levels: resolved once per page-table generation, gen 0 = not yet).
+  struct Desired {
+    TileKey page;
+    std::uint32_t index = 0;  // in by_level_[level] while aggregating (before its sort)
+    mutable std::uint64_t gen = 0;
+    mutable std::uint32_t slot = PageTable::kNoSlot;
+    mutable int level = 0;
+  };
+  std::vector<Desired> desired_;
+  // Per span of the last build_wanted that went span by span (span_data_: its spans, compared by
+  // address only; null otherwise): the index of its page in desired_, kNoPage across pages.
+  static constexpr std::uint32_t kNoPage = ~std::uint32_t{0};
+  std::vector<std::uint32_t> span_page_;
+  const ViewSpan* span_data_ = nullptr;
   PageMap<std::uint8_t> wanted_set_;    // wanted pages at or above the clamp (this frame)
   PageMap<std::uint8_t> requested_;     // pages this system holds a reservation for
   struct Candidate {
