@@ -103,6 +103,7 @@ PagePool::Touch PagePool::touch(TileKey page, int frame) {
   }
   S.last_used = frame;
   S.seq = ++seq_;
+  t.complete = S.mask == full_mask_;
   if (S.state == State::resident && !locked(S.page)) {
     if (S.in_lru) lru_unlink(s);
     lru_push_front(s);

@@ -68,6 +68,7 @@ class PagePool {
     std::uint32_t slot = kNoSlot;
     bool rescued = false;
     TileKey lost;  // when rescued: the page whose reservation is gone
+    bool complete = false;  // every layer resident (resident(page))
   };
   Touch touch(TileKey page, int frame);
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <iterator>
 #include <stdexcept>
 #include <string>
 
@@ -205,23 +206,43 @@ void VtSystem::build_wanted() {
     for (std::int64_t y = 0; y < L.pages_y; ++y)
       for (std::int64_t x = 0; x < L.pages_x; ++x) by_level_[static_cast<std::size_t>(l)].push_back(Wanted{page_key(l, x, y), 0, false});
   }
+  // A level's pages: its desired and locked pages, sorted, merged with the parents of the finer
+  // level's pages (which come out of that level in page order, below, without a sort), and
+  // duplicates merged (samples summed). Sorting only the desired pages, not the parents too, gives
+  // the same lists: a page's entries are merged whatever their order.
+  const auto by_page = [](const Wanted& a, const Wanted& b) { return a.page < b.page; };
+  parents_.clear();
   for (int l = 0; l < n; ++l) {
     auto& v = by_level_[static_cast<std::size_t>(l)];
-    std::sort(v.begin(), v.end(), [](const Wanted& a, const Wanted& b) { return a.page < b.page; });
-    std::size_t o = 0;
-    for (std::size_t i = 0; i < v.size(); ++i) {
-      if (o > 0 && v[o - 1].page == v[i].page) {
-        v[o - 1].samples += v[i].samples;
-        v[o - 1].desired = v[o - 1].desired || v[i].desired;
+    std::sort(v.begin(), v.end(), by_page);
+    merged_.clear();
+    std::merge(v.begin(), v.end(), parents_.begin(), parents_.end(), std::back_inserter(merged_), by_page);
+    v.clear();
+    for (const Wanted& w : merged_) {
+      if (!v.empty() && v.back().page == w.page) {
+        v.back().samples += w.samples;
+        v.back().desired = v.back().desired || w.desired;
       } else {
-        v[o++] = v[i];
+        v.push_back(w);
       }
     }
-    v.resize(o);
-    demand_by_level_[static_cast<std::size_t>(l)] = o;
-    if (l + 1 < n) {
-      auto& up = by_level_[static_cast<std::size_t>(l + 1)];
-      for (const Wanted& w : v) up.push_back(Wanted{parent_page(w.page), w.samples, false});
+    demand_by_level_[static_cast<std::size_t>(l)] = v.size();
+    // The parents of v in page order (x, then y): v's pages of parent column x come as two runs,
+    // even then odd child column, each sorted by y; merging the two by parent row sorts them.
+    parents_.clear();
+    if (l + 1 == n) break;
+    for (std::size_t i = 0; i < v.size();) {
+      const std::int64_t px = v[i].page.x() >> 1;
+      std::size_t odd = i, end = i;
+      while (odd < v.size() && v[odd].page.x() == 2 * px) ++odd;
+      end = odd;
+      while (end < v.size() && v[end].page.x() == 2 * px + 1) ++end;
+      for (std::size_t a = i, b = odd; a < odd || b < end;) {
+        const bool take_a = b >= end || (a < odd && (v[a].page.y() >> 1) <= (v[b].page.y() >> 1));
+        const Wanted& w = v[take_a ? a++ : b++];
+        parents_.push_back(Wanted{parent_page(w.page), w.samples, false});
+      }
+      i = end;
     }
   }
   wanted_.clear();
@@ -294,7 +315,6 @@ void VtSystem::emit_needs(std::vector<Need>& out) {
   const auto layers = static_cast<std::uint32_t>(s_.layers);
 
   // 1. Mark the wanted pages in the pool used (rescuing pending victims); collect the others.
-  wanted_set_.clear();
   candidates_.clear();
   std::uint32_t desired = 0;
   for (const Wanted& w : wanted_) {
@@ -307,10 +327,8 @@ void VtSystem::emit_needs(std::vector<Need>& out) {
       continue;
     }
     desired += w.desired;
-    wanted_set_.put(w.page.bits, 1);
     ++fc_.visible_pages;
-    pool_.touch(w.page, frame_);
-    if (pool_.resident(w.page)) {
+    if (pool_.touch(w.page, frame_).complete) {
       ++fc_.visible_resident;
       continue;
     }
@@ -318,12 +336,19 @@ void VtSystem::emit_needs(std::vector<Need>& out) {
   }
   fc_.rescues = static_cast<std::uint32_t>(pool_.stats().rescues - frame_start_rescues_);
 
-  // 2. Reservations of pages no longer wanted (or now below the clamp) are released.
+  // 2. Reservations of pages no longer wanted (or now below the clamp) are released. Wanted at
+  // or above the clamp: in its level's sorted list of the wanted set (a few requested pages are
+  // searched there rather than every wanted page put in a hash set).
   scratch_keys_.clear();
+  const auto by_page = [](const Wanted& a, const Wanted& b) { return a.page < b.page; };
   requested_.for_each([&](std::uint64_t k, std::uint8_t) {
     TileKey t;
     t.bits = k;
-    if (!wanted_set_.contains(k) || !pool_.reserved(t)) scratch_keys_.push_back(k);
+    const int l = static_cast<int>(t.level());
+    const bool wanted = l >= clamp_ && l < geo_.levels() &&
+                        std::binary_search(by_level_[static_cast<std::size_t>(l)].begin(),
+                                           by_level_[static_cast<std::size_t>(l)].end(), Wanted{t, 0, false}, by_page);
+    if (!wanted || !pool_.reserved(t)) scratch_keys_.push_back(k);
   });
   std::sort(scratch_keys_.begin(), scratch_keys_.end());  // deterministic release order
   for (std::uint64_t k : scratch_keys_) {

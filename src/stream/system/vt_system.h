@@ -148,6 +148,7 @@ class VtSystem final : public IStreamingSystem {
   // Wanted set and its scratch (reused: no allocation in steady state).
   std::vector<Wanted> wanted_;
   std::vector<std::vector<Wanted>> by_level_;
+  std::vector<Wanted> parents_, merged_;  // build_wanted's scratch
   std::vector<std::uint64_t> demand_by_level_;
   std::vector<std::uint64_t> missing_by_level_;
   PageMap<std::uint32_t> agg_;          // desired page -> index in desired_ (aggregation)
@@ -166,7 +167,6 @@ class VtSystem final : public IStreamingSystem {
   static constexpr std::uint32_t kNoPage = ~std::uint32_t{0};
   std::vector<std::uint32_t> span_page_;
   const ViewSpan* span_data_ = nullptr;
-  PageMap<std::uint8_t> wanted_set_;    // wanted pages at or above the clamp (this frame)
   PageMap<std::uint8_t> requested_;     // pages this system holds a reservation for
   struct Candidate {
     std::uint64_t priority;
