@@ -114,37 +114,35 @@ void VtSystem::build_wanted() {
   span_data_ = nullptr;  // set below when the spans are aggregated span by span
   const float bias = static_cast<float>(bias_);
   if (spans_ || view_) {
-    // Aggregate samples into desired pages: a run of samples on one page costs one hash lookup.
+    // Aggregate samples into desired pages (desired_, in the order found): a run of samples on
+    // one page costs one lookup, in a small direct-mapped cache of recent pages (one multiply;
+    // rows repeat the row above's pages), else in the hash map.
     agg_.clear();
     desired_.clear();
+    std::fill(std::begin(recent_), std::end(recent_), Recent{});
     std::uint64_t run_key = PageMap<int>::kEmpty;
     std::uint32_t run = 0;
     std::uint32_t run_page = 0;  // the run's page: its index in desired_
-    // A run's page is found (or added, without samples yet) when the run starts and gets the
-    // run's samples when it ends: pages enter by_level_ in the order they did when added at the
-    // run's end (nothing else is added in between).
     const auto start = [&](std::uint64_t key) {
       run_key = key;
-      if (const std::uint32_t* k = agg_.find(key)) {
-        run_page = *k;
+      Recent& r = recent_[(key * 0x9E3779B97F4A7C15ull) >> (64 - kRecentBits)];
+      if (r.key == key) {
+        run_page = r.page;
         return;
       }
-      const auto lvl = static_cast<std::size_t>((key >> 54) & 63u);
-      run_page = static_cast<std::uint32_t>(desired_.size());
-      agg_.put(key, run_page);
-      Desired d;
-      d.page.bits = key;
-      d.index = static_cast<std::uint32_t>(by_level_[lvl].size());
-      desired_.push_back(d);
-      Wanted w;
-      w.page.bits = key;
-      w.samples = 0;
-      w.desired = true;
-      by_level_[lvl].push_back(w);
+      if (const std::uint32_t* k = agg_.find(key)) {
+        run_page = *k;
+      } else {
+        run_page = static_cast<std::uint32_t>(desired_.size());
+        agg_.put(key, run_page);
+        Desired d;
+        d.page.bits = key;
+        desired_.push_back(d);
+      }
+      r = Recent{key, run_page};
     };
     const auto flush = [&] {
-      if (run == 0) return;
-      by_level_[static_cast<std::size_t>((run_key >> 54) & 63u)][desired_[run_page].index].samples += run;
+      if (run > 0) desired_[run_page].samples += run;
     };
     const std::int64_t W = geo_.extent().width, H = geo_.extent().height;
     const auto add_sample = [&](const ViewSample& s) {
@@ -199,6 +197,9 @@ void VtSystem::build_wanted() {
       for (const ViewSample& s : *all) add_sample(s);
     }
     flush();
+    // Each level's desired pages in the order found (what sorting them starts from).
+    for (const Desired& d : desired_)
+      by_level_[d.page.level()].push_back(Wanted{d.page, d.samples, true});
   }
   // Locked levels are always wanted.
   for (int l = std::max(0, n - c_.locked_levels); l < n; ++l) {

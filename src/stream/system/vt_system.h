@@ -156,12 +156,18 @@ class VtSystem final : public IStreamingSystem {
   // for each (span_resident_levels: resolved once per page-table generation, gen 0 = not yet).
   struct Desired {
     TileKey page;
-    std::uint32_t index = 0;  // in by_level_[level] while aggregating (before its sort)
+    std::uint32_t samples = 0;
     mutable std::uint64_t gen = 0;
     mutable std::uint32_t slot = PageTable::kNoSlot;
     mutable int level = 0;
   };
   std::vector<Desired> desired_;
+  struct Recent {
+    std::uint64_t key = PageMap<int>::kEmpty;
+    std::uint32_t page = 0;  // index in desired_
+  };
+  static constexpr int kRecentBits = 8;
+  Recent recent_[1 << kRecentBits];
   // Per span of the last build_wanted that went span by span (span_data_: its spans, compared by
   // address only; null otherwise): the index of its page in desired_, kNoPage across pages.
   static constexpr std::uint32_t kNoPage = ~std::uint32_t{0};
