@@ -33,32 +33,27 @@ std::string view_key(const ReplayConfig& cfg) {
 namespace {
 
 // Frames rendered once into a ring of slots and read by several consumers, each at its own pace
-// and in frame order. Slot state machine (per slot): free -> (renderer) filled with render j,
-// refs = consumers -> (each consumer moving past j) refs - 1 -> 0: free. `rendered_` counts the
-// renders published (release); a consumer waits on it (atomic wait), the renderer on a slot's refs.
-// A render that throws is published as a failure: every consumer waiting for it throws.
+// and in frame order; the consumer that first needs a render renders it (no thread of its own:
+// on 2 cores a third runnable thread only adds switches). Renders are claimed in order
+// (next_claim_); a consumer waiting for a render another is doing renders a later one meanwhile
+// if its slot is free. Slot state machine: holding render j - slots (ready) with refs -> 0 when
+// every consumer moved past it: free for render j -> the claimer of j renders, sets refs =
+// consumers and publishes ready = j (release). A consumer needing j that another claimed waits on the
+// slot's `ready` (atomic wait). A render that throws publishes kFailed: its waiters throw.
 class ViewRing {
  public:
   ViewRing(const ReplayConfig& cfg, const FramePlan& plan, const IScene& scene, int block_shift, bool keep_samples,
            int consumers)
       : plan_(plan), scene_(scene), vp_(view_params(cfg.view)), pp_(view_params(cfg.view)),
         separate_popin_(cfg.view.popin_divisor > 0 && cfg.view.popin_divisor != cfg.view.divisor),
-        consumers_(consumers), slots_(static_cast<std::size_t>(consumers) + 3), held_(static_cast<std::size_t>(consumers), -1),
-        next_(static_cast<std::size_t>(consumers), 0), views_(static_cast<std::size_t>(consumers)) {
+        consumers_(consumers), slots_(static_cast<std::size_t>(consumers) + kSlack),
+        held_(static_cast<std::size_t>(consumers), -1), next_(static_cast<std::size_t>(consumers), 0),
+        views_(static_cast<std::size_t>(consumers)) {
     if (cfg.view.popin_divisor > 0) pp_.divisor = cfg.view.popin_divisor;
     for (Slot& s : slots_) {
       s.feedback.block_shift = s.popin.block_shift = block_shift;
       s.feedback.keep_samples = s.popin.keep_samples = keep_samples;
     }
-    renderer_ = std::thread([this] { render_all(); });
-  }
-  ~ViewRing() {
-    stop_.store(true);
-    for (Slot& s : slots_) {
-      s.refs.store(0);
-      s.refs.notify_all();
-    }
-    renderer_.join();
   }
   ViewRing(const ViewRing&) = delete;
   ViewRing& operator=(const ViewRing&) = delete;
@@ -74,54 +69,86 @@ class ViewRing {
     v.fresh = j < plan_.render_frames.size() && plan_.render_frames[j] == f;
     if (!v.fresh) return v;  // the last rendered buffers stand in
     release(c);
-    for (std::size_t r = rendered_.load(std::memory_order_acquire); r <= j; r = rendered_.load(std::memory_order_acquire)) {
-      if (r == kFailed) throw std::runtime_error("the view's render failed: " + error_);
-      rendered_.wait(r, std::memory_order_acquire);
-    }
     Slot& s = slots_[j % slots_.size()];
+    const auto jj = static_cast<std::int64_t>(j);
+    std::size_t claim = j;
+    if (next_claim_.load(std::memory_order_acquire) == j && next_claim_.compare_exchange_strong(claim, j + 1)) {
+      render(j, s);
+    } else {
+      // Another consumer renders j: render a later frame meanwhile if its slot is free, else wait.
+      for (std::int64_t r = s.ready.load(std::memory_order_acquire); r != jj; r = s.ready.load(std::memory_order_acquire)) {
+        if (r == kFailed) throw std::runtime_error("the view's render failed: " + error_);
+        if (!render_ahead()) s.ready.wait(r, std::memory_order_acquire);
+      }
+    }
     v.feedback = &s.feedback;
     v.popin = separate_popin_ ? &s.popin : &s.feedback;
-    held_[ci] = static_cast<long long>(j);
+    held_[ci] = jj;
     next_[ci] = j + 1;
     return v;
   }
-  // Consumer c is done with the buffers it holds (after its last frame, or on leaving early).
+  // Consumer c is done with the buffers it holds (after its last frame).
   void release(int c) {
     const auto ci = static_cast<std::size_t>(c);
     if (held_[ci] < 0) return;
     Slot& s = slots_[static_cast<std::size_t>(held_[ci]) % slots_.size()];
     held_[ci] = -1;
-    if (s.refs.fetch_sub(1, std::memory_order_acq_rel) == 1) s.refs.notify_one();
+    if (s.refs.fetch_sub(1, std::memory_order_acq_rel) == 1) s.refs.notify_all();
   }
+
  private:
   struct Slot {
     SpanBuffer feedback, popin;
     std::atomic<int> refs{0};
+    std::atomic<std::int64_t> ready{-1};  // the render the slot holds; kFailed: it threw
   };
-  static constexpr std::size_t kFailed = ~std::size_t{0};
+  static constexpr std::int64_t kFailed = -2;
+  // Renders the ring holds beyond one per consumer, so that consumers drift apart without
+  // waiting for each other (each wait is a futex call, dear on a paravirtualised VM). A slot is
+  // one feedback buffer (~0.1 MB of spans at divisor 8, ~0.5 MB more with samples).
+  static constexpr std::size_t kSlack = 14;
 
-  void render_all() {
+  // Claims and renders the next unclaimed render if its slot is free now (never waits).
+  bool render_ahead() {
+    std::size_t n = next_claim_.load(std::memory_order_acquire);
+    if (n >= plan_.render_frames.size()) return false;
+    Slot& t = slots_[n % slots_.size()];
+    if (!free_for(n, t) || !next_claim_.compare_exchange_strong(n, n + 1)) return false;
+    render(n, t);
+    return true;
+  }
+
+  // The slot's previous render (n - slots) is published and every consumer moved past it. Claims
+  // are in order, so once true it stays true until render n is published.
+  bool free_for(std::size_t n, const Slot& t) const {
+    const std::int64_t prev = n >= slots_.size() ? static_cast<std::int64_t>(n - slots_.size()) : -1;
+    return t.ready.load(std::memory_order_acquire) == prev && t.refs.load(std::memory_order_acquire) == 0;
+  }
+
+  // Render j (claimed) into its slot once the slot's previous render is published and every
+  // consumer has moved past it.
+  void render(std::size_t j, Slot& s) {
+    const std::int64_t prev = j >= slots_.size() ? static_cast<std::int64_t>(j - slots_.size()) : -1;
+    for (std::int64_t r = s.ready.load(std::memory_order_acquire); r != prev; r = s.ready.load(std::memory_order_acquire)) {
+      if (r == kFailed) throw std::runtime_error("the view's render failed: " + error_);
+      s.ready.wait(r, std::memory_order_acquire);
+    }
+    for (int r = s.refs.load(std::memory_order_acquire); r != 0; r = s.refs.load(std::memory_order_acquire))
+      s.refs.wait(r, std::memory_order_acquire);
     try {
-      for (std::size_t j = 0; j < plan_.render_frames.size(); ++j) {
-        Slot& s = slots_[j % slots_.size()];
-        for (int r = s.refs.load(std::memory_order_acquire); r != 0; r = s.refs.load(std::memory_order_acquire)) {
-          if (stop_.load()) return;
-          s.refs.wait(r, std::memory_order_acquire);
-        }
-        if (stop_.load()) return;
-        const Pose& pose = plan_.trace.poses[static_cast<std::size_t>(plan_.render_frames[j])];
-        const Camera cam = make_camera(pose, plan_.trace.image_width, plan_.trace.image_height);
-        scene_.render_spans(cam, vp_, s.feedback);
-        if (separate_popin_) scene_.render_spans(cam, pp_, s.popin);
-        s.refs.store(consumers_, std::memory_order_release);  // every consumer takes every render
-        rendered_.store(j + 1, std::memory_order_release);
-        rendered_.notify_all();
-      }
+      const Pose& pose = plan_.trace.poses[static_cast<std::size_t>(plan_.render_frames[j])];
+      const Camera cam = make_camera(pose, plan_.trace.image_width, plan_.trace.image_height);
+      scene_.render_spans(cam, vp_, s.feedback);
+      if (separate_popin_) scene_.render_spans(cam, pp_, s.popin);
     } catch (const std::exception& e) {
       error_ = e.what();
-      rendered_.store(kFailed, std::memory_order_release);
-      rendered_.notify_all();
+      s.ready.store(kFailed, std::memory_order_release);
+      s.ready.notify_all();
+      throw;
     }
+    s.refs.store(consumers_, std::memory_order_relaxed);
+    s.ready.store(static_cast<std::int64_t>(j), std::memory_order_release);
+    s.ready.notify_all();
   }
 
   const FramePlan& plan_;
@@ -130,13 +157,11 @@ class ViewRing {
   bool separate_popin_;
   int consumers_;
   std::vector<Slot> slots_;
-  std::vector<long long> held_;      // per consumer: the render it holds, -1 none
-  std::vector<std::size_t> next_;    // per consumer: the next render it takes
-  std::vector<FrameView> views_;     // per consumer
-  std::atomic<std::size_t> rendered_{0};
-  std::atomic<bool> stop_{false};
-  std::string error_;                // written before rendered_ = kFailed (release)
-  std::thread renderer_;
+  std::vector<long long> held_;    // per consumer: the render it holds, -1 none
+  std::vector<std::size_t> next_;  // per consumer: the next render it takes
+  std::vector<FrameView> views_;   // per consumer
+  std::atomic<std::size_t> next_claim_{0};
+  std::string error_;              // written before a slot's ready = kFailed (release)
 };
 
 }  // namespace
@@ -200,8 +225,9 @@ std::vector<LockstepResult> run_lockstep(const std::vector<const ReplayConfig*>&
       if (frames_done) frames_done->fetch_add(live, std::memory_order_relaxed);
     }
   } else {
-    // The runs split among consumer threads (run i on consumer i mod n), one renderer. Samples a
-    // run may read are rendered up front: consumers only read the shared buffers.
+    // The runs split among consumer threads (run i on consumer i mod n), which render the view as
+    // they first need it. Samples a run may read are rendered up front: consumers only read the
+    // shared buffers.
     ViewRing ring(*cfgs[0], plan, scene, block_shift, keep || may_keep, consumers);
     std::vector<std::thread> pool;
     for (int c = 0; c < consumers; ++c)

@@ -6,10 +6,11 @@
 // keeps its own state; the shared buffers are written by the view alone (samples are expanded
 // once, before the runs read them).
 //
-// Parallelism: with threads > 1 one thread renders the frames into a ring of buffers and the runs
-// are split among `threads` consumer threads, each stepping its runs through every frame and
-// releasing a frame's buffers when it moves past them (no barrier per frame: a consumer waits only
-// when it catches up with the renderer, the renderer only when the ring is full). A group that may
+// Parallelism: with threads > 1 the runs are split among `threads` consumer threads, each
+// stepping its runs through every frame; the frames are rendered into a ring of buffers by the
+// consumer that first needs each, and a frame's buffers are freed when every consumer has moved
+// past them (no barrier per frame: a consumer waits only for a render another is doing, or for
+// the slowest consumer when the ring is full). A group that may
 // read every sample (SystemRun::may_keep_samples) has them rendered up front, so consumers never
 // write the shared buffers. Results do not depend on the thread count.
 #include <atomic>
@@ -37,8 +38,8 @@ struct LockstepResult {
 };
 
 // Replays `trace` once per config on one view. All configs must have the same view_key()
-// (std::invalid_argument otherwise). `threads` >= 1: consumer threads stepping the runs (at most
-// one per run), plus one rendering when > 1. `frames_done` (optional) is advanced by the runs' frames as they go.
+// (std::invalid_argument otherwise). `threads` >= 1: threads stepping the runs and rendering the
+// view (at most one per run). `frames_done` (optional) is advanced by the runs' frames as they go.
 // Throws InputError for a trace without poses.
 std::vector<LockstepResult> run_lockstep(const std::vector<const ReplayConfig*>& cfgs, const Trace& trace,
                                          const IScene& scene, int threads,
