@@ -304,3 +304,16 @@ TEST_CASE("sweep CLI: exit 2 for a bad spec or merge, 1 when a row failed, 0 oth
   CHECK(r.code == 2);
   CHECK(test::contains(r.err, "--shard: '4/4' is not I/N"));
 }
+
+TEST_CASE("sweep: the spec hash is the traces' content, not the paths they are read from") {
+  test::TempDir d;
+  std::filesystem::create_directories(d.file("sub"));
+  std::filesystem::copy_file(std::string(VTSIM_SOURCE_DIR) + "/traces/walk.csv", d.file("walk.csv"));
+  write_file(d.file("a.toml"), "traces = [\"walk.csv\"]\n");
+  write_file(d.file("sub/b.toml"), "traces = [\"" + d.file("walk.csv") + "\"]\n");
+  const SweepSpec a = load_sweep_spec(d.file("a.toml")), b = load_sweep_spec(d.file("sub/b.toml"));
+  CHECK(sweep_spec_hash(a, load_sweep_traces(a)) == sweep_spec_hash(b, load_sweep_traces(b)));
+  write_file(d.file("c.toml"), "traces = [\"walk.csv\"]\n[grid]\n\"upload.tiles_per_frame\" = [4]\n");
+  const SweepSpec c = load_sweep_spec(d.file("c.toml"));
+  CHECK(sweep_spec_hash(a, load_sweep_traces(a)) != sweep_spec_hash(c, load_sweep_traces(c)));
+}

@@ -16,19 +16,7 @@ struct Series {
   std::vector<double> y;  // one value per x
 };
 
-std::string escape(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    switch (c) {
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '&': o += "&amp;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += c;
-    }
-  }
-  return o;
-}
+std::string escape(const std::string& s) { return html_escape(s); }
 
 // A line chart of several series over x; at most ~1200 points per series (min and max of each
 // bucket are both kept, so spikes survive the downsampling). `marks` are x positions drawn as
@@ -104,6 +92,22 @@ double num(const nlohmann::json& j, const char* a, const char* b = nullptr, cons
 }
 
 }  // namespace
+
+std::string html_escape(std::string_view s) {
+  std::string o;
+  o.reserve(s.size());
+  for (char c : s) {
+    switch (c) {
+      case '<': o += "&lt;"; break;
+      case '>': o += "&gt;"; break;
+      case '&': o += "&amp;"; break;
+      case '"': o += "&quot;"; break;
+      case '\'': o += "&#39;"; break;
+      default: o += c;
+    }
+  }
+  return o;
+}
 
 std::string html_report(const nlohmann::json& s, const MetricsCollector& m) {
   const auto& frames = m.frames();

@@ -5,10 +5,14 @@
 // latency distribution. No scripts, no external files: it opens anywhere.
 #include <nlohmann/json.hpp>
 #include <string>
+#include <string_view>
 
 #include "sim/run/metrics.h"
 
 namespace vtsim {
+
+// Text for HTML content and attribute values: < > & " ' as entities.
+std::string html_escape(std::string_view s);
 
 std::string html_report(const nlohmann::json& summary, const MetricsCollector& metrics);
 

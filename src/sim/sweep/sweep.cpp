@@ -176,18 +176,6 @@ void add_costs(nlohmann::json& meta, const std::vector<nlohmann::json>& rows) {
   }
 }
 
-const nlohmann::json* at_path(const nlohmann::json& j, const std::string& dotted) {
-  const nlohmann::json* p = &j;
-  for (std::size_t b = 0;;) {
-    const std::size_t e = dotted.find('.', b);
-    const std::string k = dotted.substr(b, e == std::string::npos ? std::string::npos : e - b);
-    if (!p->is_object() || !p->contains(k)) return nullptr;
-    p = &(*p)[k];
-    if (e == std::string::npos) return p;
-    b = e + 1;
-  }
-}
-
 std::string csv_field(const std::string& s) {
   if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
   std::string o = "\"";
@@ -221,7 +209,7 @@ std::string rows_csv(const nlohmann::json& meta, const std::vector<nlohmann::jso
     }
     const bool ok = r["status"] == "ok";
     out.append(",").append(r["status"].get<std::string>());
-    for (const auto& m : metrics) out.append(",").append(csv_field(ok ? csv_value(at_path(r["summary"], m)) : std::string()));
+    for (const auto& m : metrics) out.append(",").append(csv_field(ok ? csv_value(summary_path(r["summary"], m)) : std::string()));
     out.append(",").append(csv_field(ok ? std::string() : r.value("error", std::string())) + "\n");
   }
   return out;
@@ -364,8 +352,8 @@ std::string sweep_spec_hash(const SweepSpec& spec, const std::vector<Trace>& tra
   for (const SweepPoint& p : spec.points)
     for (const auto& [k, v] : p.values) h = fnv1a64(fmt::format("{}:{}={}\n", p.index, k, v), h);
   for (std::size_t t = 0; t < spec.traces.size(); ++t) {
-    h = fnv1a64(spec.traces[t].text + "\n", h);
-    // The trace's content: its poses as loaded (what the replays see), exactly.
+    // A trace is its content: its poses as loaded (what the replays see), exactly; not the path
+    // it was read from (shards started from other directories name it differently).
     for (const Pose& p : traces[t].poses)
       h = fnv1a64(std::string_view(reinterpret_cast<const char*>(&p), sizeof(Pose)), h);
     h = fnv1a64(fmt::format("{}x{}\n", traces[t].image_width, traces[t].image_height), h);

@@ -13,6 +13,9 @@
 #include <string_view>
 #include <tuple>
 
+#include "sim/run/report_html.h"
+#include "sim/sweep/sweep_spec.h"
+
 // Helpers live in a named namespace: unity builds put this file in one translation unit with
 // others whose anonymous namespaces already hold `escape`, `chart`, `Series`.
 namespace vtsim::sweep_report_detail {
@@ -28,21 +31,7 @@ constexpr double kTitlePx = 13, kSmallPx = 11;
 
 // ---- text ----------------------------------------------------------------------------------
 
-std::string esc(std::string_view s) {
-  std::string o;
-  o.reserve(s.size());
-  for (char c : s) {
-    switch (c) {
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '&': o += "&amp;"; break;
-      case '"': o += "&quot;"; break;
-      case '\'': o += "&#39;"; break;
-      default: o += c;
-    }
-  }
-  return o;
-}
+std::string esc(std::string_view s) { return html_escape(s); }
 
 // A width estimate on the wide side (DejaVu Sans, the usual sans-serif on Linux, has 0.64 em
 // digits): layout decided on it leaves room rather than overlaps.
@@ -142,26 +131,8 @@ std::optional<std::size_t> index_of(const json& j) {
 
 // A dotted path into a summary ("popin.time_to_sharp_s.mean"; array elements by number).
 Opt metric_at(const json& summary, std::string_view path) {
-  const json* p = &summary;
-  while (true) {
-    const std::size_t dot = path.find('.');
-    const std::string part(path.substr(0, dot));
-    if (p->is_object()) {
-      const auto it = p->find(part);
-      if (it == p->end()) return std::nullopt;
-      p = &*it;
-    } else if (p->is_array()) {
-      std::size_t i = 0;
-      const auto [end, ec] = std::from_chars(part.data(), part.data() + part.size(), i);
-      if (ec != std::errc() || end != part.data() + part.size() || i >= p->size()) return std::nullopt;
-      p = &(*p)[i];
-    } else {
-      return std::nullopt;
-    }
-    if (dot == std::string_view::npos) break;
-    path.remove_prefix(dot + 1);
-  }
-  if (!p->is_number()) return std::nullopt;
+  const json* p = summary_path(summary, path);
+  if (!p || !p->is_number()) return std::nullopt;
   const double v = p->get<double>();
   return std::isfinite(v) ? Opt(v) : std::nullopt;
 }

@@ -98,6 +98,28 @@ ReplayConfig make_point(const ReplayConfig& base, const KeyValues& values, const
 
 }  // namespace
 
+const nlohmann::json* summary_path(const nlohmann::json& summary, std::string_view path) {
+  const nlohmann::json* p = &summary;
+  for (;;) {
+    const std::size_t dot = path.find('.');
+    const std::string part(path.substr(0, dot));
+    if (p->is_object()) {
+      const auto it = p->find(part);
+      if (it == p->end()) return nullptr;
+      p = &*it;
+    } else if (p->is_array()) {
+      std::size_t i = 0;
+      const auto [end, ec] = std::from_chars(part.data(), part.data() + part.size(), i);
+      if (ec != std::errc() || end != part.data() + part.size() || i >= p->size()) return nullptr;
+      p = &(*p)[i];
+    } else {
+      return nullptr;
+    }
+    if (dot == std::string_view::npos) return p;
+    path.remove_prefix(dot + 1);
+  }
+}
+
 std::uint64_t fnv1a64(std::string_view bytes, std::uint64_t h) {
   for (const unsigned char c : bytes) h = (h ^ c) * 0x100000001b3ull;
   return h;

@@ -17,6 +17,8 @@
 // grid's first axis (in the file's order) varies slowest. Every point is loaded and validated
 // before any replay runs: a bad key or value names spec:line:key.
 #include <cstdint>
+#include <nlohmann/json.hpp>
+#include <string_view>
 #include <string>
 #include <vector>
 
@@ -87,6 +89,11 @@ const std::vector<std::string>& default_sweep_metrics();
 
 // A trace of the spec, loaded (files) or generated. Throws InputError naming the source.
 Trace load_sweep_trace(const SweepTraceSource& src);
+
+// The value at a metric's dotted path in a replay summary ("popin.time_to_sharp_s.mean"; array
+// elements by number: "bandwidth.per_level.0.disk_read_MBps"), or nullptr. The CSV, the report
+// and tune's constraints all read metrics through it.
+const nlohmann::json* summary_path(const nlohmann::json& summary, std::string_view dotted);
 
 // 64-bit FNV-1a, for identities (spec hash, trace content), not for security.
 std::uint64_t fnv1a64(std::string_view bytes, std::uint64_t h = 0xcbf29ce484222325ull);

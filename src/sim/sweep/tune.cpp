@@ -17,18 +17,6 @@ namespace vtsim {
 
 namespace {
 
-const nlohmann::json* tune_path(const nlohmann::json& j, const std::string& dotted) {
-  const nlohmann::json* p = &j;
-  for (std::size_t b = 0;;) {
-    const std::size_t e = dotted.find('.', b);
-    const std::string k = dotted.substr(b, e == std::string::npos ? std::string::npos : e - b);
-    if (!p->is_object() || !p->contains(k)) return nullptr;
-    p = &(*p)[k];
-    if (e == std::string::npos) return p;
-    b = e + 1;
-  }
-}
-
 // The grid as index vectors: point index = sum of idx[a] * stride[a], the first axis slowest.
 struct Grid {
   std::vector<int> n, stride;
@@ -87,7 +75,7 @@ TuneVerdict judge(const TuneSpec& tune, const std::vector<nlohmann::json>& rows)
     }
     for (std::size_t c = 0; c < tune.constraints.size(); ++c) {
       const TuneConstraint& k = tune.constraints[c];
-      const nlohmann::json* x = tune_path(r["summary"], k.metric);
+      const nlohmann::json* x = summary_path(r["summary"], k.metric);
       if (!x || !x->is_number()) {
         v.pass = false;
         if (v.failure.empty()) v.failure = "no metric '" + k.metric + "' in the summary";
