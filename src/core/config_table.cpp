@@ -7,6 +7,8 @@
 #include <cstdlib>
 #include <toml++/toml.h>
 
+#include "core/toml_text.h"
+
 namespace vtsim {
 
 std::string config_value_to_string(const ConfigValue& v) {
@@ -202,16 +204,19 @@ void flatten(const toml::table& t, const std::string* prefix, const std::string&
 
 }  // namespace
 
-std::vector<TomlEntry> read_toml_entries(const std::string& path, std::vector<TomlEmptyTable>* empty_tables) {
-  const std::string text = read_regular_file(path, 16u << 20, "not a vtsim TOML file");
+toml::table parse_toml_text(const std::string& text, const std::string& path) {
   check_toml_nesting(text, path);
-  toml::table tbl;
   try {
-    tbl = toml::parse(text, path);
+    return toml::parse(text, path);
   } catch (const toml::parse_error& e) {
     throw InputError(at_line(path, static_cast<long long>(e.source().begin.line)),
                      std::string("TOML syntax error: ") + std::string(e.description()));
   }
+}
+
+std::vector<TomlEntry> read_toml_entries(const std::string& path, std::vector<TomlEmptyTable>* empty_tables) {
+  const std::string text = read_regular_file(path, 16u << 20, "not a vtsim TOML file");
+  const toml::table tbl = parse_toml_text(text, path);
   std::vector<TomlEntry> out;
   flatten(tbl, nullptr, path, out, empty_tables);
   return out;

@@ -208,9 +208,6 @@ struct TomlEmptyTable {
   std::string key;
   long long line = 0;
 };
-// Refuses TOML text whose keys, inline tables and arrays nest more than 16 levels (toml++ would
-// overflow the stack destroying them); InputError at path:line. read_toml_entries calls it.
-void check_toml_nesting(const std::string& text, const std::string& path);
 std::vector<TomlEntry> read_toml_entries(const std::string& path, std::vector<TomlEmptyTable>* empty_tables = nullptr);
 
 template <class Cfg>

@@ -12,6 +12,7 @@
 
 #include "core/error.h"
 #include "core/input_file.h"
+#include "core/toml_text.h"
 #include "sim/trace/trace_gen.h"
 #include "sim/trace/trace_import.h"
 
@@ -136,14 +137,7 @@ const std::vector<std::string>& default_sweep_metrics() {
 
 SweepSpec load_sweep_spec(const std::string& path) {
   const std::string text = read_regular_file(path, kMaxSpecBytes, "not a sweep spec");
-  check_toml_nesting(text, path);
-  toml::table tbl;
-  try {
-    tbl = toml::parse(text, path);
-  } catch (const toml::parse_error& e) {
-    throw InputError(at_line(path, static_cast<long long>(e.source().begin.line)),
-                     std::string("TOML syntax error: ") + std::string(e.description()));
-  }
+  const toml::table tbl = parse_toml_text(text, path);
   SweepSpec spec;
   spec.path = path;
   const fs::path dir = fs::path(path).parent_path();
