@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "core/camera.h"
 #include "core/view_spans.h"
+#include "sim/view/scene.h"
 #include "sim/run/frame_loop.h"
 #include "stream/system/i_system.h"
 
