@@ -80,7 +80,7 @@ std::optional<Mount> find_mount(std::string_view mountinfo, bool v1, const std::
 // The least limit in `file` from the cgroup `path`'s directory up to the mount's.
 std::uint64_t least_limit(const Mount& m, std::string path, const char* file, const ReadTextFile& read) {
   if (m.root != "/") path.erase(0, m.root.size());  // the part below the mounted directory
-  if (path.empty()) path = "/";
+  if (path.empty()) path.push_back('/');  // not `= "/"`: GCC 12 -O3 reports a false -Wrestrict there
   std::uint64_t least = UINT64_MAX;
   for (;;) {
     const std::string dir = m.point + (path == "/" ? std::string() : path);
