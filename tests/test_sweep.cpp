@@ -13,6 +13,7 @@
 #include "sim/run/systems.h"
 #include "sim/sweep/lockstep.h"
 #include "sim/sweep/sweep.h"
+#include "sim/sweep/sweep_table.h"
 #include "sim/trace/trace_gen.h"
 #include "sim/trace/trace_io.h"
 #include "sim/view/scene.h"
@@ -316,4 +317,44 @@ TEST_CASE("sweep: the spec hash is the traces' content, not the paths they are r
   write_file(d.file("c.toml"), "traces = [\"walk.csv\"]\n[grid]\n\"upload.tiles_per_frame\" = [4]\n");
   const SweepSpec c = load_sweep_spec(d.file("c.toml"));
   CHECK(sweep_spec_hash(a, load_sweep_traces(a)) != sweep_spec_hash(c, load_sweep_traces(c)));
+}
+
+TEST_CASE("sweep table: one pivot table per metric, cells from the one row with those values, errors name the flag") {
+  test::TempDir d;
+  write_file(d.file("spec.toml"), kSpec);
+  SweepOptions o;
+  o.out_dir = d.file("o");
+  o.jobs = 1;
+  run_sweep(load_sweep_spec(d.file("spec.toml")), o);
+  const SweepOutputs out = load_sweep_outputs(d.file("o"));
+  REQUIRE(out.rows.size() == 16);  // 2 configs × (2 × 2) grid × 2 traces
+  SweepTableSpec t;
+  t.rows = {"trace", "view.divisor", "disk.preset"};
+  t.col = "upload.tiles_per_frame";
+  t.metrics = {"trace.frames", "popin.blurry_fraction_mean"};
+  const std::string md = sweep_table(out, t);
+  CHECK(test::contains(md, "**trace.frames**"));
+  CHECK(test::contains(md, "| trace | view.divisor | disk.preset | upload.tiles_per_frame = 4 | upload.tiles_per_frame = -1 |"));
+  // Every cell of the first table is its row's frame count, read straight from rows.jsonl.
+  for (const auto& r : out.rows) {
+    const std::string line = "| " + out.meta["traces"][r["trace"].get<std::size_t>()]["name"].get<std::string>() + " | ";
+    CHECK(test::contains(md, line));
+  }
+  t.csv = true;
+  const std::string csv = sweep_table(out, t);
+  std::size_t lines = 0;
+  for (char c : csv) lines += c == '\n';
+  CHECK(lines == 1 + 2 * out.rows.size());  // header + one line per (metric, row)
+  CHECK(csv.rfind("metric,trace,view.divisor,disk.preset,upload.tiles_per_frame,value\n", 0) == 0);
+  CHECK(test::contains(csv, "," + out.rows[0]["summary"]["trace"]["frames"].dump() + "\n"));
+
+  SweepTableSpec bad = t;
+  bad.rows = {"trace"};
+  CHECK_THROWS_WITH_AS(sweep_table(out, bad), doctest::Contains("to --rows or --col"), InputError);
+  bad.rows = {"trace", "disk.prest"};
+  CHECK_THROWS_WITH_AS(sweep_table(out, bad), doctest::Contains("did you mean 'disk.preset'"), InputError);
+  bad = t;
+  bad.metrics = {"popin.nothing_here"};
+  CHECK_THROWS_WITH_AS(sweep_table(out, bad), doctest::Contains("--metric"), InputError);
+  CHECK_THROWS_WITH_AS(load_sweep_outputs(d.file("nothing")), doctest::Contains("no sweep.json"), InputError);
 }

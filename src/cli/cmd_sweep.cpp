@@ -11,6 +11,7 @@
 #include "cli/commands.h"
 #include "core/error.h"
 #include "sim/sweep/sweep.h"
+#include "sim/sweep/sweep_table.h"
 #include "sim/sweep/tune.h"
 
 namespace vtsim::cli {
@@ -84,8 +85,30 @@ void register_sweep_commands(CLI::App& app) {
     merge_sweep(*merge_dirs, *merge_out);
     fmt::print("merged {} shards into {}/rows.jsonl, rows.csv, report.html, sweep.json\n", merge_dirs->size(), *merge_out);
   });
-  c->callback([a, m] {
-    if (m->parsed()) return;
+  auto table_dir = std::make_shared<std::string>();
+  auto table = std::make_shared<SweepTableSpec>();
+  auto table_rows = std::make_shared<std::string>();
+  auto* t = c->add_subcommand("table", "Print a sweep's metrics as pivot tables (Markdown or CSV): lines by --rows, columns by --col");
+  t->add_option("dir", *table_dir, "a sweep's output directory (sweep.json, rows.jsonl)")->required();
+  t->add_option("--rows", *table_rows, "keys that make a line, comma-separated: trace, config or spec axes")->required();
+  t->add_option("--col", table->col, "the key whose values make the columns")->required();
+  t->add_option("--metric", table->metrics, "a dotted summary path (repeatable: one table each)")->required();
+  t->add_flag("--csv", table->csv, "CSV (metric, row keys, column, value) instead of Markdown");
+  t->add_option("--digits", table->digits, "significant digits of a cell")->capture_default_str();
+  t->callback([table_dir, table, table_rows] {
+    if (table->digits < 1 || table->digits > 17) throw InputError("--digits", "must be in [1, 17]");
+    table->rows.clear();
+    std::string k;
+    for (char ch : *table_rows + ",") {
+      if (ch != ',') { k += ch; continue; }
+      if (k.empty()) throw InputError("--rows", "an empty key in '" + *table_rows + "'");
+      table->rows.push_back(k);
+      k.clear();
+    }
+    fmt::print("{}", sweep_table(load_sweep_outputs(*table_dir), *table));
+  });
+  c->callback([a, m, t] {
+    if (m->parsed() || t->parsed()) return;
     run_sweep_command(*a);
   });
 }
