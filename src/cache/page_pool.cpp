@@ -153,14 +153,14 @@ std::uint32_t PagePool::reserve(TileKey page, int frame) {
   } else if (policy_) {
     const PinCtx ctx{this, frame};
     const std::uint64_t victim = policy_->evict(Pinned{&PagePool::pinned_page, &ctx});
-    const std::uint32_t* vs = victim == kNoKey ? nullptr : page_slot_.find(victim);
-    if (!vs) {
+    if (victim == kNoKey) {  // every page in the order is used this frame
       ++stats_.reserve_failures;
       return kNoSlot;
     }
-    s = *vs;
-    if (slot_[s].state != State::resident || !slot_[s].in_lru)
+    const std::uint32_t* vs = page_slot_.find(victim);
+    if (!vs || slot_[*vs].state != State::resident || !slot_[*vs].in_lru)
       throw std::logic_error("PagePool::reserve: the policy chose a page that is not in its order");
+    s = *vs;
     slot_[s].in_lru = false;
     slot_[s].state = State::victim;
     ++pending_count_;
