@@ -80,7 +80,9 @@ std::optional<Mount> find_mount(std::string_view mountinfo, bool v1, const std::
 // The least limit in `file` from the cgroup `path`'s directory up to the mount's.
 std::uint64_t least_limit(const Mount& m, std::string path, const char* file, const ReadTextFile& read) {
   if (m.root != "/") path.erase(0, m.root.size());  // the part below the mounted directory
-  if (path.empty()) path = "/";
+  // assign(1, '/'), not = "/": GCC 12 at -O3 reports the const char* assignment as an overlapping
+  // memcpy (-Wrestrict, GCC bug 105651) in some unity batches and alone.
+  if (path.empty()) path.assign(1, '/');
   std::uint64_t least = UINT64_MAX;
   for (;;) {
     const std::string dir = m.point + (path == "/" ? std::string() : path);
