@@ -4,8 +4,9 @@
 
 namespace vtsim {
 
-PagePool::PagePool(std::uint32_t slots, int layers, int lock_from_level, Hook hook)
-    : slot_(slots), lock_from_(lock_from_level), hook_(std::move(hook)) {
+PagePool::PagePool(std::uint32_t slots, int layers, int lock_from_level, Hook hook,
+                   std::unique_ptr<IReplacementPolicy> policy)
+    : slot_(slots), lock_from_(lock_from_level), hook_(std::move(hook)), policy_(std::move(policy)) {
   if (slots == 0) throw std::invalid_argument("PagePool: at least one slot");
   if (layers < 1 || layers > 16) throw std::invalid_argument("PagePool: layers must be 1..16");
   full_mask_ = (1u << layers) - 1u;
@@ -50,6 +51,26 @@ void PagePool::lru_insert_ordered(std::uint32_t s) {
   S.in_lru = true;
 }
 
+void PagePool::order_add(std::uint32_t s) {
+  if (!policy_) {
+    lru_push_front(s);
+    return;
+  }
+  policy_->admit(slot_[s].page.bits, 1);
+  slot_[s].in_lru = true;
+}
+
+void PagePool::order_add_restored(std::uint32_t s) {
+  policy_->restore(slot_[s].page.bits, 1);
+  slot_[s].in_lru = true;
+}
+
+bool PagePool::pinned_page(const void* ctx, std::uint64_t key) {
+  const auto* c = static_cast<const PinCtx*>(ctx);
+  const std::uint32_t* s = c->pool->page_slot_.find(key);
+  return s && c->pool->slot_[*s].last_used >= c->frame;
+}
+
 void PagePool::free_push(std::uint32_t s) {
   Slot& S = slot_[s];
   S = Slot{};
@@ -70,7 +91,14 @@ std::uint32_t PagePool::free_pop() {
 void PagePool::evict(std::uint32_t s, Removal why) {
   Slot& S = slot_[s];
   const Removed r{S.page, s, S.mask, S.mask == full_mask_, S.sampled, S.last_used, why};
-  if (S.in_lru) lru_unlink(s);
+  if (S.in_lru) {
+    if (policy_) {
+      policy_->remove(S.page.bits);
+      S.in_lru = false;
+    } else {
+      lru_unlink(s);
+    }
+  }
   page_slot_.erase(S.page.bits);
   --occupied_;
   if (r.complete) --complete_;
@@ -105,8 +133,13 @@ PagePool::Touch PagePool::touch(TileKey page, int frame) {
   S.seq = ++seq_;
   t.complete = S.mask == full_mask_;
   if (S.state == State::resident && !locked(S.page)) {
-    if (S.in_lru) lru_unlink(s);
-    lru_push_front(s);
+    if (policy_) {
+      if (!S.in_lru) order_add_restored(s);
+      policy_->hit(S.page.bits);
+    } else {
+      if (S.in_lru) lru_unlink(s);
+      lru_push_front(s);
+    }
   }
   return t;
 }
@@ -117,6 +150,20 @@ std::uint32_t PagePool::reserve(TileKey page, int frame) {
   std::uint32_t s = free_pop();
   if (s != kNoSlot) {
     slot_[s].state = State::reserved_free;
+  } else if (policy_) {
+    const PinCtx ctx{this, frame};
+    const std::uint64_t victim = policy_->evict(Pinned{&PagePool::pinned_page, &ctx});
+    if (victim == kNoKey) {  // every page in the order is used this frame
+      ++stats_.reserve_failures;
+      return kNoSlot;
+    }
+    const std::uint32_t* vs = page_slot_.find(victim);
+    if (!vs || slot_[*vs].state != State::resident || !slot_[*vs].in_lru)
+      throw std::logic_error("PagePool::reserve: the policy chose a page that is not in its order");
+    s = *vs;
+    slot_[s].in_lru = false;
+    slot_[s].state = State::victim;
+    ++pending_count_;
   } else if (lru_tail_ != kNoSlot && slot_[lru_tail_].last_used < frame) {
     s = lru_tail_;
     lru_unlink(s);
@@ -146,7 +193,8 @@ void PagePool::release(TileKey page) {
       S.state = State::resident;
       --pending_count_;
       ++stats_.released_victims;
-      lru_insert_ordered(s);
+      if (policy_) order_add_restored(s);
+      else lru_insert_ordered(s);
       break;
     case State::filling:
       evict(s, Removal::kReleased);
@@ -190,7 +238,7 @@ PagePool::Commit PagePool::commit(TileKey page, int layer, int frame) {
       ++locked_count_;
       locked_slots_.push_back(s);
     } else {
-      lru_push_front(s);
+      order_add(s);
     }
   }
   return c;
@@ -221,6 +269,10 @@ std::uint32_t PagePool::used_within(int frame, int window) const {
   const int from = frame - window + 1;
   const auto in = [&](const Slot& S) { return S.last_used >= from && S.last_used <= frame; };
   std::uint32_t n = 0;
+  if (policy_) {  // no list by recency: every slot
+    for (const Slot& S : slot_) n += (S.state == State::resident || S.state == State::victim) && in(S);
+    return n;
+  }
   // The LRU list runs from the most recent page: stop at the first one used before the window.
   for (std::uint32_t s = lru_head_; s != kNoSlot && slot_[s].last_used >= from; s = slot_[s].next) n += in(slot_[s]);
   for (const std::uint32_t s : locked_slots_) n += in(slot_[s]);

@@ -18,19 +18,32 @@
 // ones, `lock_from_level` and coarser) never enter the LRU and are never evicted. The pool never
 // holds more than M pages: slots are the budget.
 //
+// Or a replacement policy of cache/policy (docs/vt.md, "Policies in the live caches"): without
+// one the pool keeps the LRU list above (the "lru" fast path); with one, the policy holds the
+// order of the same pages (complete, unlocked, not pending eviction) and is called: admit when a
+// page completes, hit when a page in the order is touched, evict(pinned = used in the reserving
+// frame) in reserve(), restore when a pending victim is rescued (then hit) or released back,
+// remove if a page in the order leaves otherwise (never today), begin_frame from begin_frame().
+// With the table's "lru" policy the victims equal the built-in list's as long as no pending
+// victim is released back (release() reinserts it by last-used frame; the policy's restore makes
+// it most recent): tests/test_vt_page_pool.cpp checks both.
+//
 // The one eviction hook (it must not throw): every page that leaves a slot (evicted by an
 // incoming page, or a partial page whose reservation was released) leaves through the hook, once
 // — the single place where its VRAM slot is freed and its page unmapped.
 //
 // Complexity: reserve, touch, commit, release O(1) expected (release of a victim reinserts it in
-// LRU order, O(pages it passes) from the tail: in practice the other released victims). Memory:
-// ~48 bytes per slot plus two hash maps. Thread-safety: none (the frame loop).
+// LRU order, O(pages it passes) from the tail: in practice the other released victims), plus the
+// policy's call when there is one. Memory: ~48 bytes per slot plus two hash maps (and the
+// policy's per page). Thread-safety: none (the frame loop).
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <vector>
 
 #include "cache/page_map.h"
+#include "cache/policy/i_replacement.h"
 #include "core/tile_key.h"
 
 namespace vtsim {
@@ -55,8 +68,16 @@ class PagePool {
   };
   using Hook = std::function<void(const Removed&)>;
 
-  // slots >= 1; layers in [1, 16]; pages at level >= lock_from_level are locked.
-  PagePool(std::uint32_t slots, int layers, int lock_from_level, Hook hook = {});
+  // slots >= 1; layers in [1, 16]; pages at level >= lock_from_level are locked. `policy`: the
+  // eviction order (capacity in pages, unit sizes); null: the built-in LRU list.
+  PagePool(std::uint32_t slots, int layers, int lock_from_level, Hook hook = {},
+           std::unique_ptr<IReplacementPolicy> policy = nullptr);
+
+  // Frame boundary: the policy, if any, learns the frame (frame numbers rise by one).
+  void begin_frame(int frame) {
+    if (policy_) policy_->begin_frame(frame);
+  }
+  bool has_policy() const { return policy_ != nullptr; }
 
   void set_hook(Hook hook) { hook_ = std::move(hook); }
 
@@ -111,6 +132,7 @@ class PagePool {
   // frame]: O(those pages + locked pages + reservations).
   std::uint32_t used_within(int frame, int window) const;
   // Unlocked pages in eviction order, least recent first (diagnostics and tests; O(slots)).
+  // Empty with a policy: its order is its own.
   std::vector<TileKey> lru_order() const;
   // The page complete in `slot` (resident, or a pending victim still mapped), if any. O(1).
   std::optional<TileKey> complete_page(std::uint32_t slot) const;
@@ -149,6 +171,14 @@ class PagePool {
   void free_push(std::uint32_t s);
   std::uint32_t free_pop();
   void evict(std::uint32_t s, Removal why);
+  void order_add(std::uint32_t s);   // a complete unlocked page enters the order (admit)
+  void order_add_restored(std::uint32_t s);  // a pending victim returns to the policy (restore)
+  // evict(pinned): pages used in `frame` are pinned.
+  struct PinCtx {
+    const PagePool* pool;
+    int frame;
+  };
+  static bool pinned_page(const void* ctx, std::uint64_t key);
   bool older(const Slot& a, const Slot& b) const {
     return a.last_used != b.last_used ? a.last_used < b.last_used : a.seq < b.seq;
   }
@@ -165,6 +195,7 @@ class PagePool {
   std::uint32_t free_count_ = 0, occupied_ = 0, complete_ = 0, locked_count_ = 0, pending_count_ = 0;
   std::uint64_t seq_ = 0;
   Stats stats_;
+  std::unique_ptr<IReplacementPolicy> policy_;  // null: the LRU list above
 };
 
 }  // namespace vtsim

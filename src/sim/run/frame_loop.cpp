@@ -163,7 +163,12 @@ SystemRun::SystemRun(const ReplayConfig& cfg, const FramePlan& plan, const IScen
   pc.max_retries = cfg.io.max_retries;
   pc.retry_backoff_frames = cfg.io.retry_backoff_frames;
   pc.thrash_frames = cfg.metrics.thrash_frames;
+  pc.ram_policy = cfg.ram.policy;
   pipe_ = std::make_unique<Pipeline>(pc, *exec, sizer);
+  if (env.accesses) {
+    pipe_->record_ram_accesses(&env.accesses->ram);
+    system_->record_pool_accesses(&env.accesses->pool);
+  }
   const ThrottlePolicyInfo* policy = throttle_policies().find(cfg.throttle.policy);
   if (!policy) throw InputError("config", "field 'throttle.policy': " + throttle_policies().unknown(cfg.throttle.policy));
   throttle_ = policy->make(cfg.throttle);
@@ -369,6 +374,7 @@ ReplayResult SystemRun::summarize(const RunCost& cost) {
                 {"ram_evictions", c.ram_evictions},
                 {"ram_evicted_bytes", c.ram_evicted_bytes},
                 {"ram_thrash", c.ram_thrash},
+                {"ram_policy", cfg_.ram.policy},
                 {"prefetch_requests", c.prefetch_requests},
                 {"prefetch_hits", c.prefetch_hits},
                 {"vram_evictions", system_->vram_evictions()},

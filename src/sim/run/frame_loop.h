@@ -37,6 +37,18 @@ class IThrottlePolicy;
 class RenderAhead;
 class SimExecutor;
 
+// Each cache level's access sequence during a replay (opt-in: ReplayEnv::accesses), what the
+// offline simulator, Belady's bound and miss-ratio curves replay (cache/policy/access.h).
+//   ram:  one Access per RAM lookup of a demand request, size = the tile's decoded bytes; as many
+//         as the summary's cache.ram_hits + cache.ram_misses.
+//   pool: one Access per wanted page (at or above the clamp) per frame, size 1; as many as the
+//         summary's vt.pool.hits + vt.pool.misses; empty for a system without a pool.
+// frame_start has one entry per frame of the replay in both.
+struct AccessLogs {
+  AccessLog ram;
+  AccessLog pool;
+};
+
 struct ReplayEnv {
   // The real clock: an executor doing real IO and decode, and a pacer that waits until a frame's
   // target time (ticks since start) and returns the actual time the frame starts. Both null: the
@@ -53,6 +65,9 @@ struct ReplayEnv {
   // Progress callback (frame, frames), called about once a second of wall time.
   std::function<void(int, int)> progress;
   std::string clock_name = "simulated";
+  // Non-null: each level's access sequence is appended here (AccessLogs). Null: nothing is
+  // recorded and nothing is paid.
+  AccessLogs* accesses = nullptr;
 };
 
 struct ReplayResult {

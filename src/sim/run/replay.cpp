@@ -70,4 +70,17 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
   return run.summarize(cost);
 }
 
+RecordedReplay record_accesses(const ReplayConfig& cfg, const Trace& trace, const IScene& scene) {
+  RecordedReplay r;
+  ReplayEnv env;
+  env.accesses = &r.accesses;
+  r.result = run_replay(cfg, trace, scene, env);
+  return r;
+}
+
+RecordedReplay record_accesses(const ReplayConfig& cfg, const Trace& trace) {
+  const std::unique_ptr<IScene> scene = make_scene_from_config(cfg);
+  return record_accesses(cfg, trace, *scene);
+}
+
 }  // namespace vtsim

@@ -21,4 +21,13 @@ std::unique_ptr<IScene> make_scene_from_config(const ReplayConfig& cfg);
 // to run.fps first (unless 0). Throws InputError for bad input (empty trace, image size, ...).
 ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const ReplayEnv& env = {});
 
+// A simulated replay that records each level's access sequence (AccessLogs), with its summary.
+struct RecordedReplay {
+  AccessLogs accesses;
+  ReplayResult result;
+};
+RecordedReplay record_accesses(const ReplayConfig& cfg, const Trace& trace, const IScene& scene);
+// The same on the scene the config names (make_scene_from_config).
+RecordedReplay record_accesses(const ReplayConfig& cfg, const Trace& trace);
+
 }  // namespace vtsim

@@ -1,5 +1,6 @@
 #include "sim/run/replay_config.h"
 
+#include "cache/policy/i_replacement.h"
 #include "core/tile_key.h"
 #include "sim/run/systems.h"
 #include "sim/view/scene.h"
@@ -131,7 +132,11 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
                              "also fetch pages 1 or 2 levels finer than desired into RAM (Unreal); 0 = off"))
         .add(cfg::integer<C>("vt.residency_window_frames", at(&C::vt, &VtConfig::residency_window_frames), 1, 100000,
                              "a page used within this many frames counts as visible (pool occupancy)"))
+        .add(cfg::choice<C>("vt.pool_policy", at(&C::vt, &VtConfig::pool_policy), replacement_policies(),
+                            "which unlocked page leaves the pool for an incoming one (pages used this frame never do)"))
         .add(cfg::real<C>("ram.capacity_MiB", at(&C::ram, &RamConfig::capacity_MiB), 0.0, 1e9, "RAM cache of decoded tiles, MiB (hard cap)"))
+        .add(cfg::choice<C>("ram.policy", at(&C::ram, &RamConfig::policy), replacement_policies(),
+                            "which decoded tile leaves the RAM cache when room is needed"))
         .add(cfg::real<C>("prefetch.lookahead_s", at(&C::prefetch, &PrefetchConfig::lookahead_s), 0.0, 3600.0,
                           "look-ahead along the motion (Yao 2007 §4-2), s; 0 = off"))
         .add(cfg::choice<C>("disk.preset", at(&C::disk, &DiskConfig::preset), disk_presets(), "disk model preset"))
@@ -249,6 +254,7 @@ std::string config_reference_markdown() {
   section("`run.system`: streaming systems", streaming_systems().markdown("system"));
   section("`scene.kind`: scenes", scenes().markdown("scene"));
   section("`throttle.policy`: MaxTextureLOD and residency policies", throttle_policies().markdown("policy"));
+  section("`ram.policy`, `vt.pool_policy`: replacement policies", replacement_policies().markdown("policy"));
   section("`disk.preset`: disk presets", disk_presets().markdown("preset"));
   section("`vtsim store build --codec`: tile codecs", codecs().markdown("codec"));
   return md;

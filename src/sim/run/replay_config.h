@@ -73,6 +73,7 @@ struct ViewConfig {
 
 struct RamConfig {
   double capacity_MiB = 256.0;     // RAM cache of decoded tiles, MiB (hard cap)
+  std::string policy = "lru";      // a name of replacement_policies() (cache/policy/i_replacement.h)
 };
 
 struct PrefetchConfig {

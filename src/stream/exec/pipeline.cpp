@@ -7,7 +7,7 @@ namespace vtsim {
 
 Pipeline::Pipeline(const PipelineConfig& cfg, IExecutor& exec, TileSizer sizer)
     : cfg_(cfg), exec_(exec), sizer_(std::move(sizer)), ram_(cfg.ram_bytes) {
-  ram_.set_hook([this](TileKey key, RamEntry&, std::uint64_t bytes, LruRemoval reason) {
+  auto hook = [this](TileKey key, RamEntry&, std::uint64_t bytes, LruRemoval reason) {
     if (reason == LruRemoval::kEvicted || reason == LruRemoval::kShrunk) {
       ++counters_.ram_evictions;
       counters_.ram_evicted_bytes += bytes;
@@ -17,7 +17,12 @@ Pipeline::Pipeline(const PipelineConfig& cfg, IExecutor& exec, TileSizer sizer)
           it = frame_ - it->second > cfg_.thrash_frames ? ram_evicted_at_.erase(it) : std::next(it);
       }
     }
-  });
+  };
+  if (cfg_.ram_policy == "lru") {
+    ram_.set_hook(hook);
+  } else {
+    ram_any_ = std::make_unique<PolicyCache<RamEntry>>(cfg_.ram_policy, cfg_.ram_bytes, hook);
+  }
 }
 
 bool Pipeline::is_failed(TileKey key) const {
@@ -30,6 +35,8 @@ bool Pipeline::is_failed(TileKey key) const {
 void Pipeline::begin_frame(int frame, Ticks now) {
   frame_ = frame;
   now_ = now;
+  if (ram_any_) ram_any_->begin_frame(frame);
+  if (ram_log_) ram_log_->frame_start.push_back(ram_log_->accesses.size());
   results_.clear();
   exec_.collect(now, results_);
   for (auto& r : results_) on_result(r);
@@ -43,7 +50,8 @@ void Pipeline::drop(TileKey key) {
 }
 
 void Pipeline::to_ram(Request& q, const std::shared_ptr<const TileData>& data, bool prefetched) {
-  ram_.insert(q.key, RamEntry{data, prefetched}, q.sizes.decoded_bytes);
+  if (ram_any_) ram_any_->insert(q.key, RamEntry{data, prefetched}, q.sizes.decoded_bytes);
+  else ram_.insert(q.key, RamEntry{data, prefetched}, q.sizes.decoded_bytes);
 }
 
 void Pipeline::on_result(JobResult& r) {
@@ -121,7 +129,7 @@ void Pipeline::set_needs(const std::vector<Need>& needs) {
     auto it = requests_.find(n.key);
     if (it == requests_.end()) {
       if (n.prefetch) {
-        if (ram_.contains(n.key)) continue;  // already in RAM: nothing to fetch
+        if (ram_contains(n.key)) continue;  // already in RAM: nothing to fetch
       }
       Request q;
       q.key = n.key;
@@ -137,7 +145,8 @@ void Pipeline::set_needs(const std::vector<Need>& needs) {
         q.state = State::queued;
       } else {
         ++counters_.requests;
-        if (const RamEntry* e = ram_.get(n.key)) {  // promote: this tile is in use
+        record_ram(n.key, q.sizes.decoded_bytes);
+        if (const RamEntry* e = ram_get(n.key)) {  // promote: this tile is in use
           ++counters_.ram_hits;
           q.ram_hit = true;
           q.prefetched_entry = e->prefetched;
@@ -168,6 +177,7 @@ void Pipeline::set_needs(const std::vector<Need>& needs) {
       ++counters_.requests;
       ++counters_.ram_misses;
       ++counters_.prefetch_hits;
+      record_ram(n.key, q.sizes.decoded_bytes);
       q.needed_frame = frame_;
       q.needed_time = now_;
     }
@@ -265,7 +275,7 @@ void Pipeline::take_uploads(const UploadBudget& budget, std::vector<UploadItem>&
     }
     u.ram_ticks = now_ - q->in_ram_time;
     u.data = std::move(q->data);
-    ram_.get(q->key);  // used: most recent
+    ram_get(q->key);  // used: most recent
     ++counters_.uploads;
     counters_.upload_bytes += u.bytes;
     out.push_back(std::move(u));

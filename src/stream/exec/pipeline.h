@@ -21,10 +21,13 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <string>
 #include <unordered_map>
 #include <vector>
 
 #include "cache/lru_cache.h"
+#include "cache/policy/access.h"
+#include "cache/policy_cache.h"
 #include "cache/need.h"
 #include "core/tile_key.h"
 #include "core/time.h"
@@ -39,6 +42,7 @@ struct PipelineConfig {
   double failed_retry_s = 0.0;             // failed tiles are not requested again for this long; 0 = never
   bool cache_prefetched_on_cancel = true;  // a cancelled tile whose decode finished still enters RAM
   int thrash_frames = 60;                  // a miss within this many frames of an eviction is thrash
+  std::string ram_policy = "lru";          // RAM replacement policy (replacement_policies()); "lru": LruCache
 };
 
 // Sizes of a tile: what crosses the disk and what decode produces (RAM and VRAM bytes).
@@ -116,14 +120,19 @@ class Pipeline {
   void take_uploads(const UploadBudget& budget, std::vector<UploadItem>& out);
 
   // The caller evicted a resident tile from VRAM: nothing to do here (the RAM copy, if any, stays).
-  bool in_ram(TileKey key) const { return ram_.contains(key); }
+  bool in_ram(TileKey key) const { return ram_any_ ? ram_any_->contains(key) : ram_.contains(key); }
   bool is_failed(TileKey key) const;
 
   const PipelineCounters& counters() const { return counters_; }
   std::size_t live_requests() const { return requests_.size(); }
   std::size_t queued() const;  // requests waiting in the pipeline's own queue (diagnostics; O(R))
   Backlog backlog(int num_levels) const;
-  std::uint64_t ram_bytes_used() const { return ram_.bytes(); }
+  std::uint64_t ram_bytes_used() const { return ram_any_ ? ram_any_->bytes() : ram_.bytes(); }
+  const std::string& ram_policy() const { return cfg_.ram_policy; }
+  // Opt-in: from now on, every RAM lookup of a demand request (the lookups counted in
+  // counters().ram_hits + ram_misses) appends an Access {tile key bits, decoded bytes} to `log`,
+  // and begin_frame opens a frame in it. Null stops recording. `log` must outlive the recording.
+  void record_ram_accesses(AccessLog* log) { ram_log_ = log; }
   int frame() const { return frame_; }
   Ticks now() const { return now_; }
 
@@ -150,11 +159,20 @@ class Pipeline {
   void on_result(JobResult& r);
   void to_ram(Request& q, const std::shared_ptr<const TileData>& data, bool prefetched);
   void drop(TileKey key);
+  // The RAM tier: LruCache for "lru" (the fast path: a predictable branch, no virtual call),
+  // PolicyCache for any other policy.
+  const RamEntry* ram_get(TileKey key) { return ram_any_ ? ram_any_->get(key) : ram_.get(key); }
+  bool ram_contains(TileKey key) const { return ram_any_ ? ram_any_->contains(key) : ram_.contains(key); }
+  void record_ram(TileKey key, std::uint64_t bytes) {
+    if (ram_log_) ram_log_->accesses.push_back(Access{key.bits, bytes});
+  }
 
   PipelineConfig cfg_;
   IExecutor& exec_;
   TileSizer sizer_;
   LruCache<RamEntry> ram_;
+  std::unique_ptr<PolicyCache<RamEntry>> ram_any_;  // set: the RAM tier is this one, ram_ stays empty
+  AccessLog* ram_log_ = nullptr;
   std::unordered_map<TileKey, Request, TileKeyHash> requests_;
   std::unordered_map<RequestId, TileKey> by_id_;
   std::unordered_map<TileKey, Ticks, TileKeyHash> failed_;  // key -> time it failed

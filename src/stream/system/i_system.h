@@ -12,6 +12,7 @@
 
 #include "cache/i_residency.h"
 #include "cache/need.h"
+#include "cache/policy/access.h"
 #include "core/time.h"
 #include "core/trace.h"
 #include "core/view.h"
@@ -87,6 +88,10 @@ class IStreamingSystem : public IResidency {
   // The pages complete in a physical page pool, each with its slot (what a page table maps: the
   // real clock checks its VRAM arena against them); empty for a system without a pool.
   virtual void pool_pages(std::vector<std::pair<TileKey, std::uint32_t>>& out) const { out.clear(); }
+  // Opt-in: from now on, every page of the pool this system wants each frame appends an Access
+  // {page key bits, 1} to `log`, and each frame opens a frame in it (docs/metrics.md, "Pool hits
+  // and misses"). Null stops. A system without a pool records nothing.
+  virtual void record_pool_accesses(AccessLog* /*log*/) {}
   // System-specific counters for the summary ("clipmap" or "vt" section), and the VRAM totals.
   virtual nlohmann::json stats_json() const = 0;
   virtual std::uint64_t vram_evictions() const = 0;

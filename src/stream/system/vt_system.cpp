@@ -17,6 +17,16 @@ namespace {
 
 int lock_from(const VtGeometry& g, int locked_levels) { return g.levels() - std::max(0, locked_levels); }
 
+// The pool's replacement policy: null for "lru" (the pool's own list, the fast path); its
+// capacity is the slots the locked pages leave.
+std::unique_ptr<IReplacementPolicy> vt_pool_policy(const VtGeometry& g, const VtConfig& c) {
+  if (c.pool_policy == "lru") return nullptr;
+  std::uint64_t locked = 0;
+  if (c.locked_levels >= 0 && c.locked_levels <= g.levels()) locked = g.coarsest_pages(c.locked_levels);
+  const std::uint64_t capacity = c.pool_pages > locked ? c.pool_pages - locked : 1;
+  return make_replacement_policy(c.pool_policy, capacity);
+}
+
 }  // namespace
 
 namespace {
@@ -69,7 +79,7 @@ VtSystem::VtSystem(const SystemSetup& s, const VtConfig& c)
       c_(c),
       geo_(s.extent, s.tile_size, s.border),
       pt_(geo_),
-      pool_(c.pool_pages, s.layers, lock_from(geo_, c.locked_levels)),
+      pool_(c.pool_pages, s.layers, lock_from(geo_, c.locked_levels), {}, vt_pool_policy(geo_, c)),
       memo_(kMemo) {
   if (c.locked_levels < 0 || c.locked_levels > geo_.levels())
     throw std::invalid_argument("vt: locked levels must be in [0, levels]");
@@ -261,6 +271,7 @@ void VtSystem::begin_frame(const SystemFrame& f) {
   frame_ = f.frame;
   view_ = f.view;
   spans_ = f.spans;
+  pool_.begin_frame(frame_);
   frame_start_mapped_ = pages_mapped_;
   frame_start_evictions_ = pool_.stats().evictions;
   frame_start_baked_ = pt_.counters().texels_written_baked;
@@ -313,6 +324,7 @@ void VtSystem::emit_needs(std::vector<Need>& out) {
   if (built_bias_ != bias_) build_wanted();
   fc_ = FrameCounts{};
   throttled_tiles_ = 0;
+  if (pool_log_) pool_log_->frame_start.push_back(pool_log_->accesses.size());
   const auto layers = static_cast<std::uint32_t>(s_.layers);
 
   // 1. Mark the wanted pages in the pool used (rescuing pending victims); collect the others.
@@ -329,10 +341,15 @@ void VtSystem::emit_needs(std::vector<Need>& out) {
     }
     desired += w.desired;
     ++fc_.visible_pages;
-    if (pool_.touch(w.page, frame_).complete) {
+    if (pool_log_) pool_log_->accesses.push_back(Access{w.page.bits, 1});
+    const PagePool::Touch t = pool_.touch(w.page, frame_);
+    if (t.complete) {
       ++fc_.visible_resident;
+      ++pool_hits_;
       continue;
     }
+    ++pool_misses_;
+    if (t.slot == PagePool::kNoSlot && !pool_.reserved(w.page)) ++pool_misses_no_slot_;
     candidates_.push_back(Candidate{page_priority(w), w.page});
   }
   fc_.rescues = static_cast<std::uint32_t>(pool_.stats().rescues - frame_start_rescues_);
@@ -593,7 +610,11 @@ nlohmann::json VtSystem::stats_json() const {
             {"reservations", ps.reservations},
             {"reserve_failures", ps.reserve_failures},
             {"peak_occupied", peak_occupied_},
-            {"resident_pages", pool_.resident_pages()}}},
+            {"resident_pages", pool_.resident_pages()},
+            {"policy", c_.pool_policy},
+            {"hits", pool_hits_},
+            {"misses", pool_misses_},
+            {"misses_no_slot", pool_misses_no_slot_}}},
           {"per_frame",
            {{"desired_pages", series(s_desired_)},
             {"visible_pages", series(s_visible_)},

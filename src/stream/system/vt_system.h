@@ -25,6 +25,7 @@
 // O(1) amortised (memoised per page between page-table changes). Thread-safety: none (the frame
 // loop). Invalidation: wanted() is rebuilt by begin_frame and emit_needs.
 #include <cstdint>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -41,6 +42,7 @@ struct VtConfig {
   int locked_levels = 1;                  // coarsest levels requested first and never evicted
   int prefetch_finer_levels = 0;          // 0, 1 or 2 levels finer than desired into RAM (Unreal VT)
   int residency_window_frames = 15;       // a page used within this many frames counts as visible
+  std::string pool_policy = "lru";        // pool replacement policy (replacement_policies()); "lru": the pool's own list
 };
 
 class VtSystem final : public IStreamingSystem {
@@ -90,6 +92,7 @@ class VtSystem final : public IStreamingSystem {
   std::uint64_t vram_thrash() const override { return thrash_; }
   std::uint64_t evicted_unsampled_bytes() const override;
   void pool_pages(std::vector<std::pair<TileKey, std::uint32_t>>& out) const override;
+  void record_pool_accesses(AccessLog* log) override { pool_log_ = log; }
 
   const VtGeometry& geometry() const { return geo_; }
   const PageTable& page_table() const { return pt_; }
@@ -211,6 +214,11 @@ class VtSystem final : public IStreamingSystem {
   std::uint64_t peak_sparse_bytes_ = 0;
   double max_baked_frame_ = 0;
   std::uint64_t frame_start_rescues_ = 0;
+  // Pool hits and misses (docs/metrics.md): wanted pages at or above the clamp, once a frame each.
+  std::uint64_t pool_hits_ = 0;            // complete in a slot (a pending victim included: rescued)
+  std::uint64_t pool_misses_ = 0;          // not complete: in no slot, reserved, or filling
+  std::uint64_t pool_misses_no_slot_ = 0;  // of those, in no slot and with no reservation yet
+  AccessLog* pool_log_ = nullptr;          // record_pool_accesses
 };
 
 }  // namespace vtsim
