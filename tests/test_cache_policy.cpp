@@ -368,6 +368,30 @@ TEST_CASE("replacement policies, each: restore() brings a victim back as if it h
   }
 }
 
+TEST_CASE("replacement policies, each: after set_capacity the owner evicts down to the new capacity") {
+  for (const std::string& name : cp_policy_names()) {
+    CAPTURE(name);
+    const auto p = make_replacement_policy(name, 20);
+    for (std::uint64_t k = 0; k < 20; ++k) p->admit(k, 1);
+    for (std::uint64_t k = 0; k < 20; k += 2) p->hit(k);
+    CHECK(p->size() == 20);
+    p->set_capacity(6);
+    std::set<std::uint64_t> out;
+    while (p->size() > 6) {
+      const std::uint64_t v = p->evict({});
+      REQUIRE(v < 20);
+      out.insert(v);
+    }
+    CHECK(out.size() == 14);
+    // It keeps working at the new capacity: a fresh key is admitted, one key leaves.
+    p->admit(100, 1);
+    const std::uint64_t v = p->evict({});
+    CHECK(v != 100);
+    CHECK(out.count(v) == 0);
+    CHECK(p->size() == 6);
+  }
+}
+
 TEST_CASE("replacement policies, each: replays are deterministic") {
   const std::vector<Access> seq = cp_random(5, 5000, 300, true);
   for (const std::string& name : cp_policy_names()) {

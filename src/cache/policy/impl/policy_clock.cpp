@@ -21,7 +21,9 @@ namespace {
 
 class PolicyClock final : public IReplacementPolicy {
  public:
-  void admit(std::uint64_t key, std::uint64_t) override { insert_behind_hand(key); }
+  void admit(std::uint64_t key, std::uint64_t) override {
+    if (!index_.contains(key)) insert_behind_hand(key);  // a cached key: the owner's error, ignored
+  }
   void hit(std::uint64_t key) override {
     if (const std::uint32_t* n = index_.find(key)) nodes_[*n].ref = 1;
   }
