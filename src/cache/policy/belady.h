@@ -46,7 +46,7 @@ SimStats belady_min(std::span<const Access> accesses, std::uint64_t frames);
 SimStats belady_size(std::span<const Access> accesses, std::uint64_t capacity);
 
 struct OptLowerBound {
-  std::uint64_t requests = 0;
+  std::uint64_t requests = 0;      // accesses replayed
   std::uint64_t misses = 0;        // no policy misses fewer requests at this capacity
   std::uint64_t bytes_missed = 0;  // no policy misses fewer bytes (owner's unit) at this capacity
 };
