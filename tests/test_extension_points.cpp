@@ -16,6 +16,7 @@
 #include <string>
 
 #include "core/camera.h"
+#include "cache/policy/i_replacement.h"
 #include "core/error.h"
 #include "sim/run/replay.h"
 #include "sim/run/systems.h"
@@ -273,6 +274,10 @@ TEST_CASE("trace formats: every file in sim/trace/impl is registered (format_com
   std::set<std::string> files = impl_files("src/sim/trace/impl", "format_");
   files.erase("common");
   CHECK(files == registered(trace_formats()));
+}
+
+TEST_CASE("replacement policies: every file in cache/policy/impl is registered, every entry has a why") {
+  CHECK(impl_files("src/cache/policy/impl", "policy_") == registered(replacement_policies()));
 }
 
 TEST_CASE("codecs: every file in stream/store/impl is registered, every entry has a why") {
