@@ -77,7 +77,7 @@ void report_mrc(const MissRatioCurve& c, const std::string& source, const MrcArg
   for (std::size_t i = 0; i < c.capacity.size(); ++i)
     fmt::print("  {:>16}  {:>10.4f}{}{}\n", c.capacity[i], c.miss_ratio[i],
                c.unit == MrcUnit::kBytes ? "  " + human_bytes(static_cast<double>(c.capacity[i])) : "",
-               c.knee.found && c.knee.index == i ? "  <- knee" : "");
+               c.knee.found && c.knee.index == i ? "  <- nearest the knee" : "");
   if (c.knee.found)
     fmt::print("knee (Kneedle): {} ({} {}), miss ratio {:.4f}\n", mrc_size_text(c.knee.capacity, c.unit), c.knee.capacity,
                unit, c.knee.miss_ratio);

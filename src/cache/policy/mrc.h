@@ -94,7 +94,7 @@ ShardsHistogram shards_histogram(std::span<const Access> accesses, MrcUnit unit,
 // not above 1e-9 (a straight or concave curve; rounding) or with fewer than 3 points.
 struct Knee {
   bool found = false;
-  std::size_t index = 0;       // into the curve's points
+  std::size_t index = 0;       // find_knee: the point; in a MissRatioCurve: the point nearest the knee
   std::uint64_t capacity = 0;  // pages or bytes
   double miss_ratio = 0;
 };
@@ -106,7 +106,7 @@ struct MissRatioCurve {
   double shards_rate = 0;                // 0: exact; else the SHARDS rate used
   std::vector<std::uint64_t> capacity;   // ascending: 0, F/(points-1), ..., F (F: the footprint), pages or bytes
   std::vector<double> miss_ratio;        // at each capacity, in [0, 1]
-  Knee knee;
+  Knee knee;                             // on 1025 capacities (see sample_curve)
   std::uint64_t accesses = 0;
   std::uint64_t keys = 0;          // distinct keys (SHARDS: sampled keys / rate, rounded)
   std::uint64_t footprint = 0;     // pages or bytes (SHARDS: estimated)
@@ -115,7 +115,8 @@ struct MissRatioCurve {
 };
 
 // points >= 2 (else std::invalid_argument). Capacities are evenly spaced from 0 to the footprint
-// (beyond it the ratio no longer changes: only cold misses remain).
+// (beyond it the ratio no longer changes: only cold misses remain). The knee is found on 1025
+// such capacities whatever `points` is, so the output's resolution does not move it.
 MissRatioCurve sample_curve(const StackHistogram& h, std::size_t points);
 MissRatioCurve sample_curve(const ShardsHistogram& h, std::size_t points);
 
