@@ -6,11 +6,12 @@
 // Systems Journal 1970): LRU is a stack algorithm, so an access hits in a cache of capacity C iff
 // its stack distance is at most C. The stack distance of a re-access is the total size of the
 // distinct keys requested since the key's previous access, itself included (unit sizes: their
-// number). Computed as in Bennett & Kruskal (1975) with a Fenwick tree over access positions:
-// each key's latest position holds its size, a re-access sums the positions from its previous
-// one on and moves its size to the new position. O(n log K) time for n accesses of K distinct
-// keys (positions are renumbered in order when they run out, so the tree has at most 4K + 1024
-// slots), O(K) memory plus the histogram (pages: O(K); bytes: 8 bytes per re-access, sorted).
+// number). Computed as in Bennett & Kruskal (1975) with prefix sums over access positions (a
+// Fenwick tree over blocks of 64 positions beside the weights): each key's latest position holds
+// its size, a re-access sums the positions from its previous one on and moves its size to the
+// new position. O(n log K) time for n accesses of K distinct keys (positions are renumbered in
+// order when they run out, so there are at most 4K + 1024), O(K) memory plus the histogram
+// (pages: O(K); bytes: 8 bytes per re-access, sorted).
 //
 // Equality with the project's LruCache (cache/lru_cache.h) replaying the sequence as
 // `get(key)` hit, else `insert(key, size)`: misses_at(C) equals the replay's misses for every
