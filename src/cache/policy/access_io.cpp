@@ -73,13 +73,13 @@ AccessLog parse_accesses(std::string_view text, const std::string& name) {
       throw InputError(at_line(name, line_no),
                        fmt::format("key '{}' is not a decimal or 0x-hex integer below 2^64", access_shown(key_t)));
     if (a.key == kNoKey) throw InputError(at_line(name, line_no), "key 0xffffffffffffffff is reserved (never a key)");
-    const std::string_view size_t_ = access_token(line);
-    if (!size_t_.empty()) {
+    const std::string_view size_tok = access_token(line);
+    if (!size_tok.empty()) {
       std::uint64_t s = 0;
-      const auto [p, ec] = std::from_chars(size_t_.data(), size_t_.data() + size_t_.size(), s);
-      if (ec != std::errc() || p != size_t_.data() + size_t_.size() || s < 1 || s > kAccessMaxSize)
+      const auto [p, ec] = std::from_chars(size_tok.data(), size_tok.data() + size_tok.size(), s);
+      if (ec != std::errc() || p != size_tok.data() + size_tok.size() || s < 1 || s > kAccessMaxSize)
         throw InputError(at_line(name, line_no),
-                         fmt::format("size '{}' is not a decimal integer in [1, 2^40]", access_shown(size_t_)));
+                         fmt::format("size '{}' is not a decimal integer in [1, 2^40]", access_shown(size_tok)));
       a.size = s;
     }
     if (const std::string_view extra = access_token(line); !extra.empty())
