@@ -186,7 +186,7 @@ TEST_CASE("mrc: SHARDS at rate 1 is the exact curve") {
   }
 }
 
-TEST_CASE("mrc: SHARDS rates outside (0, 1] are refused") {
+TEST_CASE("mrc: SHARDS rates outside 0 < R <= 1 are refused") {
   const std::vector<Access> seq = {{1, 1}};
   for (double r : {0.0, -0.1, 1.5, 1e-9, std::nan("")}) CHECK_THROWS_AS(vtsim::shards_histogram(seq, MrcUnit::kPages, r), std::invalid_argument);
   CHECK(vtsim::shards_histogram(seq, MrcUnit::kPages, 0.01).threshold == 167772);  // round(0.01 * 2^24)
