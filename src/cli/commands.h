@@ -25,5 +25,6 @@ void register_compare_commands(CLI::App& app);
 void register_vt_commands(CLI::App& app);
 void register_sweep_commands(CLI::App& app);
 void register_tune_commands(CLI::App& app);
+void register_mrc_commands(CLI::App& app);
 
 }  // namespace vtsim::cli

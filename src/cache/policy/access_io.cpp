@@ -1,0 +1,123 @@
+#include "cache/policy/access_io.h"
+
+#include <fmt/format.h>
+
+#include <charconv>
+#include <fstream>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <system_error>
+
+#include "cache/policy/i_replacement.h"
+#include "core/error.h"
+#include "core/input_file.h"
+
+namespace vtsim {
+
+namespace {
+
+// Access sizes above 2^40 are refused: miss-ratio curves sum them (cache/policy/mrc.h).
+constexpr std::uint64_t kAccessMaxSize = std::uint64_t{1} << 40;
+
+std::string_view access_trim(std::string_view s) {
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
+  return s;
+}
+
+// The next whitespace-separated token of s (consumed), empty at the end.
+std::string_view access_token(std::string_view& s) {
+  s = access_trim(s);
+  std::size_t e = 0;
+  while (e < s.size() && s[e] != ' ' && s[e] != '\t') ++e;
+  const std::string_view t = s.substr(0, e);
+  s.remove_prefix(e);
+  return t;
+}
+
+bool access_number(std::string_view t, std::uint64_t& v) {
+  int base = 10;
+  if (t.size() > 2 && t[0] == '0' && (t[1] == 'x' || t[1] == 'X')) {
+    t.remove_prefix(2);
+    base = 16;
+  }
+  const auto [p, ec] = std::from_chars(t.data(), t.data() + t.size(), v, base);
+  return !t.empty() && ec == std::errc() && p == t.data() + t.size();
+}
+
+std::string access_shown(std::string_view t) {
+  return t.size() > 40 ? std::string(t.substr(0, 40)) + "..." : std::string(t);
+}
+
+}  // namespace
+
+AccessLog parse_accesses(std::string_view text, const std::string& name) {
+  AccessLog log;
+  long long line_no = 0;
+  while (!text.empty()) {
+    const std::size_t nl = text.find('\n');
+    std::string_view line = text.substr(0, nl);
+    text.remove_prefix(nl == std::string_view::npos ? text.size() : nl + 1);
+    ++line_no;
+    if (const std::size_t hash = line.find('#'); hash != std::string_view::npos) line = line.substr(0, hash);
+    const std::string_view key_t = access_token(line);
+    if (key_t.empty()) continue;
+    if (key_t == "frame") {
+      if (!access_token(line).empty()) throw InputError(at_line(name, line_no), "'frame' takes nothing after it");
+      log.frame_start.push_back(log.accesses.size());
+      continue;
+    }
+    Access a;
+    if (!access_number(key_t, a.key))
+      throw InputError(at_line(name, line_no),
+                       fmt::format("key '{}' is not a decimal or 0x-hex integer below 2^64", access_shown(key_t)));
+    if (a.key == kNoKey) throw InputError(at_line(name, line_no), "key 0xffffffffffffffff is reserved (never a key)");
+    const std::string_view size_tok = access_token(line);
+    if (!size_tok.empty()) {
+      std::uint64_t s = 0;
+      const auto [p, ec] = std::from_chars(size_tok.data(), size_tok.data() + size_tok.size(), s);
+      if (ec != std::errc() || p != size_tok.data() + size_tok.size() || s < 1 || s > kAccessMaxSize)
+        throw InputError(at_line(name, line_no),
+                         fmt::format("size '{}' is not a decimal integer in [1, 2^40]", access_shown(size_tok)));
+      a.size = s;
+    }
+    if (const std::string_view extra = access_token(line); !extra.empty())
+      throw InputError(at_line(name, line_no),
+                       fmt::format("'{}' after the size: expected 'key [size]'", access_shown(extra)));
+    log.accesses.push_back(a);
+  }
+  return log;
+}
+
+AccessLog read_access_file(const std::string& path) {
+  const std::string text =
+      read_regular_file(path, kMaxAccessFileBytes, "split the sequence, or sample it (vtsim mrc --shards)");
+  return parse_accesses(text, path);
+}
+
+std::string format_accesses(const AccessLog& log) {
+  std::string out =
+      "# vtsim accesses: one access per line, key (0x-hex) and size; 'frame' starts a frame (docs/cache.md)\n";
+  std::size_t f = 0;
+  for (std::size_t i = 0; i <= log.accesses.size(); ++i) {
+    for (; f < log.frame_start.size() && log.frame_start[f] == i; ++f) out += "frame\n";
+    if (i == log.accesses.size()) break;
+    const Access& a = log.accesses[i];
+    if (a.key == kNoKey || a.size < 1 || a.size > kAccessMaxSize)
+      throw std::invalid_argument(fmt::format("format_accesses: access {}: key ~0 or a size outside [1, 2^40]", i));
+    out += fmt::format("{:#x} {}\n", a.key, a.size);
+  }
+  if (f != log.frame_start.size()) throw std::invalid_argument("format_accesses: frame_start beyond the accesses or decreasing");
+  return out;
+}
+
+void write_access_file(const std::string& path, const AccessLog& log) {
+  const std::string text = format_accesses(log);
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) throw InputError(path, "cannot open for writing");
+  out << text;
+  if (!out.flush()) throw InputError(path, "write failed");
+}
+
+}  // namespace vtsim

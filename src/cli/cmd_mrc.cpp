@@ -1,0 +1,143 @@
+// vtsim mrc: the LRU miss-ratio curve of an access sequence, exact (Mattson 1970) or sampled
+// (SHARDS), with its knee (docs/cache.md, "Miss-ratio curves").
+#include <fmt/format.h>
+
+#include <cmath>
+#include <cstdint>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "cache/policy/access_io.h"
+#include "cache/policy/mrc.h"
+#include "cli/commands.h"
+#include "cli/format.h"
+#include "core/error.h"
+#include "sim/run/mrc_chart.h"
+
+namespace vtsim::cli {
+
+namespace {
+
+struct MrcArgs {
+  std::string accesses;
+  std::string unit = "pages";
+  std::optional<double> shards;  // absent: exact
+  int sizes = 17;
+  std::string json, csv, svg;
+};
+
+// Most sizes a curve is printed or written at: a few hundred kB of JSON.
+constexpr int kMrcMaxSizes = 10000;
+
+void mrc_write_text(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) throw InputError(path, "cannot open for writing");
+  out << text;
+  if (!out.flush()) throw InputError(path, "write failed");
+}
+
+std::string mrc_size_text(std::uint64_t c, MrcUnit unit) {
+  return unit == MrcUnit::kBytes ? human_bytes(static_cast<double>(c)) : fmt::format("{} pages", c);
+}
+
+nlohmann::json mrc_json(const MissRatioCurve& c, const std::string& source) {
+  nlohmann::json j;
+  j["source"] = source;
+  j["unit"] = mrc_unit_name(c.unit);
+  j["method"] = c.shards_rate > 0 ? "shards_adj" : "exact";
+  j["shards_rate"] = c.shards_rate;
+  j["accesses"] = c.accesses;
+  j["keys"] = c.keys;
+  j["footprint"] = c.footprint;
+  j["max_size"] = c.max_size;
+  j["size_changes"] = c.size_changes;
+  nlohmann::json pts = nlohmann::json::array();
+  for (std::size_t i = 0; i < c.capacity.size(); ++i) pts.push_back({{"capacity", c.capacity[i]}, {"miss_ratio", c.miss_ratio[i]}});
+  j["curve"] = pts;
+  j["knee"] = c.knee.found ? nlohmann::json{{"capacity", c.knee.capacity}, {"miss_ratio", c.knee.miss_ratio}}
+                           : nlohmann::json(nullptr);
+  return j;
+}
+
+// Prints the curve and writes the outputs asked for. `source` names where the accesses came from
+// (a file; a replay's level when the recorder is wired in).
+void report_mrc(const MissRatioCurve& c, const std::string& source, const MrcArgs& a) {
+  const char* unit = mrc_unit_name(c.unit);
+  fmt::print("{}: {} accesses, {} keys, footprint {}\n", source, c.accesses, c.keys, mrc_size_text(c.footprint, c.unit));
+  if (c.shards_rate > 0)
+    fmt::print("LRU miss-ratio curve, SHARDS_adj at rate {:g} (Waldspurger et al. 2015; estimated)\n", c.shards_rate);
+  else
+    fmt::print("LRU miss-ratio curve, exact (Mattson et al. 1970 stack distances)\n");
+  fmt::print("  {:>16}  {:>10}\n", fmt::format("size ({})", unit), "miss ratio");
+  for (std::size_t i = 0; i < c.capacity.size(); ++i)
+    fmt::print("  {:>16}  {:>10.4f}{}{}\n", c.capacity[i], c.miss_ratio[i],
+               c.unit == MrcUnit::kBytes ? "  " + human_bytes(static_cast<double>(c.capacity[i])) : "",
+               c.knee.found && c.knee.index == i ? "  <- nearest the knee" : "");
+  if (c.knee.found)
+    fmt::print("knee (Kneedle): {} ({} {}), miss ratio {:.4f}\n", mrc_size_text(c.knee.capacity, c.unit), c.knee.capacity,
+               unit, c.knee.miss_ratio);
+  else
+    fmt::print("knee: none (the curve is straight or concave)\n");
+  if (c.unit == MrcUnit::kBytes && c.max_size > 1)
+    fmt::print("note: below the largest access ({}) an LruCache rejects entries: there the curve is an upper bound\n",
+               human_bytes(static_cast<double>(c.max_size)));
+  if (c.size_changes > 0)
+    fmt::print("note: {} re-accesses changed their key's size; each counts as a miss at every size\n", c.size_changes);
+  if (!a.json.empty()) mrc_write_text(a.json, mrc_json(c, source).dump(2) + "\n");
+  if (!a.csv.empty()) {
+    std::string csv = fmt::format("capacity_{},miss_ratio\n", unit);
+    for (std::size_t i = 0; i < c.capacity.size(); ++i) csv += fmt::format("{},{}\n", c.capacity[i], c.miss_ratio[i]);
+    mrc_write_text(a.csv, csv);
+  }
+  if (!a.svg.empty())
+    mrc_write_text(a.svg, mrc_chart_svg({{c.shards_rate > 0 ? fmt::format("SHARDS {:g}", c.shards_rate) : "exact", c}},
+                                        "LRU miss-ratio curve: " + source));
+}
+
+void run_mrc(const MrcArgs& a) {
+  MrcOptions o;
+  if (a.unit == "pages") o.unit = MrcUnit::kPages;
+  else if (a.unit == "bytes") o.unit = MrcUnit::kBytes;
+  else throw InputError("--unit", fmt::format("'{}' is not pages or bytes", a.unit));
+  if (a.shards) {
+    const double r = *a.shards;
+    if (!(r > 0 && r <= 1) || std::round(r * static_cast<double>(kShardsModulus)) < 1)
+      throw InputError("--shards", fmt::format("rate {} is outside (0, 1] (a sampling rate; at least 2^-25)", r));
+    o.shards_rate = r;
+  }
+  if (a.sizes < 2 || a.sizes > kMrcMaxSizes)
+    throw InputError("--sizes", fmt::format("{} is outside [2, {}]", a.sizes, kMrcMaxSizes));
+  o.points = static_cast<std::size_t>(a.sizes);
+  const AccessLog log = read_access_file(a.accesses);
+  MissRatioCurve c;
+  try {
+    c = miss_ratio_curve(log.accesses, o);
+  } catch (const std::invalid_argument& e) {  // sizes summing beyond 2^63
+    throw InputError(a.accesses, e.what());
+  }
+  report_mrc(c, a.accesses, a);
+}
+
+}  // namespace
+
+void register_mrc_commands(CLI::App& app) {
+  auto a = std::make_shared<MrcArgs>();
+  auto* c = app.add_subcommand("mrc", "LRU miss-ratio curve of an access sequence at every cache size, exact or by "
+                                      "SHARDS sampling, with its knee (docs/cache.md)");
+  c->add_option("--accesses", a->accesses, "access file: 'key [size]' per line, keys decimal or 0x-hex, '#' comments")
+      ->required();
+  c->add_option("--unit", a->unit, "pages (every access weighs 1) | bytes (an access weighs its size)")->capture_default_str();
+  c->add_option("--shards", a->shards, "SHARDS sampling rate in (0, 1], e.g. 0.01 (default: exact)");
+  c->add_option("--sizes", a->sizes, "cache sizes printed, evenly spaced from 0 to the footprint")->capture_default_str();
+  c->add_option("--json", a->json, "write the curve and knee as JSON to this file");
+  c->add_option("--csv", a->csv, "write the curve as CSV (capacity,miss_ratio) to this file");
+  c->add_option("--svg", a->svg, "write an SVG chart of the curve to this file");
+  c->callback([a] { run_mrc(*a); });
+}
+
+}  // namespace vtsim::cli
