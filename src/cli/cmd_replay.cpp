@@ -31,7 +31,7 @@ struct ReplayArgs {
   std::string store;
   double speed = 1.0;
   std::string summary, frames, report;
-  bool print_config = false, quiet = false, json = false, progress = false;
+  bool print_config = false, quiet = false, json = false, progress = false, opt = false;
 };
 
 void write_text(const std::string& path, const std::string& text) {
@@ -106,6 +106,22 @@ std::string format_summary(const nlohmann::json& s) {
                        v["per_frame"]["pool_pressure"]["max"].get<double>(), v["per_frame"]["bias"]["max"].get<double>(),
                        v["page_table"]["texels_written_baked"].get<std::uint64_t>());
   }
+  const auto bounds_line = [&](const char* level, const nlohmann::json& bd, std::uint64_t live, const char* unit) {
+    const std::string opt = bd.contains("opt_misses")
+                                ? fmt::format("Belady {}", bd["opt_misses"].get<std::uint64_t>())
+                                : fmt::format("Belady-Size {} .. PFOO-L {}", bd["opt_misses_upper"].get<std::uint64_t>(),
+                                              bd["opt_misses_lower"].get<std::uint64_t>());
+    std::string knee;
+    if (bd["mrc"]["knee"].is_object())
+      knee = fmt::format("; LRU curve knee at {} {}", bd["mrc"]["knee"]["capacity"].get<std::uint64_t>(), unit);
+    out += fmt::format("  {:<11} misses: {} live, offline {} {} / LRU {} / {} at {} {}{}\n", level, live,
+                       bd["policy"].get<std::string>(), bd["policy_offline_misses"].get<std::uint64_t>(),
+                       bd["lru_offline_misses"].get<std::uint64_t>(), opt, bd["capacity"].get<std::uint64_t>(), unit, knee);
+  };
+  if (s["cache"].contains("ram_bounds"))
+    bounds_line("ram bounds", s["cache"]["ram_bounds"], s["cache"]["ram_misses"].get<std::uint64_t>(), "bytes");
+  if (s.contains("vt") && s["vt"].contains("pool") && s["vt"]["pool"].contains("bounds"))
+    bounds_line("pool bounds", s["vt"]["pool"]["bounds"], s["vt"]["pool"]["misses"].get<std::uint64_t>(), "pages");
   out += fmt::format("  throttle    {} frames throttled, max clamp {}, {} changes ({})\n", t["frames_throttled"].get<std::size_t>(),
                      t["max_clamp"].get<int>(), t["changes"].get<std::size_t>(), t["policy"].get<std::string>());
   if (s["faults"]["faults"].get<std::uint64_t>() > 0)
@@ -133,7 +149,9 @@ std::string format_summary(const nlohmann::json& s) {
 }  // namespace
 
 void run_replay_command(const ReplayArgs& a) {
-  ReplayConfig cfg = load_replay_config(a.config, a.sets, a.system);
+  std::vector<std::string> sets = a.sets;
+  if (a.opt) sets.push_back("metrics.opt=true");
+  ReplayConfig cfg = load_replay_config(a.config, sets, a.system);
   if (a.print_config) {
     fmt::print("{}", replay_config_table().dump(cfg));
     return;
@@ -197,6 +215,8 @@ void register_replay_commands(CLI::App& app) {
   c->add_flag("--json", a->json, "print the summary JSON instead of the human summary");
   c->add_flag("--quiet,-q", a->quiet, "print nothing (files are still written)");
   c->add_flag("--progress", a->progress, "show progress even when stderr is not a terminal");
+  c->add_flag("--opt", a->opt, "also replay each cache level's recorded accesses offline: Belady's bound, the policy, LRU, "
+                                 "the miss-ratio curve (= --set metrics.opt=true; docs/cache.md)");
   c->add_flag("--print-config", a->print_config, "print the effective config (every key, value and why) and exit");
   c->callback([a] { run_replay_command(*a); });
 

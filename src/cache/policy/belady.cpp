@@ -15,7 +15,9 @@ namespace {
 __extension__ typedef unsigned __int128 BeladyU128;  // cache-time: capacity * n exceeds 64 bits
 
 // Furthest-next-use eviction; unit: every access weighs 1 and capacity counts frames.
-SimStats belady_run(std::span<const Access> accesses, std::uint64_t capacity, bool unit) {
+// bypass (unit only): a missed key whose next use is no sooner than every cached key's is not
+// admitted (counted in `rejected`), the optimum when admission is optional.
+SimStats belady_run(std::span<const Access> accesses, std::uint64_t capacity, bool unit, bool bypass = false) {
   if (capacity > kMaxPolicyCapacity)
     throw std::invalid_argument("belady: capacity " + std::to_string(capacity) + " is above 2^62");
   const std::vector<std::uint64_t> next = next_uses(accesses);
@@ -46,6 +48,17 @@ SimStats belady_run(std::span<const Access> accesses, std::uint64_t capacity, bo
     if (size > capacity) {
       ++st.rejected;
       continue;
+    }
+    if (bypass && size > capacity - held_bytes) {
+      while (!heap.empty()) {  // drop stale entries so that the top is the furthest cached next use
+        const Held* h = held.find(heap.top().second);
+        if (h != nullptr && h->next_use == heap.top().first) break;
+        heap.pop();
+      }
+      if (heap.empty() || next[i] >= heap.top().first) {
+        ++st.rejected;
+        continue;
+      }
     }
     while (size > capacity - held_bytes) {
       const auto [nu, victim] = heap.top();
@@ -89,6 +102,10 @@ std::vector<std::uint64_t> next_uses(std::span<const Access> accesses) {
 }
 
 SimStats belady_min(std::span<const Access> accesses, std::uint64_t frames) { return belady_run(accesses, frames, true); }
+
+SimStats belady_min_bypass(std::span<const Access> accesses, std::uint64_t frames) {
+  return belady_run(accesses, frames, true, true);
+}
 
 SimStats belady_size(std::span<const Access> accesses, std::uint64_t capacity) {
   return belady_run(accesses, capacity, false);

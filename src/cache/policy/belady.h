@@ -42,6 +42,12 @@ namespace vtsim {
 // MIN with `frames` cache slots; Access::size is ignored (bytes_missed counts 1 per miss).
 SimStats belady_min(std::span<const Access> accesses, std::uint64_t frames);
 
+// MIN when admission is optional: on a miss with every slot full, the missed key is one more
+// candidate and is not admitted (`rejected`) when its next use is the furthest. The minimum over
+// every policy that may decline a key (the VT pool declines when every slot is pinned), so it is
+// at most belady_min and a lower bound for the live pool, whose pinning only adds constraints.
+SimStats belady_min_bypass(std::span<const Access> accesses, std::uint64_t frames);
+
 // Belady-Size at `capacity` in the owner's unit.
 SimStats belady_size(std::span<const Access> accesses, std::uint64_t capacity);
 

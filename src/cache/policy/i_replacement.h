@@ -17,6 +17,11 @@
 //   restore(key, size) a key evict() returned was kept after all (the VT pool's pending victim
 //                     rescued or released): it re-enters as if it had never left, as far as the
 //                     policy can tell. Default: admit.
+// Call order on a miss: admit the missed key, then evict() with it pinned until the sizes fit (as
+// LruCache::insert and the offline simulator do). ARC's victim choice depends on which key missed,
+// and it reads that from the order; S3-FIFO and ARC leave the just-admitted key out of their
+// weights while they evict for it. The VT pool evicts first (a slot is reserved before the page
+// arrives) and admits when the page completes: there ARC adapts its target one miss late.
 // Sizes are in the owner's unit: bytes for RAM, 1 per page for the pool. `capacity` (same unit)
 // is what the owner holds at most; policies that partition it (ARC, S3-FIFO) read it.
 // Keys are 64-bit (TileKey::bits); kNoKey (all ones) is never a key.

@@ -41,6 +41,13 @@ inline constexpr std::uint64_t kMaxPolicyCapacity = std::uint64_t{1} << 62;
 SimStats simulate(std::span<const Access> accesses, IReplacementPolicy& policy, std::uint64_t capacity,
                   std::vector<std::uint64_t>* evicted = nullptr);
 
+// The VT pool's rules offline: accesses in frames (frame_start[f]: index of frame f's first
+// access; begin_frame(f) is called as each starts; empty: each access is a frame), keys the current frame requests (anywhere in it)
+// are pinned, and a miss that finds every cached key pinned is not admitted (counted in `rejected`,
+// the pool's failed reservation). Fills are instant: no timing. Same exceptions as simulate.
+SimStats simulate_frames(std::span<const Access> accesses, std::span<const std::uint64_t> frame_start,
+                         IReplacementPolicy& policy, std::uint64_t capacity);
+
 // The same through a fresh policy from the table (replacement_policies()); throws
 // std::invalid_argument for an unknown name (with "did you mean").
 SimStats simulate(std::span<const Access> accesses, std::string_view policy, std::uint64_t capacity);

@@ -10,6 +10,7 @@
 
 #include "core/camera.h"
 #include "core/error.h"
+#include "sim/run/cache_bounds.h"
 #include "sim/run/render_ahead.h"
 #include "sim/run/systems.h"
 #include "sim/trace/trace_resample.h"
@@ -165,9 +166,14 @@ SystemRun::SystemRun(const ReplayConfig& cfg, const FramePlan& plan, const IScen
   pc.thrash_frames = cfg.metrics.thrash_frames;
   pc.ram_policy = cfg.ram.policy;
   pipe_ = std::make_unique<Pipeline>(pc, *exec, sizer);
-  if (env.accesses) {
-    pipe_->record_ram_accesses(&env.accesses->ram);
-    system_->record_pool_accesses(&env.accesses->pool);
+  accesses_ = env.accesses;
+  if (!accesses_ && cfg.metrics.opt) {
+    own_accesses_ = std::make_unique<AccessLogs>();
+    accesses_ = own_accesses_.get();
+  }
+  if (accesses_) {
+    pipe_->record_ram_accesses(&accesses_->ram);
+    system_->record_pool_accesses(&accesses_->pool);
   }
   const ThrottlePolicyInfo* policy = throttle_policies().find(cfg.throttle.policy);
   if (!policy) throw InputError("config", "field 'throttle.policy': " + throttle_policies().unknown(cfg.throttle.policy));
@@ -186,6 +192,25 @@ SystemRun::SystemRun(const ReplayConfig& cfg, const FramePlan& plan, const IScen
 }
 
 SystemRun::~SystemRun() = default;
+
+// metrics.opt: each level's recorded accesses replayed offline (cache_bounds.h) at the run's
+// capacity. The pool's capacity is its slots less the locked pages, whose accesses always hit.
+void SystemRun::add_cache_bounds(nlohmann::json& s) const {
+  LevelBoundsInput ram;
+  ram.policy = cfg_.ram.policy;
+  ram.capacity = static_cast<std::uint64_t>(cfg_.ram.capacity_MiB * 1048576.0);
+  s["cache"]["ram_bounds"] = level_bounds(accesses_->ram, ram);
+  nlohmann::json& sys = s[cfg_.run.system];
+  if (sys.contains("pool") && sys.contains("lock_from_level") && sys.contains("locked_pages")) {
+    LevelBoundsInput pool;
+    pool.policy = cfg_.vt.pool_policy;
+    pool.pages = true;
+    pool.locked_from_level = sys["lock_from_level"].get<int>();
+    const auto locked = sys["locked_pages"].get<std::uint64_t>();
+    pool.capacity = cfg_.vt.pool_pages > locked ? cfg_.vt.pool_pages - locked : 0;
+    sys["pool"]["bounds"] = level_bounds(accesses_->pool, pool);
+  }
+}
 
 // What the pipeline can bring into VRAM per second: its bottleneck (for throttling).
 double SystemRun::service_Bps() const {
@@ -392,6 +417,7 @@ ReplayResult SystemRun::summarize(const RunCost& cost) {
                  {"decode_error", c.fault_by_kind[static_cast<int>(Fault::decode_error)]},
                  {"bad_record", c.fault_by_kind[static_cast<int>(Fault::bad_record)]}};
   s[cfg_.run.system] = system_->stats_json();
+  if (cfg_.metrics.opt) add_cache_bounds(s);
   if (env_.on_finish) env_.on_finish(*system_);
   s["run"] = {{"wall_s", cost.wall_s},
               {"render_threads", cost.render_threads},

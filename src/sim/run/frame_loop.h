@@ -184,10 +184,13 @@ class SystemRun {
   void throttle(const glm::dvec3& velocity, const FrameView& view, FrameRow& row);
   void commit_uploads(FrameRow& row);
   double service_Bps() const;
+  void add_cache_bounds(nlohmann::json& summary) const;
 
   const ReplayConfig& cfg_;
   const FramePlan& plan_;
   const ReplayEnv& env_;
+  std::unique_ptr<AccessLogs> own_accesses_;  // metrics.opt without env.accesses: recorded here
+  AccessLogs* accesses_ = nullptr;             // where the levels' accesses go (null: not recorded)
   std::unique_ptr<IStreamingSystem> system_;
   std::unique_ptr<SimExecutor> sim_;
   std::unique_ptr<Pipeline> pipe_;

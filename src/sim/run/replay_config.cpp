@@ -187,7 +187,8 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
         .add(cfg::real<C>("metrics.turn_deg_per_s", at(&C::metrics, &MetricsConfig::turn_deg_per_s), 0.0, 1e6, "faster rotation is a fast turn, deg/s"))
         .add(cfg::real<C>("metrics.sharp_margin", at(&C::metrics, &MetricsConfig::sharp_margin), 0.0, 1.0,
                           "sharp again when blurry fraction <= pre-event baseline + this"))
-        .add(cfg::integer<C>("metrics.thrash_frames", at(&C::metrics, &MetricsConfig::thrash_frames), 1, 1 << 20, "evicted then needed within this many frames = thrash"));
+        .add(cfg::integer<C>("metrics.thrash_frames", at(&C::metrics, &MetricsConfig::thrash_frames), 1, 1 << 20, "evicted then needed within this many frames = thrash"))
+        .add(cfg::boolean<C>("metrics.opt", at(&C::metrics, &MetricsConfig::opt), "record each cache level's accesses; the summary adds Belady's bound, the offline replays and the LRU miss-ratio curve (docs/cache.md)"));
     return t;
   }();
   return table;

@@ -94,6 +94,7 @@ struct MetricsConfig {
   double turn_deg_per_s = 180.0;   // faster rotation is a fast turn
   double sharp_margin = 0.01;      // sharp again: blurry fraction <= baseline + this
   int thrash_frames = 60;          // evicted then needed within this many frames = thrash
+  bool opt = false;                // record each cache level's accesses: Belady's bound, offline replays, miss-ratio curve
 };
 
 struct ReplayConfig {

@@ -589,6 +589,7 @@ nlohmann::json VtSystem::stats_json() const {
           {"pool_bytes", static_cast<std::uint64_t>(pool_.slots()) * s_.tile_bytes_all_layers},
           {"locked_levels", c_.locked_levels},
           {"locked_pages", geo_.coarsest_pages(c_.locked_levels)},
+          {"lock_from_level", lock_from(geo_, c_.locked_levels)},
           {"page_table",
            {{"dense_entries", pt_.dense_entries()},
             {"dense_bytes", pt_.dense_bytes()},
