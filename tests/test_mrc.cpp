@@ -1,6 +1,7 @@
 // Miss-ratio curves (cache/policy/mrc.h): the one-pass curve equals LruCache replays at every
 // size, SHARDS against it, the knee, the access file format and `vtsim mrc`.
 #include <doctest/doctest.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -339,6 +340,44 @@ TEST_CASE("mrc CLI: the curve, its outputs, and exit 2 naming the flag or file:l
   CHECK(vtsim::test::contains(r.err, "missing.txt"));
   r = vtsim::test::run_vtsim_capture("mrc --accesses " + dir, err);  // a directory
   CHECK(r.code == 2);
+  std::filesystem::remove_all(dir);
+}
+
+
+TEST_CASE("mrc CLI: a replay's recorded accesses, the pool in pages or RAM in bytes, with Belady beside") {
+  const std::string dir = vtsim::test::temp_path("mrc_replay");
+  std::filesystem::create_directories(dir);
+  const std::string err = dir + "/err", json = dir + "/c.json", rec = dir + "/rec.txt";
+  const std::string trace = vtsim::test::kData + "/../../traces/turn.csv";  // 20 s over the plane
+  const std::string base = "mrc -t " + trace + " --system vt --set vt.pool_pages=96 ";
+  auto r = vtsim::test::run_vtsim_capture(base + "--opt --sizes 5 --json " + json + " --record " + rec, err);
+  CHECK(r.code == 0);
+  CHECK(vtsim::test::contains(r.out, "(vt, pool level)"));
+  CHECK(vtsim::test::contains(r.out, "Belady ratio"));
+  const nlohmann::json j = nlohmann::json::parse(vtsim::test::slurp(json));
+  CHECK(j["unit"] == "pages");
+  REQUIRE(j["curve"].size() == 5);
+  for (const auto& p : j["curve"]) CHECK(p["belady_miss_ratio"].get<double>() <= p["miss_ratio"].get<double>() + 1e-12);
+  // The recorded file gives the same curve.
+  r = vtsim::test::run_vtsim_capture("mrc --accesses " + rec + " --sizes 5 --json " + json + ".2", err);
+  CHECK(r.code == 0);
+  const nlohmann::json j2 = nlohmann::json::parse(vtsim::test::slurp(json + ".2"));
+  for (std::size_t i = 0; i < 5; ++i) CHECK(j2["curve"][i]["miss_ratio"] == j["curve"][i]["miss_ratio"]);
+  r = vtsim::test::run_vtsim_capture(base + "--level ram --sizes 3", err);
+  CHECK(r.code == 0);
+  CHECK(vtsim::test::contains(r.out, "(vt, ram level)"));
+  const std::pair<std::string, std::string> bad[] = {
+      {"mrc -t " + trace + " --level pool", "no page pool"},
+      {base + "--level disk", "--level"},
+      {base + "--accesses " + rec, "either an access file"},
+      {"mrc --accesses " + rec + " --record " + dir + "/x", "--record"},
+      {"mrc", "either an access file"}};
+  for (const auto& [args, want] : bad) {
+    CAPTURE(args);
+    r = vtsim::test::run_vtsim_capture(args, err);
+    CHECK(r.code == 2);
+    CHECK(vtsim::test::contains(r.err, want));
+  }
   std::filesystem::remove_all(dir);
 }
 

@@ -18,6 +18,11 @@
 #include "cli/format.h"
 #include "core/error.h"
 #include "sim/run/mrc_chart.h"
+#include "sim/run/replay.h"
+#include "sim/run/replay_config.h"
+#include "sim/run/systems.h"
+#include "sim/trace/trace_import.h"
+#include "cache/policy/belady.h"
 
 namespace vtsim::cli {
 
@@ -25,6 +30,10 @@ namespace {
 
 struct MrcArgs {
   std::string accesses;
+  // Or a replay whose accesses are recorded (sim/run/replay.h, record_accesses):
+  std::string trace, config, system, level, record;
+  std::vector<std::string> sets;
+  bool opt = false;
   std::string unit = "pages";
   std::optional<double> shards;  // absent: exact
   int sizes = 17;
@@ -66,16 +75,20 @@ nlohmann::json mrc_json(const MissRatioCurve& c, const std::string& source) {
 
 // Prints the curve and writes the outputs asked for. `source` names where the accesses came from
 // (a file; a replay's level when the recorder is wired in).
-void report_mrc(const MissRatioCurve& c, const std::string& source, const MrcArgs& a) {
+void report_mrc(const MissRatioCurve& c, const std::string& source, const MrcArgs& a, const std::vector<std::uint64_t>& opt) {
+  const auto opt_ratio = [&](std::size_t i) {
+    return c.accesses ? static_cast<double>(opt[i]) / static_cast<double>(c.accesses) : 0.0;
+  };
   const char* unit = mrc_unit_name(c.unit);
   fmt::print("{}: {} accesses, {} keys, footprint {}\n", source, c.accesses, c.keys, mrc_size_text(c.footprint, c.unit));
   if (c.shards_rate > 0)
     fmt::print("LRU miss-ratio curve, SHARDS_adj at rate {:g} (Waldspurger et al. 2015; estimated)\n", c.shards_rate);
   else
     fmt::print("LRU miss-ratio curve, exact (Mattson et al. 1970 stack distances)\n");
-  fmt::print("  {:>16}  {:>10}\n", fmt::format("size ({})", unit), "miss ratio");
+  fmt::print("  {:>16}  {:>10}{}\n", fmt::format("size ({})", unit), "miss ratio", opt.empty() ? "" : "  Belady ratio");
   for (std::size_t i = 0; i < c.capacity.size(); ++i)
-    fmt::print("  {:>16}  {:>10.4f}{}{}\n", c.capacity[i], c.miss_ratio[i],
+    fmt::print("  {:>16}  {:>10.4f}{}{}{}\n", c.capacity[i], c.miss_ratio[i],
+               opt.empty() ? std::string() : fmt::format("  {:>12.4f}", opt_ratio(i)),
                c.unit == MrcUnit::kBytes ? "  " + human_bytes(static_cast<double>(c.capacity[i])) : "",
                c.knee.found && c.knee.index == i ? "  <- nearest the knee" : "");
   if (c.knee.found)
@@ -88,15 +101,27 @@ void report_mrc(const MissRatioCurve& c, const std::string& source, const MrcArg
                human_bytes(static_cast<double>(c.max_size)));
   if (c.size_changes > 0)
     fmt::print("note: {} re-accesses changed their key's size; each counts as a miss at every size\n", c.size_changes);
-  if (!a.json.empty()) mrc_write_text(a.json, mrc_json(c, source).dump(2) + "\n");
+  if (!a.json.empty()) {
+    nlohmann::json j = mrc_json(c, source);
+    if (!opt.empty())
+      for (std::size_t i = 0; i < opt.size(); ++i) j["curve"][i]["belady_miss_ratio"] = opt_ratio(i);
+    mrc_write_text(a.json, j.dump(2) + "\n");
+  }
   if (!a.csv.empty()) {
     std::string csv = fmt::format("capacity_{},miss_ratio\n", unit);
     for (std::size_t i = 0; i < c.capacity.size(); ++i) csv += fmt::format("{},{}\n", c.capacity[i], c.miss_ratio[i]);
     mrc_write_text(a.csv, csv);
   }
-  if (!a.svg.empty())
-    mrc_write_text(a.svg, mrc_chart_svg({{c.shards_rate > 0 ? fmt::format("SHARDS {:g}", c.shards_rate) : "exact", c}},
-                                        "LRU miss-ratio curve: " + source));
+  if (!a.svg.empty()) {
+    std::vector<MrcChartSeries> series = {{c.shards_rate > 0 ? fmt::format("LRU, SHARDS {:g}", c.shards_rate) : "LRU", c}};
+    if (!opt.empty()) {
+      MissRatioCurve b = c;
+      for (std::size_t i = 0; i < opt.size(); ++i) b.miss_ratio[i] = opt_ratio(i);
+      b.knee = find_knee(b.capacity, b.miss_ratio);
+      series.push_back({"Belady", b});
+    }
+    mrc_write_text(a.svg, mrc_chart_svg(series, "Miss-ratio curve: " + source));
+  }
 }
 
 void run_mrc(const MrcArgs& a) {
@@ -113,14 +138,40 @@ void run_mrc(const MrcArgs& a) {
   if (a.sizes < 2 || a.sizes > kMrcMaxSizes)
     throw InputError("--sizes", fmt::format("{} is outside [2, {}]", a.sizes, kMrcMaxSizes));
   o.points = static_cast<std::size_t>(a.sizes);
-  const AccessLog log = read_access_file(a.accesses);
+  if (a.accesses.empty() == a.trace.empty())
+    throw InputError(a.trace.empty() ? "--accesses" : "--trace",
+                     "give either an access file (--accesses) or a replay to record (--trace, with --config/--set)");
+  AccessLog log;
+  std::string source = a.accesses;
+  if (!a.trace.empty()) {
+    const ReplayConfig cfg = load_replay_config(a.config, a.sets, a.system);
+    const Trace trace = load_any_trace(a.trace);
+    std::string level = a.level.empty() ? (cfg.run.system == "vt" ? "pool" : "ram") : a.level;
+    if (level != "ram" && level != "pool") throw InputError("--level", fmt::format("'{}' is not ram or pool", level));
+    RecordedReplay r = record_accesses(cfg, trace);
+    if (level == "pool" && r.accesses.pool.frame_start.empty())
+      throw InputError("--level", fmt::format("the {} system has no page pool (use --level ram)", cfg.run.system));
+    log = std::move(level == "pool" ? r.accesses.pool : r.accesses.ram);
+    o.unit = level == "pool" ? MrcUnit::kPages : MrcUnit::kBytes;  // the level's own unit
+    source = fmt::format("{} ({}, {} level)", a.trace, cfg.run.system, level);
+    if (!a.record.empty()) write_access_file(a.record, log);
+  } else {
+    if (!a.record.empty()) throw InputError("--record", "records a replay's accesses: give --trace");
+    log = read_access_file(a.accesses);
+  }
   MissRatioCurve c;
   try {
     c = miss_ratio_curve(log.accesses, o);
   } catch (const std::invalid_argument& e) {  // sizes summing beyond 2^63
-    throw InputError(a.accesses, e.what());
+    throw InputError(source, e.what());
   }
-  report_mrc(c, a.accesses, a);
+  std::vector<std::uint64_t> opt;
+  if (a.opt) {  // Belady at each printed size: MIN with optional admission (pages), Belady-Size (bytes)
+    for (std::uint64_t cap : c.capacity)
+      opt.push_back(o.unit == MrcUnit::kPages ? belady_min_bypass(log.accesses, cap).misses
+                                              : belady_size(log.accesses, cap).misses);
+  }
+  report_mrc(c, source, a, opt);
 }
 
 }  // namespace
@@ -129,8 +180,15 @@ void register_mrc_commands(CLI::App& app) {
   auto a = std::make_shared<MrcArgs>();
   auto* c = app.add_subcommand("mrc", "LRU miss-ratio curve of an access sequence at every cache size, exact or by "
                                       "SHARDS sampling, with its knee (docs/cache.md)");
-  c->add_option("--accesses", a->accesses, "access file: 'key [size]' per line, keys decimal or 0x-hex, '#' comments")
-      ->required();
+  c->add_option("--accesses", a->accesses, "access file: 'key [size]' per line, keys decimal or 0x-hex, '#' comments");
+  c->add_option("--trace,-t", a->trace, "or record a simulated replay of this trace (with --config, --set, --system)");
+  c->add_option("--config,-c", a->config, "replay: TOML config file (docs/config.md)");
+  c->add_option("--set", a->sets, "replay: override one config key (repeatable)");
+  c->add_option("--system", a->system, "replay: " + streaming_systems().names(" | ") + " (overrides run.system)");
+  c->add_option("--level", a->level, "replay: ram (bytes) | pool (VT pages); default pool for vt, ram otherwise");
+  c->add_option("--record", a->record, "replay: also write the level's accesses to this access file");
+  c->add_flag("--opt", a->opt, "also Belady's misses at each printed size (pages: MIN with optional admission; bytes: "
+                               "Belady-Size, an upper bound on the optimum)");
   c->add_option("--unit", a->unit, "pages (every access weighs 1) | bytes (an access weighs its size)")->capture_default_str();
   c->add_option("--shards", a->shards, "SHARDS sampling rate in (0, 1], e.g. 0.01 (default: exact)");
   c->add_option("--sizes", a->sizes, "cache sizes printed, evenly spaced from 0 to the footprint")->capture_default_str();

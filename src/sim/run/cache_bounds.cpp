@@ -51,7 +51,8 @@ nlohmann::json level_bounds(const AccessLog& log, const LevelBoundsInput& in) {
   MrcOptions mo;
   mo.unit = in.pages ? MrcUnit::kPages : MrcUnit::kBytes;
   mo.points = in.curve_points;
-  const MissRatioCurve c = miss_ratio_curve(acc, mo);
+  // The curve over every access, locked pages included: its sizes read as vt.pool_pages directly.
+  const MissRatioCurve c = miss_ratio_curve(log.accesses, mo);
   nlohmann::json knee = nullptr;
   if (c.knee.found) knee = {{"capacity", c.knee.capacity}, {"miss_ratio", c.knee.miss_ratio}};
   j["mrc"] = {{"unit", mrc_unit_name(c.unit)}, {"capacity", c.capacity}, {"miss_ratio", c.miss_ratio}, {"knee", knee}};
