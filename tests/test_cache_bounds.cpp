@@ -11,6 +11,7 @@
 #include "cache/policy/simulate.h"
 #include "cache/policy/i_replacement.h"
 #include "sim/run/cache_bounds.h"
+#include "sim/run/report_html.h"
 #include "sim/run/replay.h"
 #include "sim/run/replay_config.h"
 #include "sim/trace/trace_gen.h"
@@ -40,7 +41,13 @@ TEST_CASE("metrics.opt: Belady's bound, the offline replays and the curve join t
     const ReplayConfig opt_cfg = load_replay_config("", opt_sets, "vt");
     const std::unique_ptr<IScene> scene = make_scene_from_config(plain_cfg);
     nlohmann::json plain = run_replay(plain_cfg, t, *scene).summary;
-    nlohmann::json opt = run_replay(opt_cfg, t, *scene).summary;
+    const ReplayResult opt_run = run_replay(opt_cfg, t, *scene);
+    nlohmann::json opt = opt_run.summary;
+    // The report draws both levels' curves; without metrics.opt it has none.
+    const std::string html = html_report(opt, opt_run.metrics);
+    CHECK(html.find("VT page pool: LRU miss-ratio curve") != std::string::npos);
+    CHECK(html.find("RAM: LRU miss-ratio curve") != std::string::npos);
+    CHECK(html_report(plain, opt_run.metrics).find("miss-ratio curve") == std::string::npos);
     REQUIRE(opt["vt"]["pool"].contains("bounds"));
     REQUIRE(opt["cache"].contains("ram_bounds"));
     const nlohmann::json pb = opt["vt"]["pool"]["bounds"], rb = opt["cache"]["ram_bounds"];

@@ -1,5 +1,8 @@
 #include "sim/run/report_html.h"
 
+#include "cache/policy/mrc.h"
+#include "sim/run/mrc_chart.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -180,6 +183,38 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m) {
       y.push_back(100.0 * static_cast<double>(i + 1) / static_cast<double>(lat.size()));
     }
     h += chart("Latency: share of tiles resident within x (x axis in seconds)", "% of tiles", x, {{"tiles", "#27ae60", y}}, {}, true);
+  }
+  // metrics.opt: each level's LRU miss-ratio curve from the summary, the knee marked, and the run's
+  // own capacity and live miss ratio as a second point series.
+  const auto mrc_section = [&](const nlohmann::json& b, const char* title, double live_ratio) {
+    const auto& mj = b["mrc"];
+    MissRatioCurve c;
+    c.unit = mj["unit"] == "bytes" ? MrcUnit::kBytes : MrcUnit::kPages;
+    c.capacity = mj["capacity"].get<std::vector<std::uint64_t>>();
+    c.miss_ratio = mj["miss_ratio"].get<std::vector<double>>();
+    c.knee = find_knee(c.capacity, c.miss_ratio);
+    h += "<h2>" + escape(title) + "</h2>\n";
+    h += "<p>Offline at the run's capacity (" + std::to_string(b["capacity"].get<std::uint64_t>()) + " " +
+         mrc_unit_name(c.unit) + "): " + escape(b["policy"].get<std::string>()) + " " +
+         std::to_string(b["policy_offline_misses"].get<std::uint64_t>()) + " misses, LRU " +
+         std::to_string(b["lru_offline_misses"].get<std::uint64_t>()) + ", Belady " +
+         (b.contains("opt_misses") ? std::to_string(b["opt_misses"].get<std::uint64_t>())
+                                   : std::to_string(b["opt_misses_lower"].get<std::uint64_t>()) + " to " +
+                                         std::to_string(b["opt_misses_upper"].get<std::uint64_t>())) +
+         fmt::format("; live miss ratio {:.4f}", live_ratio) + " (docs/cache.md).</p>\n";
+    h += mrc_chart_svg({{"LRU", c}}, title);
+  };
+  const nlohmann::json* cache = s.contains("cache") ? &s["cache"] : nullptr;
+  if (cache && cache->contains("ram_bounds")) {
+    const double acc = num(s, "cache", "ram_hits") + num(s, "cache", "ram_misses");
+    mrc_section((*cache)["ram_bounds"], "RAM: LRU miss-ratio curve of the recorded accesses",
+                acc > 0 ? num(s, "cache", "ram_misses") / acc : 0.0);
+  }
+  if (s.contains("vt") && s["vt"].contains("pool") && s["vt"]["pool"].contains("bounds")) {
+    const auto& pool = s["vt"]["pool"];
+    const double acc = pool["hits"].get<double>() + pool["misses"].get<double>();
+    mrc_section(pool["bounds"], "VT page pool: LRU miss-ratio curve of the recorded accesses",
+                acc > 0 ? pool["misses"].get<double>() / acc : 0.0);
   }
   h += "</body></html>\n";
   return h;
