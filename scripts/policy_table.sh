@@ -39,7 +39,7 @@ metrics = ["vt.pool.misses", "vt.pool.bounds.policy_offline_misses", "vt.pool.bo
 SPEC
 for s in plane town; do "$vtsim" sweep "$out/$s.toml" -o "$out/$s" -q; done
 for s in plane town; do
-  "$vtsim" sweep table "$out/$s" --rows trace,vt.pool_pages --col vt.pool_policy --digits 3 \
+  "$vtsim" sweep table "$out/$s" --rows trace_file,vt.pool_pages --col vt.pool_policy --digits 3 \
     --metric vt.pool.misses --metric vt.pool.bounds.policy_offline_misses --metric vt.pool.bounds.opt_misses \
     --metric popin.blurry_fraction_mean --metric popin.time_to_sharp_s.mean
 done

@@ -219,3 +219,22 @@ TEST_CASE("sweep report: more than six lines become a band, an outlier is clippe
   CHECK(contains(html, "off the scale: max 50"));
   CHECK(contains(html, "vt.pool_pages (log scale)"));
 }
+
+TEST_CASE("sweep report: metrics.opt rows add each trace's pool miss-ratio curve beside the live ratio per pool size") {
+  const auto [meta, rows] = grid_sweep({{"vt.pool_pages", {"256", "512"}}}, 2, [](std::size_t c, std::size_t t, const json& v) {
+    json s = popin_summary(0.1 * static_cast<double>(c + 1), 1.0);
+    const auto pages = static_cast<std::uint64_t>(std::stoull(v["vt.pool_pages"].get<std::string>()));
+    if (t == 0)  // only trace 0 recorded its accesses
+      s["vt"] = {{"pool_pages", pages},
+                 {"pool", {{"hits", 90}, {"misses", 10 * (2 - c)},
+                           {"bounds", {{"mrc", {{"unit", "pages"}, {"capacity", {0, 256, 512, 768}}, {"miss_ratio", {1.0, 0.2, 0.1, 0.05}}}}}}}}};
+    return s;
+  });
+  const std::string html = vtsim::sweep_report_html(meta, rows);
+  CHECK(html.find("VT pool: miss-ratio curves") != std::string::npos);
+  CHECK(html.find("Pool miss ratio: walk duration_s=20 #0") != std::string::npos);
+  CHECK(html.find("Pool miss ratio: walk duration_s=20 #1") == std::string::npos);
+  // Without bounds in any row: no such section.
+  const auto [meta2, rows2] = two_by_two();
+  CHECK(vtsim::sweep_report_html(meta2, rows2).find("miss-ratio curves") == std::string::npos);
+}

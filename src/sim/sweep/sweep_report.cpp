@@ -1,5 +1,9 @@
 #include "sim/sweep/sweep_report.h"
 
+#include "cache/policy/mrc.h"
+#include "sim/run/mrc_chart.h"
+#include "sim/sweep/sweep_spec.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -1021,6 +1025,50 @@ std::vector<std::size_t> pareto_front(const std::vector<std::pair<double, double
   return front;
 }
 
+namespace {
+
+// metrics.opt rows: per trace, the VT pool's LRU miss-ratio curve (from the trace's first row that
+// recorded one) beside each config's live pool miss ratio at its own pool size, so the curve's
+// prediction and the pipeline's measurement share one chart (docs/cache.md, "Curves in reports").
+std::string sweep_mrc_section(const nlohmann::json& meta, const std::vector<nlohmann::json>& rows) {
+  std::string h;
+  for (std::size_t t = 0; t < meta["traces"].size(); ++t) {
+    const nlohmann::json* curve = nullptr;
+    std::map<std::uint64_t, std::pair<double, double>> live;  // pool pages -> (misses, accesses), summed
+    for (const nlohmann::json& r : rows) {
+      if (r["trace"].get<std::size_t>() != t || r.value("status", std::string()) != "ok") continue;
+      const nlohmann::json* pool = summary_path(r["summary"], "vt.pool");
+      if (pool == nullptr || !pool->contains("bounds")) continue;
+      if (curve == nullptr) curve = &(*pool)["bounds"]["mrc"];
+      const auto pages = r["summary"]["vt"]["pool_pages"].get<std::uint64_t>();
+      auto& [m, a] = live[pages];
+      m += (*pool)["misses"].get<double>();
+      a += (*pool)["hits"].get<double>() + (*pool)["misses"].get<double>();
+    }
+    if (curve == nullptr) continue;
+    MissRatioCurve c;
+    c.unit = MrcUnit::kPages;
+    c.capacity = (*curve)["capacity"].get<std::vector<std::uint64_t>>();
+    c.miss_ratio = (*curve)["miss_ratio"].get<std::vector<double>>();
+    c.knee = find_knee(c.capacity, c.miss_ratio);
+    MissRatioCurve pts;
+    pts.unit = MrcUnit::kPages;
+    for (const auto& [pages, ma] : live) {
+      pts.capacity.push_back(pages);
+      pts.miss_ratio.push_back(ma.second > 0 ? ma.first / ma.second : 0.0);
+    }
+    if (h.empty())
+      h = "<h2>VT pool: miss-ratio curves</h2>\n<p class=\"note\">The LRU curve of each trace's recorded pool "
+          "accesses (metrics.opt; its first config's run), and the live pool miss ratio each pool size gave, "
+          "averaged over the configs of that size: where the pipeline's timing and throttling part from the curve.</p>\n";
+    h += mrc_chart_svg({{"LRU curve (offline)", c}, {"live pool, per size", pts}},
+                       "Pool miss ratio: " + meta["traces"][t]["name"].get<std::string>());
+  }
+  return h;
+}
+
+}  // namespace
+
 std::string sweep_report_html(const nlohmann::json& meta, const std::vector<nlohmann::json>& rows) {
   using namespace sweep_report_detail;
   const Sweep s = load_sweep(meta, rows);
@@ -1034,6 +1082,7 @@ std::string sweep_report_html(const nlohmann::json& meta, const std::vector<nloh
   h += "<h2>Per trace</h2>\n";
   for (const MetricData& m : data) h += breakdown_table(s, m);
   h += pareto_section(s);
+  h += sweep_mrc_section(meta, rows);
   return h + "</body></html>\n";
 }
 

@@ -32,6 +32,11 @@ std::string key_value(const SweepOutputs& out, const nlohmann::json& row, const 
     return name.is_string() ? name.get_ref<const std::string&>() : name.dump();
   }
   if (key == "config") return std::to_string(row["config"].get<int>());
+  if (key == "trace_file") {  // the source as the spec wrote it, without its directory
+    const nlohmann::json& src = out.meta["traces"][row["trace"].get<std::size_t>()]["source"];
+    const std::string text = src.is_string() ? src.get_ref<const std::string&>() : src.dump();
+    return text.substr(text.find_last_of('/') == std::string::npos ? 0 : text.find_last_of('/') + 1);
+  }
   const auto f = row["values"].find(key);
   std::string v = f != row["values"].end() && f->is_string() ? f->get_ref<const std::string&>() : std::string();
   if (v.size() >= 2 && v.front() == '"' && v.back() == '"') v = v.substr(1, v.size() - 2);
@@ -39,13 +44,13 @@ std::string key_value(const SweepOutputs& out, const nlohmann::json& row, const 
 }
 
 void check_key(const SweepOutputs& out, const std::string& key, const char* field) {
-  std::vector<std::string> keys = {"trace", "config"};
+  std::vector<std::string> keys = {"trace", "trace_file", "config"};
   for (const auto& k : out.meta.value("axis_keys", nlohmann::json::array())) keys.push_back(k.get<std::string>());
   for (const auto& k : keys)
     if (k == key) return;
   std::vector<std::string_view> names(keys.begin(), keys.end());
-  std::string msg = "'" + key + "' is not trace, config or an axis of this sweep (axes:";
-  for (std::size_t i = 2; i < keys.size(); ++i) msg += " " + keys[i];
+  std::string msg = "'" + key + "' is not trace, trace_file, config or an axis of this sweep (axes:";
+  for (std::size_t i = 3; i < keys.size(); ++i) msg += " " + keys[i];
   msg += ")";
   const std::string close = closest_name(key, names);
   if (!close.empty()) msg += "; did you mean '" + close + "'?";

@@ -1,7 +1,8 @@
 #pragma once
 // A sweep's rows as a pivot table (`vtsim sweep table`, docs/sweep.md, "Tables"): one table per
 // metric, one line per value of the row keys, one column per value of the column key, each cell
-// the metric of the one row that has those values. Keys are "trace" (the trace's name), "config"
+// the metric of the one row that has those values. Keys are "trace" (the trace's name),
+// "trace_file" (its source as the spec wrote it, without the directory), "config"
 // (the point's number) or a spec axis; lines and columns keep the order in which the sweep's rows
 // first show their values. Two rows landing in one cell is an error that names the axis to add.
 // docs/cache.md's policy table is made this way.
@@ -20,7 +21,7 @@ struct SweepOutputs {
 SweepOutputs load_sweep_outputs(const std::string& dir);
 
 struct SweepTableSpec {
-  std::vector<std::string> rows;     // keys whose values make a line: "trace", "config" or axes
+  std::vector<std::string> rows;     // keys whose values make a line: "trace", "trace_file", "config" or axes
   std::string col;                   // the key whose values make the columns
   std::vector<std::string> metrics;  // dotted summary paths (summary_path); one table each
   bool csv = false;                  // CSV (metric,row keys...,column value,value) instead of Markdown
