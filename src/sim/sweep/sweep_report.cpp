@@ -1032,11 +1032,14 @@ namespace {
 // prediction and the pipeline's measurement share one chart (docs/cache.md, "Curves in reports").
 std::string sweep_mrc_section(const nlohmann::json& meta, const std::vector<nlohmann::json>& rows) {
   std::string h;
-  for (std::size_t t = 0; t < meta["traces"].size(); ++t) {
+  if (!meta.is_object() || !meta.contains("traces") || !meta["traces"].is_array()) return h;
+  for (std::size_t t = 0; t < meta["traces"].size(); ++t) try {
     const nlohmann::json* curve = nullptr;
     std::map<std::uint64_t, std::pair<double, double>> live;  // pool pages -> (misses, accesses), summed
     for (const nlohmann::json& r : rows) {
-      if (r["trace"].get<std::size_t>() != t || r.value("status", std::string()) != "ok") continue;
+      if (!r.is_object() || !r.contains("trace") || r["trace"] != t || r.value("status", std::string()) != "ok" ||
+          !r.contains("summary") || !r["summary"].is_object())
+        continue;
       const nlohmann::json* pool = summary_path(r["summary"], "vt.pool");
       if (pool == nullptr || !pool->contains("bounds")) continue;
       if (curve == nullptr) curve = &(*pool)["bounds"]["mrc"];
@@ -1062,7 +1065,11 @@ std::string sweep_mrc_section(const nlohmann::json& meta, const std::vector<nloh
           "accesses (metrics.opt; its first config's run), and the live pool miss ratio each pool size gave, "
           "averaged over the configs of that size: where the pipeline's timing and throttling part from the curve.</p>\n";
     h += mrc_chart_svg({{"LRU curve (offline)", c}, {"live pool, per size", pts}},
-                       "Pool miss ratio: " + meta["traces"][t]["name"].get<std::string>());
+                       "Pool miss ratio: " + meta["traces"][t].value("name", std::string("trace ") + std::to_string(t)));
+  } catch (const nlohmann::json::exception&) {
+    continue;  // a row or meta not as `vtsim sweep` writes them: no curve for that trace, as n/a elsewhere
+  } catch (const std::invalid_argument&) {
+    continue;  // mrc_chart_svg: curves of mixed units
   }
   return h;
 }
