@@ -3,7 +3,8 @@
 // each side by side with the textbook LRU (std::list + std::unordered_map) replaying the same
 // sequence in the same run. Target (issue 25): >= 3 M accesses/s for lru, clock and s3fifo
 // (libCacheSim's LRU: ~2.75 M/s). Sequences: Zipf(0.9) over 1 M keys, and a loop over 1.25x the
-// capacity (LRU's worst case: every request misses). Unit sizes: the VT pool's semantics.
+// capacity (LRU's worst case: every request misses), and the VT pool's recorded sequence of the
+// 10-minute town walk at divisor 8. Unit sizes: the VT pool's semantics.
 // docs/cache.md, "Replacement policies and Belady's bound", carries the figures.
 #include <algorithm>
 #include <cmath>
@@ -22,6 +23,9 @@
 #include "cache/policy/simulate.h"
 #include "core/tile_key.h"
 #include "harness.h"
+#include "sim/run/replay.h"
+#include "sim/run/replay_config.h"
+#include "sim/trace/trace_gen.h"
 
 namespace {
 
@@ -81,22 +85,35 @@ int main(int argc, char** argv) {
   vb::Harness h("policy", argc, argv, 5, 3);
   const std::size_t n = h.pick<std::size_t>(10'000'000, 2'000'000);
   const std::size_t keys = h.pick<std::size_t>(1'000'000, 200'000);
-  const std::uint64_t capacity = keys / 10;  // 10% of the keys: a cache that must choose
+  const std::uint64_t zipf_capacity = keys / 10;  // 10% of the keys: a cache that must choose
   const double target = 3e6;                 // accesses/s, issue 25
   h.param("accesses", n);
   h.param("zipf_keys", keys);
-  h.param("capacity_keys", capacity);
+  h.param("capacity_keys", zipf_capacity);
   h.param("sizes", "unit (the VT pool's semantics)");
 
   struct Sequence {
     std::string name;
     std::vector<Access> seq;
     nlohmann::json params;
+    std::uint64_t capacity;
   };
   std::vector<Sequence> seqs;
-  seqs.push_back({"zipf", zipf_sequence(n, keys, 0.9, 1), {{"zipf_alpha", 0.9}, {"keys", keys}}});
-  const std::size_t loop = capacity + capacity / 4;
-  seqs.push_back({"loop", loop_sequence(n, loop), {{"loop_keys", loop}}});
+  seqs.push_back({"zipf", zipf_sequence(n, keys, 0.9, 1), {{"zipf_alpha", 0.9}, {"keys", keys}}, zipf_capacity});
+  const std::size_t loop = zipf_capacity + zipf_capacity / 4;
+  seqs.push_back({"loop", loop_sequence(n, loop), {{"loop_keys", loop}}, zipf_capacity});
+  // A recorded sequence: the VT pool's wanted pages of the 10-minute town walk at divisor 8 (60 s
+  // with --quick), at 256 pages, just below the curve's knee (~274 pages, docs/cache.md).
+  {
+    vtsim::TraceGenParams tp = vtsim::default_gen_params(vtsim::TraceKind::walk);
+    tp.duration_s = h.pick(600.0, 60.0);
+    tp.start_m = {30.0, 8.0};
+    const vtsim::RecordedReplay rec = vtsim::record_accesses(
+        vtsim::load_replay_config("", {"run.system=vt", "scene.kind=town", "view.divisor=8"}, ""), vtsim::generate_trace(tp));
+    seqs.push_back({"recorded_pool", rec.accesses.pool.accesses,
+                    {{"trace", "VT town walk, divisor 8"}, {"trace_s", tp.duration_s}, {"accesses", rec.accesses.pool.accesses.size()}},
+                    256});
+  }
 
   std::vector<std::string> sides;
   for (const auto& p : vtsim::replacement_policies().entries()) sides.emplace_back(p.name);
@@ -104,6 +121,7 @@ int main(int argc, char** argv) {
   sides.emplace_back("pfoo_lower");
 
   for (const Sequence& s : seqs) {
+    const std::uint64_t capacity = s.capacity;
     const std::uint64_t ref_hits = textbook_lru_hits(s.seq, capacity);
     for (const std::string& side : sides) {
       const std::string name = s.name + "_" + side;

@@ -233,6 +233,7 @@ TEST_CASE("replacement policies: MIN is the exhaustive optimum, PFOO-L is below 
       CAPTURE(seed);
       CAPTURE(frames);
       CHECK(belady_min(unit, frames).misses == cp_exhaustive_opt(unit, frames, true));
+      CHECK(belady_min_bypass(unit, frames).misses == cp_exhaustive_opt(unit, frames, false));  // optional admission
       CHECK(pfoo_lower(unit, frames).misses <= cp_exhaustive_opt(unit, frames, false));
     }
     for (std::uint64_t capacity : {4ull, 9ull, 15ull}) {
@@ -415,5 +416,19 @@ TEST_CASE("replacement policies, each: replays are deterministic") {
     std::vector<std::uint64_t> e;
     simulate(scan, *p, 10, &e);
     CHECK(e == std::vector<std::uint64_t>{0});
+  }
+}
+
+TEST_CASE("replacement policies, each: a double admit (a contract breach) leaves the policy whole") {
+  for (const std::string& name : cp_policy_names()) {
+    CAPTURE(name);
+    const auto p = make_replacement_policy(name, 4);
+    for (std::uint64_t k = 0; k < 4; ++k) p->admit(k, 1);
+    p->admit(2, 1);
+    CHECK(p->size() == 4);
+    std::set<std::uint64_t> out;
+    for (int i = 0; i < 4; ++i) out.insert(p->evict({}));
+    CHECK(out == std::set<std::uint64_t>{0, 1, 2, 3});
+    CHECK(p->evict({}) == kNoKey);
   }
 }

@@ -25,11 +25,11 @@ using namespace vtsim;
 
 namespace {
 
-void write_file(const std::string& path, const std::string& text) { std::ofstream(path, std::ios::binary) << text; }
+void sweep_write(const std::string& path, const std::string& text) { std::ofstream(path, std::ios::binary) << text; }
 
 // The error message of loading `text` as a spec ("" when it loads).
 std::string spec_error(const test::TempDir& d, const std::string& text) {
-  write_file(d.file("spec.toml"), text);
+  sweep_write(d.file("spec.toml"), text);
   try {
     load_sweep_spec(d.file("spec.toml"));
   } catch (const InputError& e) {
@@ -99,7 +99,7 @@ TEST_CASE("sweep: configs with another view are refused by the lockstep runner, 
 
 TEST_CASE("sweep: a spec expands explicit configs × grid, first axis slowest, in the file's order") {
   test::TempDir d;
-  write_file(d.file("spec.toml"), kSpec);
+  sweep_write(d.file("spec.toml"), kSpec);
   const SweepSpec s = load_sweep_spec(d.file("spec.toml"));
   CHECK(s.name == "small");
   REQUIRE(s.traces.size() == 2);
@@ -141,7 +141,7 @@ TEST_CASE("sweep: spec errors name file:line and the key, before anything runs")
 
 TEST_CASE("sweep: shards merged give exactly the unsharded outputs, and --jobs changes nothing") {
   test::TempDir d;
-  write_file(d.file("spec.toml"), kSpec);
+  sweep_write(d.file("spec.toml"), kSpec);
   const SweepSpec spec = load_sweep_spec(d.file("spec.toml"));
   SweepOptions one;
   one.out_dir = d.file("one");
@@ -178,7 +178,7 @@ TEST_CASE("sweep: shards merged give exactly the unsharded outputs, and --jobs c
   // Merge refuses a missing shard, a shard twice, a shard of another spec, an incomplete one.
   CHECK_THROWS_WITH_AS(merge_sweep({shards[0], shards[2]}, d.file("m2")), doctest::Contains("shard 1/3 is missing"), InputError);
   CHECK_THROWS_WITH_AS(merge_sweep({shards[0], shards[1], shards[1]}, d.file("m3")), doctest::Contains("again"), InputError);
-  write_file(d.file("spec2.toml"), std::string(kSpec) + "\"ram.capacity_MiB\" = [64]\n");
+  sweep_write(d.file("spec2.toml"), std::string(kSpec) + "\"ram.capacity_MiB\" = [64]\n");
   SweepOptions other = one;
   other.out_dir = d.file("other");
   other.shard = {2, 3};
@@ -187,7 +187,7 @@ TEST_CASE("sweep: shards merged give exactly the unsharded outputs, and --jobs c
                        InputError);
   std::string sj = test::slurp(shards[1] + "/shard.json");
   sj.replace(sj.find("\"complete\": true"), 16, "\"complete\": false");
-  write_file(shards[1] + "/shard.json", sj);
+  sweep_write(shards[1] + "/shard.json", sj);
   CHECK_THROWS_WITH_AS(merge_sweep(shards, d.file("m5")), doctest::Contains("incomplete"), InputError);
   // A shard directory of one spec is not reused for another.
   CHECK_THROWS_WITH_AS(run_sweep(load_sweep_spec(d.file("spec2.toml")), one), doctest::Contains("another spec"), InputError);
@@ -195,7 +195,7 @@ TEST_CASE("sweep: shards merged give exactly the unsharded outputs, and --jobs c
 
 TEST_CASE("sweep: a killed sweep restarted on the same output redoes only the unfinished tasks") {
   test::TempDir d;
-  write_file(d.file("spec.toml"), kSpec);
+  sweep_write(d.file("spec.toml"), kSpec);
   const SweepSpec spec = load_sweep_spec(d.file("spec.toml"));
   SweepOptions o;
   o.out_dir = d.file("out");
@@ -221,7 +221,7 @@ TEST_CASE("sweep: a killed sweep restarted on the same output redoes only the un
 
 TEST_CASE("sweep: a row whose replay fails says why in its row, and the others run") {
   test::TempDir d;
-  write_file(d.file("spec.toml"), "generate = [\"walk duration_s=1\"]\n[[configs]]\n[[configs]]\n"
+  sweep_write(d.file("spec.toml"), "generate = [\"walk duration_s=1\"]\n[[configs]]\n[[configs]]\n"
                                   "\"scene.kind\" = \"heightfield\"\n\"scene.file\" = \"no-such-height.png\"\n");
   const SweepSpec spec = load_sweep_spec(d.file("spec.toml"));
   SweepOptions o;
@@ -284,17 +284,17 @@ TEST_CASE("sweep: the example specs in docs/examples load") {
 
 TEST_CASE("sweep CLI: exit 2 for a bad spec or merge, 1 when a row failed, 0 otherwise") {
   test::TempDir d;
-  write_file(d.file("bad.toml"), "generate = [\"walk\"]\n[grid]\n\"view.divisr\" = [4]\n");
+  sweep_write(d.file("bad.toml"), "generate = [\"walk\"]\n[grid]\n\"view.divisr\" = [4]\n");
   test::CliRun r = test::run_vtsim_capture("sweep " + d.file("bad.toml") + " -o " + d.file("o1"), d.file("err"));
   CHECK(r.code == 2);
   CHECK(test::contains(r.err, "bad.toml:3: unknown config key 'view.divisr' (did you mean 'view.divisor'?)"));
   CHECK_FALSE(std::filesystem::exists(d.file("o1")));  // nothing written
-  write_file(d.file("fail.toml"), "generate = [\"walk duration_s=1\"]\n[[configs]]\n[[configs]]\n\"scene.kind\" = \"heightfield\"\n"
+  sweep_write(d.file("fail.toml"), "generate = [\"walk duration_s=1\"]\n[[configs]]\n[[configs]]\n\"scene.kind\" = \"heightfield\"\n"
                                   "\"scene.file\" = \"missing.png\"\n");
   r = test::run_vtsim_capture("sweep " + d.file("fail.toml") + " -o " + d.file("o2") + " -q", d.file("err"));
   CHECK(r.code == 1);
   CHECK(std::filesystem::exists(d.file("o2") + "/rows.csv"));
-  write_file(d.file("ok.toml"), "generate = [\"walk duration_s=1\"]\n");
+  sweep_write(d.file("ok.toml"), "generate = [\"walk duration_s=1\"]\n");
   r = test::run_vtsim_capture("sweep " + d.file("ok.toml") + " -o " + d.file("o3"), d.file("err"));
   CHECK(r.code == 0);
   CHECK(test::contains(r.out, "1 rows (1 run now, 0 already done, 0 failed)"));
@@ -310,18 +310,18 @@ TEST_CASE("sweep: the spec hash is the traces' content, not the paths they are r
   test::TempDir d;
   std::filesystem::create_directories(d.file("sub"));
   std::filesystem::copy_file(std::string(VTSIM_SOURCE_DIR) + "/traces/walk.csv", d.file("walk.csv"));
-  write_file(d.file("a.toml"), "traces = [\"walk.csv\"]\n");
-  write_file(d.file("sub/b.toml"), "traces = [\"" + d.file("walk.csv") + "\"]\n");
+  sweep_write(d.file("a.toml"), "traces = [\"walk.csv\"]\n");
+  sweep_write(d.file("sub/b.toml"), "traces = [\"" + d.file("walk.csv") + "\"]\n");
   const SweepSpec a = load_sweep_spec(d.file("a.toml")), b = load_sweep_spec(d.file("sub/b.toml"));
   CHECK(sweep_spec_hash(a, load_sweep_traces(a)) == sweep_spec_hash(b, load_sweep_traces(b)));
-  write_file(d.file("c.toml"), "traces = [\"walk.csv\"]\n[grid]\n\"upload.tiles_per_frame\" = [4]\n");
+  sweep_write(d.file("c.toml"), "traces = [\"walk.csv\"]\n[grid]\n\"upload.tiles_per_frame\" = [4]\n");
   const SweepSpec c = load_sweep_spec(d.file("c.toml"));
   CHECK(sweep_spec_hash(a, load_sweep_traces(a)) != sweep_spec_hash(c, load_sweep_traces(c)));
 }
 
 TEST_CASE("sweep table: one pivot table per metric, cells from the one row with those values, errors name the flag") {
   test::TempDir d;
-  write_file(d.file("spec.toml"), kSpec);
+  sweep_write(d.file("spec.toml"), kSpec);
   SweepOptions o;
   o.out_dir = d.file("o");
   o.jobs = 1;
@@ -357,4 +357,14 @@ TEST_CASE("sweep table: one pivot table per metric, cells from the one row with 
   bad.metrics = {"popin.nothing_here"};
   CHECK_THROWS_WITH_AS(sweep_table(out, bad), doctest::Contains("--metric"), InputError);
   CHECK_THROWS_WITH_AS(load_sweep_outputs(d.file("nothing")), doctest::Contains("no sweep.json"), InputError);
+  // Outputs not as vtsim writes them: errors naming the file, never a crash.
+  std::filesystem::create_directories(d.file("bad"));
+  sweep_write(d.file("bad/sweep.json"), R"({"meta": {"traces": [{"name": 3}]}})");
+  sweep_write(d.file("bad/rows.jsonl"), "");
+  CHECK_THROWS_WITH_AS(load_sweep_outputs(d.file("bad")), doctest::Contains("meta.traces"), InputError);
+  sweep_write(d.file("bad/sweep.json"), R"({"meta": {"traces": [{"name": "t"}], "axis_keys": []}})");
+  sweep_write(d.file("bad/rows.jsonl"), R"({"trace": 0, "config": 0, "values": {}, "status": "ok"})" "\n");
+  CHECK_THROWS_WITH_AS(load_sweep_outputs(d.file("bad")), doctest::Contains("rows.jsonl:1: an ok row without a summary"), InputError);
+  sweep_write(d.file("bad/rows.jsonl"), R"({"trace": 0, "config": 0, "values": {}, "status": 7})" "\n");
+  CHECK_THROWS_WITH_AS(load_sweep_outputs(d.file("bad")), doctest::Contains("status is not a string"), InputError);
 }

@@ -234,6 +234,11 @@ TEST_CASE("sweep report: metrics.opt rows add each trace's pool miss-ratio curve
   CHECK(html.find("VT pool: miss-ratio curves") != std::string::npos);
   CHECK(html.find("Pool miss ratio: walk duration_s=20 #0") != std::string::npos);
   CHECK(html.find("Pool miss ratio: walk duration_s=20 #1") == std::string::npos);
+  // A row whose bounds lack the curve (not as vtsim writes it): that trace has no chart, no crash.
+  auto broken = rows;
+  for (auto& r : broken)
+    if (r["summary"].contains("vt")) r["summary"]["vt"]["pool"]["bounds"].erase("mrc");
+  CHECK(vtsim::sweep_report_html(meta, broken).find("Pool miss ratio") == std::string::npos);
   // Without bounds in any row: no such section.
   const auto [meta2, rows2] = two_by_two();
   CHECK(vtsim::sweep_report_html(meta2, rows2).find("miss-ratio curves") == std::string::npos);

@@ -7,8 +7,8 @@
 // hits, misses and removal-hook calls in the same order (tested in tests/test_policy_cache.cpp).
 //
 // Division of labour (i_replacement.h): this cache holds key -> (value, bytes), the bytes held
-// and the capacity; the policy holds the order. insert admits after its evictions (the policy
-// never picks the entry being inserted); a replaced key is removed, then admitted again; get is a
+// and the capacity; the policy holds the order. insert admits, then evicts with the entry being
+// inserted pinned (the policy never picks it); a replaced key is removed, then admitted again; get is a
 // hit; erase, and the replaced value, remove; capacity evictions and set_capacity ask evict().
 // clear() evicts in the policy's order and then starts the policy afresh (no ghost history).
 //
@@ -101,9 +101,16 @@ class PolicyCache {
       policy_->remove(key.bits);
       remove_entry(key.bits, LruRemoval::kReplaced);
     }
-    while (bytes > capacity_ - bytes_) evict_one(LruRemoval::kEvicted);
-    map_.emplace(key.bits, Entry{std::move(value), bytes});
+    // Admit first, then evict with the incoming key pinned: the order the interface states
+    // (i_replacement.h) and the offline simulator uses, so ARC adapts on the key that missed.
     policy_->admit(key.bits, bytes);
+    try {
+      while (bytes > capacity_ - bytes_) evict_one(LruRemoval::kEvicted, key.bits);
+    } catch (...) {
+      policy_->remove(key.bits);  // a hook threw: the entry is not inserted
+      throw;
+    }
+    map_.emplace(key.bits, Entry{std::move(value), bytes});
     bytes_ += bytes;
     ++stats_.inserts;
     if (replaced) ++stats_.replacements;
@@ -167,8 +174,9 @@ class PolicyCache {
 
   // The policy's victim leaves. Every cached key is in the policy and nothing is pinned, so
   // evict() finds one while the map is not empty.
-  void evict_one(LruRemoval reason) {
-    const std::uint64_t k = policy_->evict();
+  static bool is_incoming(const void* ctx, std::uint64_t k) { return k == *static_cast<const std::uint64_t*>(ctx); }
+  void evict_one(LruRemoval reason, std::uint64_t incoming = kNoKey) {
+    const std::uint64_t k = policy_->evict(Pinned{is_incoming, &incoming});
     if (k == kNoKey || !map_.contains(k))
       throw std::logic_error("PolicyCache: policy '" + name_ + "' returned no cached key to evict");
     remove_entry(k, reason);

@@ -34,7 +34,7 @@ struct MrcArgs {
   std::string trace, config, system, level, record;
   std::vector<std::string> sets;
   bool opt = false;
-  std::string unit = "pages";
+  std::string unit;  // empty: pages for an access file; a replay's level sets its own
   std::optional<double> shards;  // absent: exact
   int sizes = 17;
   std::string json, csv, svg;
@@ -126,7 +126,7 @@ void report_mrc(const MissRatioCurve& c, const std::string& source, const MrcArg
 
 void run_mrc(const MrcArgs& a) {
   MrcOptions o;
-  if (a.unit == "pages") o.unit = MrcUnit::kPages;
+  if (a.unit.empty() || a.unit == "pages") o.unit = MrcUnit::kPages;
   else if (a.unit == "bytes") o.unit = MrcUnit::kBytes;
   else throw InputError("--unit", fmt::format("'{}' is not pages or bytes", a.unit));
   if (a.shards) {
@@ -141,6 +141,15 @@ void run_mrc(const MrcArgs& a) {
   if (a.accesses.empty() == a.trace.empty())
     throw InputError(a.trace.empty() ? "--accesses" : "--trace",
                      "give either an access file (--accesses) or a replay to record (--trace, with --config/--set)");
+  if (a.trace.empty() && (!a.level.empty() || !a.config.empty() || !a.sets.empty() || !a.system.empty()))
+    throw InputError(!a.level.empty() ? "--level" : !a.config.empty() ? "--config" : !a.sets.empty() ? "--set" : "--system",
+                     "configures a replay to record: give --trace");
+  if (!a.trace.empty() && !a.unit.empty())
+    throw InputError("--unit", "a replay's level sets the unit (--level pool: pages, --level ram: bytes)");
+  // Belady runs once per printed size, O(n log n) each: a long curve of Belady passes would run for hours.
+  constexpr int kMrcMaxOptSizes = 65;
+  if (a.opt && a.sizes > kMrcMaxOptSizes)
+    throw InputError("--sizes", fmt::format("{} with --opt: at most {} (one Belady pass per size)", a.sizes, kMrcMaxOptSizes));
   AccessLog log;
   std::string source = a.accesses;
   if (!a.trace.empty()) {
@@ -167,9 +176,13 @@ void run_mrc(const MrcArgs& a) {
   }
   std::vector<std::uint64_t> opt;
   if (a.opt) {  // Belady at each printed size: MIN with optional admission (pages), Belady-Size (bytes)
-    for (std::uint64_t cap : c.capacity)
-      opt.push_back(o.unit == MrcUnit::kPages ? belady_min_bypass(log.accesses, cap).misses
-                                              : belady_size(log.accesses, cap).misses);
+    try {
+      for (std::uint64_t cap : c.capacity)
+        opt.push_back(o.unit == MrcUnit::kPages ? belady_min_bypass(log.accesses, cap).misses
+                                                : belady_size(log.accesses, cap).misses);
+    } catch (const std::invalid_argument& e) {  // a capacity beyond 2^62 bytes
+      throw InputError(source, e.what());
+    }
   }
   report_mrc(c, source, a, opt);
 }
@@ -189,7 +202,7 @@ void register_mrc_commands(CLI::App& app) {
   c->add_option("--record", a->record, "replay: also write the level's accesses to this access file");
   c->add_flag("--opt", a->opt, "also Belady's misses at each printed size (pages: MIN with optional admission; bytes: "
                                "Belady-Size, an upper bound on the optimum)");
-  c->add_option("--unit", a->unit, "pages (every access weighs 1) | bytes (an access weighs its size)")->capture_default_str();
+  c->add_option("--unit", a->unit, "access file: pages (every access weighs 1, the default) | bytes (an access weighs its size)");
   c->add_option("--shards", a->shards, "SHARDS sampling rate in (0, 1], e.g. 0.01 (default: exact)");
   c->add_option("--sizes", a->sizes, "cache sizes printed, evenly spaced from 0 to the footprint")->capture_default_str();
   c->add_option("--json", a->json, "write the curve and knee as JSON to this file");

@@ -184,18 +184,26 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m) {
     }
     h += chart("Latency: share of tiles resident within x (x axis in seconds)", "% of tiles", x, {{"tiles", "#27ae60", y}}, {}, true);
   }
-  // metrics.opt: each level's LRU miss-ratio curve from the summary, the knee marked, and the run's
-  // own capacity and live miss ratio as a second point series.
+  // metrics.opt: each level's LRU miss-ratio curve from the summary with its knee, and above it the
+  // offline figures at the run's capacity and the live miss ratio.
   const auto mrc_section = [&](const nlohmann::json& b, const char* title, double live_ratio) {
     const auto& mj = b["mrc"];
     MissRatioCurve c;
     c.unit = mj["unit"] == "bytes" ? MrcUnit::kBytes : MrcUnit::kPages;
     c.capacity = mj["capacity"].get<std::vector<std::uint64_t>>();
     c.miss_ratio = mj["miss_ratio"].get<std::vector<double>>();
-    c.knee = find_knee(c.capacity, c.miss_ratio);
+    if (mj["knee"].is_object()) {  // the knee the run found on its fine grid (mrc.h), not one on these points
+      c.knee.found = true;
+      c.knee.capacity = mj["knee"]["capacity"].get<std::uint64_t>();
+      c.knee.miss_ratio = mj["knee"]["miss_ratio"].get<double>();
+      c.knee.index = static_cast<std::size_t>(std::lower_bound(c.capacity.begin(), c.capacity.end(), c.knee.capacity) -
+                                              c.capacity.begin());
+      if (c.knee.index >= c.capacity.size()) c.knee.index = c.capacity.size() - 1;
+    }
     h += "<h2>" + escape(title) + "</h2>\n";
     h += "<p>Offline at the run's capacity (" + std::to_string(b["capacity"].get<std::uint64_t>()) + " " +
-         mrc_unit_name(c.unit) + "): " + escape(b["policy"].get<std::string>()) + " " +
+         mrc_unit_name(c.unit) + (c.unit == MrcUnit::kPages ? " free for unlocked pages; the curve's sizes count every slot" : "") +
+         "): " + escape(b["policy"].get<std::string>()) + " " +
          std::to_string(b["policy_offline_misses"].get<std::uint64_t>()) + " misses, LRU " +
          std::to_string(b["lru_offline_misses"].get<std::uint64_t>()) + ", Belady " +
          (b.contains("opt_misses") ? std::to_string(b["opt_misses"].get<std::uint64_t>())

@@ -1030,6 +1030,16 @@ namespace {
 // metrics.opt rows: per trace, the VT pool's LRU miss-ratio curve (from the trace's first row that
 // recorded one) beside each config's live pool miss ratio at its own pool size, so the curve's
 // prediction and the pipeline's measurement share one chart (docs/cache.md, "Curves in reports").
+// A string member of a JSON object, or "" (find and get_ptr: GCC 12 -O3 reports value()'s
+// null check as a possible null dereference).
+std::string mrc_str(const nlohmann::json& j, const char* key) {
+  if (!j.is_object()) return {};
+  const auto it = j.find(key);
+  if (it == j.end()) return {};
+  const auto* p = it->get_ptr<const std::string*>();
+  return p ? *p : std::string();
+}
+
 std::string sweep_mrc_section(const nlohmann::json& meta, const std::vector<nlohmann::json>& rows) {
   std::string h;
   if (!meta.is_object() || !meta.contains("traces") || !meta["traces"].is_array()) return h;
@@ -1037,23 +1047,33 @@ std::string sweep_mrc_section(const nlohmann::json& meta, const std::vector<nloh
     const nlohmann::json* curve = nullptr;
     std::map<std::uint64_t, std::pair<double, double>> live;  // pool pages -> (misses, accesses), summed
     for (const nlohmann::json& r : rows) {
-      if (!r.is_object() || !r.contains("trace") || r["trace"] != t || r.value("status", std::string()) != "ok" ||
+      if (!r.is_object() || !r.contains("trace") || r["trace"] != t || mrc_str(r, "status") != "ok" ||
           !r.contains("summary") || !r["summary"].is_object())
         continue;
       const nlohmann::json* pool = summary_path(r["summary"], "vt.pool");
-      if (pool == nullptr || !pool->contains("bounds")) continue;
-      if (curve == nullptr) curve = &(*pool)["bounds"]["mrc"];
-      const auto pages = r["summary"]["vt"]["pool_pages"].get<std::uint64_t>();
+      if (pool == nullptr || !pool->is_object() || !pool->contains("bounds")) continue;
+      // .at() throughout: a key missing from a row not written by vtsim throws, and the trace is skipped
+      if (curve == nullptr) curve = &pool->at("bounds").at("mrc");
+      const auto pages = r.at("summary").at("vt").at("pool_pages").get<std::uint64_t>();
       auto& [m, a] = live[pages];
-      m += (*pool)["misses"].get<double>();
-      a += (*pool)["hits"].get<double>() + (*pool)["misses"].get<double>();
+      m += pool->at("misses").get<double>();
+      a += pool->at("hits").get<double>() + pool->at("misses").get<double>();
     }
     if (curve == nullptr) continue;
     MissRatioCurve c;
     c.unit = MrcUnit::kPages;
-    c.capacity = (*curve)["capacity"].get<std::vector<std::uint64_t>>();
-    c.miss_ratio = (*curve)["miss_ratio"].get<std::vector<double>>();
-    c.knee = find_knee(c.capacity, c.miss_ratio);
+    c.capacity = curve->at("capacity").get<std::vector<std::uint64_t>>();
+    c.miss_ratio = curve->at("miss_ratio").get<std::vector<double>>();
+    if (c.capacity.size() != c.miss_ratio.size()) continue;
+    // The knee the run found on its fine grid (mrc.h: 1025 capacities), not one on these points.
+    if (curve->contains("knee") && curve->at("knee").is_object()) {
+      c.knee.found = true;
+      c.knee.capacity = curve->at("knee").at("capacity").get<std::uint64_t>();
+      c.knee.miss_ratio = curve->at("knee").at("miss_ratio").get<double>();
+      c.knee.index = static_cast<std::size_t>(
+          std::lower_bound(c.capacity.begin(), c.capacity.end(), c.knee.capacity) - c.capacity.begin());
+      if (c.knee.index >= c.capacity.size()) c.knee.index = c.capacity.size() - 1;
+    }
     MissRatioCurve pts;
     pts.unit = MrcUnit::kPages;
     for (const auto& [pages, ma] : live) {
@@ -1065,7 +1085,7 @@ std::string sweep_mrc_section(const nlohmann::json& meta, const std::vector<nloh
           "accesses (metrics.opt; its first config's run), and the live pool miss ratio each pool size gave, "
           "averaged over the configs of that size: where the pipeline's timing and throttling part from the curve.</p>\n";
     h += mrc_chart_svg({{"LRU curve (offline)", c}, {"live pool, per size", pts}},
-                       "Pool miss ratio: " + meta["traces"][t].value("name", std::string("trace ") + std::to_string(t)));
+                       "Pool miss ratio: " + (mrc_str(meta["traces"][t], "name").empty() ? "trace " + std::to_string(t) : mrc_str(meta["traces"][t], "name")));
   } catch (const nlohmann::json::exception&) {
     continue;  // a row or meta not as `vtsim sweep` writes them: no curve for that trace, as n/a elsewhere
   } catch (const std::invalid_argument&) {

@@ -28,13 +28,12 @@ nlohmann::json table_parse(const std::string& text, const std::string& where) {
 // A key's value in a row, as the table prints it (TOML strings without their quotes).
 std::string key_value(const SweepOutputs& out, const nlohmann::json& row, const std::string& key) {
   if (key == "trace") {
-    const nlohmann::json& name = out.meta["traces"][row["trace"].get<std::size_t>()]["name"];
-    return name.is_string() ? name.get_ref<const std::string&>() : name.dump();
+    const nlohmann::json& t = out.meta["traces"][row["trace"].get<std::size_t>()];
+    return t.value("name", std::string("trace ") + std::to_string(row["trace"].get<std::size_t>()));
   }
   if (key == "config") return std::to_string(row["config"].get<int>());
   if (key == "trace_file") {  // the source as the spec wrote it, without its directory
-    const nlohmann::json& src = out.meta["traces"][row["trace"].get<std::size_t>()]["source"];
-    const std::string text = src.is_string() ? src.get_ref<const std::string&>() : src.dump();
+    const std::string text = out.meta["traces"][row["trace"].get<std::size_t>()].value("source", std::string());
     return text.substr(text.find_last_of('/') == std::string::npos ? 0 : text.find_last_of('/') + 1);
   }
   const auto f = row["values"].find(key);
@@ -83,6 +82,14 @@ SweepOutputs load_sweep_outputs(const std::string& dir) {
   if (!s.is_object() || !s.contains("meta") || !s["meta"].is_object() || !s["meta"].contains("traces"))
     throw InputError(sj.string(), "not a vtsim sweep file (no meta.traces)");
   out.meta = s["meta"];
+  if (!out.meta["traces"].is_array()) throw InputError(sj.string(), "meta.traces is not an array");
+  for (const auto& t : out.meta["traces"])
+    if (!t.is_object() || (t.contains("name") && !t["name"].is_string()) || (t.contains("source") && !t["source"].is_string()))
+      throw InputError(sj.string(), "meta.traces holds an entry that is not {name, source} strings");
+  if (out.meta.contains("axis_keys") && !out.meta["axis_keys"].is_array())
+    throw InputError(sj.string(), "meta.axis_keys is not an array");
+  for (const auto& k : out.meta.value("axis_keys", nlohmann::json::array()))
+    if (!k.is_string()) throw InputError(sj.string(), "meta.axis_keys holds a non-string");
   const std::string text = read_regular_file(rj.string(), kTableMaxJsonBytes, "not a rows file");
   std::istringstream in(text);
   std::string line;
@@ -93,6 +100,9 @@ SweepOutputs load_sweep_outputs(const std::string& dir) {
     if (!r.is_object() || !r.contains("trace") || !r["trace"].is_number_unsigned() || !r.contains("config") ||
         !r["config"].is_number_integer() || !r.contains("values") || !r["values"].is_object())
       throw InputError(where, "not a sweep row (needs trace, config, values)");
+    if (r.contains("status") && !r["status"].is_string()) throw InputError(where, "status is not a string");
+    if (r.value("status", std::string()) == "ok" && (!r.contains("summary") || !r["summary"].is_object()))
+      throw InputError(where, "an ok row without a summary object");
     if (r["trace"].get<std::size_t>() >= out.meta["traces"].size())
       throw InputError(where, fmt::format("trace {} is not in sweep.json's {} traces", r["trace"].get<std::size_t>(),
                                           out.meta["traces"].size()));

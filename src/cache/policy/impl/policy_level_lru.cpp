@@ -37,6 +37,7 @@ constexpr std::size_t kLevelLruLists = 32;
 class PolicyLevelLru final : public IReplacementPolicy {
  public:
   void admit(std::uint64_t key, std::uint64_t) override {
+    if (index_.contains(key)) return hit(key);  // a contract breach by the owner: keep the lists whole
     const std::uint32_t n = alloc(key);
     index_.put(key, n);
     push_front(n);
