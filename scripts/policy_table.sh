@@ -16,13 +16,13 @@ real=$here/../shared/traces-real
 # fr1_xyz, room scale) and drone (EuRoC V1_02, 10x larger).
 "$vtsim" trace import --recenter --offset 4096,4096,1.7 "$real/tum_fr1_xyz_groundtruth.txt" -o "$out/traces/handheld.csv" >/dev/null
 "$vtsim" trace import --scale 10 --recenter --offset 4096,4096,30 "$real/euroc_V1_02_groundtruth.csv" -o "$out/traces/drone.csv" >/dev/null
-cp "$here/traces/turn.csv" "$here/traces/flight.csv" "$here/traces/orbit.csv" "$here/traces/walk.csv" "$out/traces/"
+cp "$here/traces/turn.csv" "$here/traces/drive.csv" "$here/traces/flight.csv" "$here/traces/orbit.csv" "$here/traces/walk.csv" "$out/traces/"
 cp "$here/tests/data/town_walk.csv" "$out/traces/"
 policies='["lru", "clock", "s3fifo", "arc", "level_lru"]'
 cat > "$out/plane.toml" <<SPEC
 name = "VT pool policies, plane"
 set = ["run.system=vt", "metrics.opt=true", "texture.border=4", "disk.preset=hdd"]
-traces = ["traces/turn.csv", "traces/flight.csv", "traces/orbit.csv", "traces/walk.csv", "traces/handheld.csv", "traces/drone.csv"]
+traces = ["traces/turn.csv", "traces/drive.csv", "traces/flight.csv", "traces/orbit.csv", "traces/walk.csv", "traces/handheld.csv", "traces/drone.csv"]
 metrics = ["vt.pool.misses", "vt.pool.bounds.policy_offline_misses", "vt.pool.bounds.opt_misses", "popin.blurry_fraction_mean", "popin.time_to_sharp_s.mean"]
 [grid]
 "vt.pool_pages" = [128, 192, 256]
