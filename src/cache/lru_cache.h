@@ -49,6 +49,19 @@ struct LruStats {
   std::uint64_t evicted_bytes = 0;  // bytes of those entries
 };
 
+// Sets a cache's "inside the removal hook" flag for its lifetime: LruCache and PolicyCache refuse
+// re-entrant mutations while it is set.
+class RemovalHookScope {
+ public:
+  explicit RemovalHookScope(bool& flag) : flag_(flag) { flag_ = true; }
+  ~RemovalHookScope() { flag_ = false; }
+  RemovalHookScope(const RemovalHookScope&) = delete;
+  RemovalHookScope& operator=(const RemovalHookScope&) = delete;
+
+ private:
+  bool& flag_;
+};
+
 enum class LruInsert : std::uint8_t {
   kInserted,  // a new key is now the most-recent entry
   kReplaced,  // the key was present; its old value went through the hook, the new one is most-recent
@@ -316,17 +329,6 @@ class LruCache {
     std::uint8_t ctrl;  // the key's control byte
   };
 
-  class HookScope {
-   public:
-    explicit HookScope(bool& flag) : flag_(flag) { flag_ = true; }
-    ~HookScope() { flag_ = false; }
-    HookScope(const HookScope&) = delete;
-    HookScope& operator=(const HookScope&) = delete;
-
-   private:
-    bool& flag_;
-  };
-
   void check_not_in_hook(const char* what) const {
     if (in_hook_) throw std::logic_error(std::string("LruCache::") + what + " called from the removal hook");
   }
@@ -387,7 +389,7 @@ class LruCache {
       stats_.evicted_bytes += b;
     }
     if (hook_) {
-      HookScope scope(in_hook_);
+      RemovalHookScope scope(in_hook_);
       hook_(key, value, b, reason);
     }
   }

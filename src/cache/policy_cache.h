@@ -157,17 +157,6 @@ class PolicyCache {
     std::uint64_t bytes = 0;
   };
 
-  class HookScope {
-   public:
-    explicit HookScope(bool& flag) : flag_(flag) { flag_ = true; }
-    ~HookScope() { flag_ = false; }
-    HookScope(const HookScope&) = delete;
-    HookScope& operator=(const HookScope&) = delete;
-
-   private:
-    bool& flag_;
-  };
-
   void check_not_in_hook(const char* what) const {
     if (in_hook_) throw std::logic_error(std::string("PolicyCache::") + what + " called from the removal hook");
   }
@@ -195,7 +184,7 @@ class PolicyCache {
       stats_.evicted_bytes += b;
     }
     if (hook_) {
-      HookScope scope(in_hook_);
+      RemovalHookScope scope(in_hook_);
       TileKey key;
       key.bits = k;
       hook_(key, value, b, reason);
