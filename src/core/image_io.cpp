@@ -23,6 +23,14 @@
 #ifndef VTSIM_IMAGE_MODULE_BUILD_PATH
 #define VTSIM_IMAGE_MODULE_BUILD_PATH ""
 #endif
+// Where `cmake --install` puts it: relative to the executable's directory (an install tree moved
+// elsewhere) and the absolute path (an engine linking the installed library).
+#ifndef VTSIM_IMAGE_MODULE_INSTALL_REL_DIR
+#define VTSIM_IMAGE_MODULE_INSTALL_REL_DIR ""
+#endif
+#ifndef VTSIM_IMAGE_MODULE_INSTALL_PATH
+#define VTSIM_IMAGE_MODULE_INSTALL_PATH ""
+#endif
 
 namespace vtsim::image_io {
 
@@ -97,10 +105,16 @@ Module load_module() {
   if (const char* env = std::getenv(kEnvOverride); env != nullptr && env[0] != '\0')
     return open_module(env, std::string(" named by ") + kEnvOverride);
   std::vector<std::string> candidates;
-  for (const fs::path& dir : binary_dirs()) candidates.push_back((dir / abi::kModuleFileName).string());
-  if (VTSIM_IMAGE_MODULE_BUILD_PATH[0] != '\0' &&
-      std::find(candidates.begin(), candidates.end(), VTSIM_IMAGE_MODULE_BUILD_PATH) == candidates.end())
-    candidates.emplace_back(VTSIM_IMAGE_MODULE_BUILD_PATH);
+  const auto add = [&candidates](const std::string& c) {
+    if (!c.empty() && std::find(candidates.begin(), candidates.end(), c) == candidates.end()) candidates.push_back(c);
+  };
+  const std::vector<fs::path> dirs = binary_dirs();
+  for (const fs::path& dir : dirs) add((dir / abi::kModuleFileName).string());
+  if (VTSIM_IMAGE_MODULE_INSTALL_REL_DIR[0] != '\0')
+    for (const fs::path& dir : dirs)
+      add((dir / VTSIM_IMAGE_MODULE_INSTALL_REL_DIR / abi::kModuleFileName).lexically_normal().string());
+  add(VTSIM_IMAGE_MODULE_BUILD_PATH);
+  add(VTSIM_IMAGE_MODULE_INSTALL_PATH);
   for (const std::string& c : candidates)
     if (::access(c.c_str(), F_OK) == 0) return open_module(c, "");
   Module m;
