@@ -15,6 +15,7 @@
 #include "cache/policy/access_io.h"
 #include "cache/policy/mrc.h"
 #include "cli/commands.h"
+#include "cli/trace_load.h"
 #include "cli/format.h"
 #include "core/error.h"
 #include "sim/run/mrc_chart.h"
@@ -154,7 +155,7 @@ void run_mrc(const MrcArgs& a) {
   std::string source = a.accesses;
   if (!a.trace.empty()) {
     const ReplayConfig cfg = load_replay_config(a.config, a.sets, a.system);
-    const Trace trace = load_any_trace(a.trace);
+    const Trace trace = load_cli_trace(a.trace, false);
     std::string level = a.level.empty() ? (cfg.run.system == "vt" ? "pool" : "ram") : a.level;
     if (level != "ram" && level != "pool") throw InputError("--level", fmt::format("'{}' is not ram or pool", level));
     RecordedReplay r = record_accesses(cfg, trace);

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "cli/commands.h"
+#include "cli/trace_load.h"
 #include "core/error.h"
 #include "core/camera.h"
 #include "stream/system/feedback.h"
@@ -98,6 +99,7 @@ void run_view(const ViewOptions& o) {
 
   const auto t_build = std::chrono::steady_clock::now();
   const std::unique_ptr<IScene> scene = make_scene(cfg);
+  for (const std::string& w : scene->load_warnings()) fmt::print(stderr, "vtsim: warning: {}\n", w);
   const double build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_build).count();
   if (o.agl) {
     double ground = 0.0;
@@ -114,7 +116,7 @@ void run_view(const ViewOptions& o) {
   if (o.trace.empty() && (o.frame >= 0 || o.time_s >= 0))
     throw InputError(o.frame >= 0 ? "--frame" : "--time", "picks a pose of --trace: give the trace too");
   if (!o.trace.empty()) {
-    const Trace tr = load_any_trace(o.trace);
+    const Trace tr = load_cli_trace(o.trace, false);
     if (o.frame >= 0 && o.time_s >= 0) throw InputError("--frame", "give --frame or --time, not both");
     if (o.frame >= static_cast<int>(tr.poses.size()))
       throw InputError("--frame", fmt::format("{} is past the trace's last frame {}", o.frame, tr.poses.size() - 1));
