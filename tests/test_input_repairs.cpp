@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "core/image_io.h"
 #include "sim/run/replay_config.h"
+#include "sim/sweep/sweep_spec.h"
 #include "sim/trace/trace_import.h"
 #include "sim/trace/trace_io.h"
 #include "sim/view/mesh.h"
@@ -99,6 +100,12 @@ TEST_CASE("issue 26: a TUM file with commas is refused by detection, not read as
   r = vtsim_run(dir, "trace info --format tum " + commas);
   CHECK(r.code == 0);
   CHECK(contains(r.out, "frames:        200"));
+  // A whole number of nanoseconds in any spelling is still EuRoC; a fraction of one is not.
+  const std::string whole = dir.file("whole.csv");
+  write_file(whole, "1.5e9,0,0,0,1,0,0,0\n");
+  CHECK(detect_trace_format(whole) == "euroc");
+  write_file(whole, "15e-1,0,0,0,1,0,0,0\n");
+  CHECK(contains(input_error([&] { detect_trace_format(whole); }), "\"15e-1\" has a fraction"));
 }
 
 TEST_CASE("issue 26: EuRoC with times in seconds is refused with the reason and the fix") {
@@ -188,7 +195,7 @@ TEST_CASE("issue 26: replay prints a dropped duplicate time, and more than the p
   write_file(two, repairs_native(30, {5, 9}));
   r = vtsim_run(dir, "replay -q --trace " + two);
   CHECK(r.code == 2);
-  CHECK(contains(r.err, two + ": 2 of 32 poses dropped (2 with a repeated time): more than 1 % or 1 pose"));
+  CHECK(contains(r.err, two + ": 2 of 32 poses dropped (2 with a repeated time): more than 1 pose and more than 1 %"));
   CHECK(contains(r.err, "give --allow-repairs to keep the 30 poses left"));
   r = vtsim_run(dir, "replay -q --allow-repairs --trace " + two);
   CHECK(r.code == 0);
@@ -198,6 +205,19 @@ TEST_CASE("issue 26: replay prints a dropped duplicate time, and more than the p
   r = vtsim_run(dir, "trace info --allow-repairs " + two);
   CHECK(r.code == 0);
   CHECK(contains(r.out, "repairs:       2 poses with a repeated time dropped"));
+}
+
+TEST_CASE("issue 26: a sweep's trace repairs come back as warnings, and the policy applies") {
+  ScratchDir dir;
+  const std::string one = dir.file("one_dup.csv");
+  write_file(one, repairs_native(30, {5}));
+  std::vector<std::string> w;
+  CHECK(load_sweep_trace({one, false, 1}, &w).poses.size() == 30);
+  REQUIRE(w.size() == 1);
+  CHECK(w[0] == one + ": 1 pose with a repeated time dropped (of 31 poses read)");
+  const std::string two = dir.file("two_dups.csv");
+  write_file(two, repairs_native(30, {5, 9}));
+  CHECK(contains(input_error([&] { load_sweep_trace({two, false, 1}); }), "2 of 32 poses dropped"));
 }
 
 TEST_CASE("repair policy: at most 1 pose or 1 % of the poses read may be dropped") {

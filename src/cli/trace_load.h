@@ -31,7 +31,7 @@ inline Trace load_cli_trace(const std::string& path, bool allow_repairs, TraceLo
 
 // The --allow-repairs help text, one for every command that reads a trace.
 inline constexpr const char* kAllowRepairsHelp =
-    "keep a trace whose repairs dropped more than 1 % of its poses (or more than 1 pose); each repair is still "
+    "keep a trace whose repairs dropped more than 1 pose and more than 1 % of its poses; each repair is still "
     "printed";
 
 }  // namespace vtsim::cli

@@ -175,11 +175,11 @@ void check_repairs(const TraceRepairs& repairs, std::int64_t poses_read, const s
   if (allow_repairs || dropped <= kMaxDroppedPoses ||
       static_cast<double>(dropped) <= kMaxDroppedFraction * static_cast<double>(poses_read))
     return;
-  throw InputError(path, fmt::format("{} of {} poses dropped ({} with a repeated time): more than {:g} % or {} "
-                                     "pose, so the times are probably misread (a wrong --format or time unit); "
+  throw InputError(path, fmt::format("{} of {} poses dropped ({} with a repeated time): more than {} pose and "
+                                     "more than {:g} %, so the times are probably misread (a wrong --format or time unit); "
                                      "check them, or give --allow-repairs to keep the {} poses left",
-                                     dropped, poses_read, repairs.duplicate_times_dropped, kMaxDroppedFraction * 100,
-                                     kMaxDroppedPoses, poses_read - dropped));
+                                     dropped, poses_read, repairs.duplicate_times_dropped, kMaxDroppedPoses,
+                                     kMaxDroppedFraction * 100, poses_read - dropped));
 }
 
 std::vector<std::string> repair_warnings(const TraceRepairs& r, std::int64_t poses_read, const std::string& path) {
