@@ -247,7 +247,7 @@ TEST_CASE("detection: a line no format claims is an error listing the formats' r
   write_file(dir.file("odd.txt"), "# five numbers\n1 2 3 4 5\n");
   CHECK(input_error([&] { detect_trace_format(dir.file("odd.txt")); }) ==
         dir.file("odd.txt") + ":2: cannot tell the trace format from this line (5 fields: tum has 8, kitti 12, "
-                              "euroc >= 8 comma-separated); give the format");
+                              "euroc >= 8 comma-separated (an integer time)); give --format");
   write_file(dir.file("odd.csv"), "1,2,3\n");
   CHECK(contains(input_error([&] { detect_trace_format(dir.file("odd.csv")); }), ":1: cannot tell the trace format from this line (3 fields:"));
   // The comment rules: the magic line only as line 1; EuRoC's header anywhere before the data.

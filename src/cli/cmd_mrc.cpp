@@ -15,6 +15,7 @@
 #include "cache/policy/access_io.h"
 #include "cache/policy/mrc.h"
 #include "cli/commands.h"
+#include "cli/trace_load.h"
 #include "cli/format.h"
 #include "core/error.h"
 #include "sim/run/mrc_chart.h"
@@ -33,7 +34,7 @@ struct MrcArgs {
   // Or a replay whose accesses are recorded (sim/run/replay.h, record_accesses):
   std::string trace, config, system, level, record;
   std::vector<std::string> sets;
-  bool opt = false;
+  bool opt = false, allow_repairs = false;
   std::string unit;  // empty: pages for an access file; a replay's level sets its own
   std::optional<double> shards;  // absent: exact
   int sizes = 17;
@@ -154,7 +155,7 @@ void run_mrc(const MrcArgs& a) {
   std::string source = a.accesses;
   if (!a.trace.empty()) {
     const ReplayConfig cfg = load_replay_config(a.config, a.sets, a.system);
-    const Trace trace = load_any_trace(a.trace);
+    const Trace trace = load_cli_trace(a.trace, a.allow_repairs);
     std::string level = a.level.empty() ? (cfg.run.system == "vt" ? "pool" : "ram") : a.level;
     if (level != "ram" && level != "pool") throw InputError("--level", fmt::format("'{}' is not ram or pool", level));
     RecordedReplay r = record_accesses(cfg, trace);
@@ -200,6 +201,7 @@ void register_mrc_commands(CLI::App& app) {
   c->add_option("--system", a->system, "replay: " + streaming_systems().names(" | ") + " (overrides run.system)");
   c->add_option("--level", a->level, "replay: ram (bytes) | pool (VT pages); default pool for vt, ram otherwise");
   c->add_option("--record", a->record, "replay: also write the level's accesses to this access file");
+  c->add_flag("--allow-repairs", a->allow_repairs, kAllowRepairsHelp);
   c->add_flag("--opt", a->opt, "also Belady's misses at each printed size (pages: MIN with optional admission; bytes: "
                                "Belady-Size, an upper bound on the optimum)");
   c->add_option("--unit", a->unit, "access file: pages (every access weighs 1, the default) | bytes (an access weighs its size)");

@@ -8,6 +8,7 @@
 #include <optional>
 
 #include "cli/commands.h"
+#include "cli/trace_load.h"
 #include "core/error.h"
 #include "sim/run/real_replay.h"
 #include "sim/run/replay.h"
@@ -32,6 +33,7 @@ struct ReplayArgs {
   double speed = 1.0;
   std::string summary, frames, report;
   bool print_config = false, quiet = false, json = false, progress = false, opt = false;
+  bool allow_repairs = false;
 };
 
 void write_text(const std::string& path, const std::string& text) {
@@ -161,7 +163,7 @@ void run_replay_command(const ReplayArgs& a) {
     throw InputError("--clock", "'" + a.clock + "' is not one of: sim (device models), real (threads and files)");
   if (a.clock == "real" && a.store.empty())
     throw InputError("--store", "the real clock reads a tile store: give --store S (make one with `vtsim store gen`)");
-  Trace trace = load_any_trace(a.trace);
+  Trace trace = load_cli_trace(a.trace, a.allow_repairs);
   apply_speed(cfg, trace, a.speed);
   std::optional<TileStore> store;
   if (!a.store.empty()) {
@@ -170,6 +172,7 @@ void run_replay_command(const ReplayArgs& a) {
       if (!a.quiet) fmt::print(stderr, "vtsim: {}\n", note);
   }
   auto scene = make_scene_from_config(cfg);
+  for (const std::string& w : scene->load_warnings()) fmt::print(stderr, "vtsim: warning: {}\n", w);
   std::function<void(int, int)> progress;
   const bool tty = isatty(fileno(stderr)) != 0;
   if ((a.progress || tty) && !a.quiet)
@@ -214,6 +217,7 @@ void register_replay_commands(CLI::App& app) {
   c->add_option("--report", a->report, "write an HTML report with charts here");
   c->add_flag("--json", a->json, "print the summary JSON instead of the human summary");
   c->add_flag("--quiet,-q", a->quiet, "print nothing (files are still written)");
+  c->add_flag("--allow-repairs", a->allow_repairs, kAllowRepairsHelp);
   c->add_flag("--progress", a->progress, "show progress even when stderr is not a terminal");
   c->add_flag("--opt", a->opt, "also replay each cache level's recorded accesses offline: Belady's bound, the policy, LRU, "
                                  "the miss-ratio curve (= --set metrics.opt=true; docs/cache.md)");

@@ -47,6 +47,7 @@ void run_sweep_command(const SweepArgs& a) {
                o.shard.count > 1 ? fmt::format(", shard {}/{}", o.shard.index, o.shard.count) : std::string());
   const SweepRunStats st = run_sweep(spec, o);
   if (o.progress && tty) fmt::print(stderr, "\r{:70}\r", "");
+  for (const std::string& w : st.trace_warnings) fmt::print(stderr, "vtsim: warning: {}\n", w);
   if (a.quiet) {
     if (st.rows_failed > 0) throw Exit{kExitFailure};
     return;
@@ -128,7 +129,9 @@ struct TuneArgs {
 void run_tune_command(const TuneArgs& a) {
   if (a.jobs < 0) throw InputError("--jobs", "must be >= 0 (0: one per core)");
   const SweepSpec spec = load_sweep_spec(a.spec);
-  const std::vector<Trace> traces = load_sweep_traces(spec);
+  std::vector<std::string> trace_warnings;
+  const std::vector<Trace> traces = load_sweep_traces(spec, &trace_warnings);
+  for (const std::string& w : trace_warnings) fmt::print(stderr, "vtsim: warning: {}\n", w);
   std::size_t replays = 0;
   const bool show = !a.quiet && isatty(fileno(stderr)) != 0;
   const TuneResult r = run_tune(spec, [&](const std::vector<int>& configs) {

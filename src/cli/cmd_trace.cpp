@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "cli/commands.h"
+#include "cli/trace_load.h"
 #include "core/error.h"
 #include "sim/trace/trace_export.h"
 #include "sim/trace/trace_format.h"
@@ -91,13 +92,14 @@ struct ReadArgs {
   std::string format = "auto";
   std::string times;
   double rate = 0.0;
-  bool strict = false;
+  bool strict = false, allow_repairs = false;
 
   void add(CLI::App* c) {
     c->add_option("--format", format, "Input format: auto, " + trace_formats().names())->capture_default_str();
     c->add_option("--times", times, "KITTI: file with one time in seconds per pose");
     c->add_option("--rate", rate, "KITTI: fixed pose rate in Hz (KITTI odometry is 10)");
     c->add_flag("--strict", strict, "Refuse repairable input (renormalised quaternions, repeated times)");
+    c->add_flag("--allow-repairs", allow_repairs, kAllowRepairsHelp);
   }
   ImportOptions options() const {
     ImportOptions o;
@@ -105,6 +107,7 @@ struct ReadArgs {
     o.kitti_times_path = times;
     o.kitti_rate_hz = rate;
     o.read.strict = strict;
+    o.read.allow_repairs = allow_repairs;
     return o;
   }
 };
@@ -269,6 +272,7 @@ void register_import(CLI::App* trace) {
     a->tf.apply(o);
     TraceLoadReport rep;
     Trace t = import_trace(a->in, o, &rep);
+    print_repair_warnings(rep, a->in);
     fmt::print(stderr, "read {} poses ({}, {} lines) from {}; repairs: {}\n", rep.poses, rep.format,
                rep.lines, a->in, repairs_text(rep.repairs));
     if (a->resample != 0.0) {
@@ -289,6 +293,7 @@ void register_export(CLI::App* trace) {
   struct Args {
     std::string in, out, format, times, up, camera;
     double rate = 0.0;
+    bool allow_repairs = false;
   };
   auto a = std::make_shared<Args>();
   std::string apart;  // "kitti": formats whose poses carry no time
@@ -315,11 +320,10 @@ void register_export(CLI::App* trace) {
                     "): write no times; the poses must be at t0 + i / rate (Hz), what `import --rate` gives");
   c->add_option("--up", a->up, "World axes to write in, as for import (default: the format's)");
   c->add_option("--camera", a->camera, "Camera axes to write in, as for import (default: the format's)");
+  c->add_flag("--allow-repairs", a->allow_repairs, kAllowRepairsHelp);
   c->callback([a] {
     const TraceFormat& format = parse_trace_format(a->format, "--format");
-    TraceLoadReport rep;
-    const Trace t = load_any_trace(a->in, {}, &rep);
-    if (rep.repairs.total()) fmt::print(stderr, "{}: repairs: {}\n", a->in, repairs_text(rep.repairs));
+    const Trace t = load_cli_trace(a->in, a->allow_repairs);
     ExportOptions o;
     o.world_axes = a->up;
     o.camera_axes = a->camera;
@@ -337,6 +341,7 @@ void register_resample(CLI::App* trace) {
     std::string in, out;
     double fps = 0.0;
     ResampleArgs rs;
+    bool allow_repairs = false;
   };
   auto a = std::make_shared<Args>();
   auto* c = trace->add_subcommand("resample", "Resample a trace to a fixed frame rate");
@@ -348,10 +353,9 @@ void register_resample(CLI::App* trace) {
   c->add_option("-o,--output", a->out, "Output native trace (- for stdout)")->required();
   c->add_option("--fps", a->fps, "Output frame rate in Hz")->required();
   a->rs.add(c);
+  c->add_flag("--allow-repairs", a->allow_repairs, kAllowRepairsHelp);
   c->callback([a] {
-    TraceLoadReport rep;
-    const Trace in = load_any_trace(a->in, {}, &rep);
-    if (rep.repairs.total()) fmt::print(stderr, "{}: repairs: {}\n", a->in, repairs_text(rep.repairs));
+    const Trace in = load_cli_trace(a->in, a->allow_repairs);
     ResampleOptions ro;
     ro.fps = a->fps;
     ro.gap_s = a->rs.gap;
@@ -398,6 +402,7 @@ void register_info(CLI::App* trace) {
     if (io.format.empty()) io.format = detect_trace_format(a->in, io.read.limits);
     // A native file is shown as stored; other formats as imported with the defaults.
     const Trace t = io.format == "native" ? load_trace(a->in, io.read, &rep) : import_trace(a->in, io, &rep);
+    print_repair_warnings(rep, a->in);
     const TraceStats s = trace_stats(t, a->so);
     if (a->json) {
       nlohmann::json j = to_json(s);

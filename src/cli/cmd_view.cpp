@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "cli/commands.h"
+#include "cli/trace_load.h"
 #include "core/error.h"
 #include "core/camera.h"
 #include "stream/system/feedback.h"
@@ -27,7 +28,7 @@ struct ViewOptions {
   unsigned long long seed = 1;
   double terrain_size_m = 8192.0, texels_per_m = 128.0;
   std::string pos = "4096,4096,1.7";
-  bool agl = false;
+  bool agl = false, allow_repairs = false;
   double yaw = 0.0, pitch = -10.0, roll = 0.0, vfov = 60.0;
   std::string size = "1920x1080";
   int divisor = 8;
@@ -98,6 +99,7 @@ void run_view(const ViewOptions& o) {
 
   const auto t_build = std::chrono::steady_clock::now();
   const std::unique_ptr<IScene> scene = make_scene(cfg);
+  for (const std::string& w : scene->load_warnings()) fmt::print(stderr, "vtsim: warning: {}\n", w);
   const double build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_build).count();
   if (o.agl) {
     double ground = 0.0;
@@ -114,7 +116,7 @@ void run_view(const ViewOptions& o) {
   if (o.trace.empty() && (o.frame >= 0 || o.time_s >= 0))
     throw InputError(o.frame >= 0 ? "--frame" : "--time", "picks a pose of --trace: give the trace too");
   if (!o.trace.empty()) {
-    const Trace tr = load_any_trace(o.trace);
+    const Trace tr = load_cli_trace(o.trace, o.allow_repairs);
     if (o.frame >= 0 && o.time_s >= 0) throw InputError("--frame", "give --frame or --time, not both");
     if (o.frame >= static_cast<int>(tr.poses.size()))
       throw InputError("--frame", fmt::format("{} is past the trace's last frame {}", o.frame, tr.poses.size() - 1));
@@ -205,6 +207,7 @@ void register_view_commands(CLI::App& app) {
     opt->size_given = true;
   });
   cmd->add_option("--trace", opt->trace, "take the camera from this trace (pose, vfov, image size)");
+  cmd->add_flag("--allow-repairs", opt->allow_repairs, kAllowRepairsHelp);
   cmd->add_option("--frame", opt->frame, "frame index of --trace (default 0)")->check(CLI::Range(0, 1 << 30));
   cmd->add_option("--time", opt->time_s, "time in --trace, s (interpolated)")
       ->check(CLI::Validator(

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
+#include "cli/trace_load.h"
 #include "core/error.h"
 #include "sim/run/replay.h"
 #include "sim/view/scene.h"
@@ -71,7 +72,7 @@ void run_compare(const VtCompareArgs& a) {
   nlohmann::json rows = nlohmann::json::array();
   auto scene = make_scene_from_config(base);
   for (const auto& file : files) {
-    const Trace trace = load_any_trace(file);
+    const Trace trace = load_cli_trace(file, false);
     const std::string name = std::filesystem::path(file).stem().string();
     for (const auto& policy : policies) {
       std::vector<std::string> sets = a.sets;

@@ -15,6 +15,8 @@
 #include <mutex>
 #include <set>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "core/error.h"
 #include "core/input_file.h"
@@ -263,11 +265,11 @@ Part read_part(const fs::path& path, const std::string& hash) {
 
 }  // namespace
 
-std::vector<Trace> load_sweep_traces(const SweepSpec& spec) {
+std::vector<Trace> load_sweep_traces(const SweepSpec& spec, std::vector<std::string>* warnings) {
   std::vector<Trace> traces;
   for (const SweepTraceSource& s : spec.traces) {
     try {
-      traces.push_back(load_sweep_trace(s));
+      traces.push_back(load_sweep_trace(s, warnings));
     } catch (const InputError& e) {
       throw InputError(at_line(spec.path, s.line), fmt::format("trace '{}': {}", s.text, e.what()));
     }
@@ -393,7 +395,8 @@ SweepShard parse_shard(const std::string& text, const std::string& where) {
 SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
   const auto wall0 = std::chrono::steady_clock::now();
   const double cpu0 = process_cpu_s();
-  const std::vector<Trace> traces = load_sweep_traces(spec);
+  std::vector<std::string> trace_warnings;
+  const std::vector<Trace> traces = load_sweep_traces(spec, &trace_warnings);
   const std::string hash = sweep_spec_hash(spec, traces);
   const fs::path out(opts.out_dir);
   const fs::path parts = out / "parts";
@@ -424,6 +427,7 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
   for (const auto& f : fs::directory_iterator(parts))
     if (f.path().extension() == ".tmp") fs::remove(f.path(), ec);
   SweepRunStats st;
+  st.trace_warnings = std::move(trace_warnings);
   st.rows = e - b;
   std::vector<const Task*> todo;
   std::uint64_t total_frames = 0;

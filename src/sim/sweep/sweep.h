@@ -51,6 +51,7 @@ struct SweepRunStats {
   std::size_t tasks = 0, views_rendered = 0;
   double wall_s = 0, cpu_s = 0;  // this process
   double replayed_s = 0;         // trace seconds replayed, summed over rows run now
+  std::vector<std::string> trace_warnings;  // repairs the trace readers made (load_sweep_trace)
 };
 
 // Runs a shard of the sweep into opts.out_dir (OUT/parts/, OUT/shard.json); an unsharded run
@@ -62,8 +63,9 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts);
 // missing or duplicated shard, or an incomplete one (InputError naming the directory).
 void merge_sweep(const std::vector<std::string>& shard_dirs, const std::string& out_dir);
 
-// The spec's traces, loaded or generated; InputError naming spec:line and the trace.
-std::vector<Trace> load_sweep_traces(const SweepSpec& spec);
+// The spec's traces, loaded or generated; InputError naming spec:line and the trace. The readers'
+// repairs are appended to *warnings when given (load_sweep_trace).
+std::vector<Trace> load_sweep_traces(const SweepSpec& spec, std::vector<std::string>* warnings = nullptr);
 
 // Replays the spec's points `configs` on every trace (the points sharing a view stepped in
 // lockstep on it, `jobs` threads) and returns their rows as rows.jsonl has them: one vector per

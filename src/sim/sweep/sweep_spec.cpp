@@ -8,6 +8,8 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <utility>
+#include <vector>
 #include <toml++/toml.h>
 
 #include "core/error.h"
@@ -327,9 +329,14 @@ TuneConstraint parse_tune_constraint(const std::string& text, const std::string&
                           "(e.g. \"popin.blurry_fraction_p99 <= 0.02\")");
 }
 
-Trace load_sweep_trace(const SweepTraceSource& src) {
+Trace load_sweep_trace(const SweepTraceSource& src, std::vector<std::string>* warnings) {
   if (src.generated) return generate_trace(parse_gen_line(src.text, "generate"));
-  return load_any_trace(src.text);
+  TraceLoadReport rep;
+  Trace t = load_any_trace(src.text, {}, &rep);
+  if (warnings)
+    for (std::string& w : repair_warnings(rep.repairs, rep.poses + rep.repairs.dropped(), src.text))
+      warnings->push_back(std::move(w));
+  return t;
 }
 
 }  // namespace vtsim

@@ -87,8 +87,10 @@ SweepSpec load_sweep_spec(const std::string& path);
 // The default CSV/report metrics (dotted paths into a replay summary).
 const std::vector<std::string>& default_sweep_metrics();
 
-// A trace of the spec, loaded (files) or generated. Throws InputError naming the source.
-Trace load_sweep_trace(const SweepTraceSource& src);
+// A trace of the spec, loaded (files) or generated. Throws InputError naming the source (also for
+// more dropped poses than the repair policy allows: trace_io.h, check_repairs). The repairs made
+// are appended to *warnings when given (repair_warnings: one line per kind, naming the file).
+Trace load_sweep_trace(const SweepTraceSource& src, std::vector<std::string>* warnings = nullptr);
 
 // The value at a metric's dotted path in a replay summary ("popin.time_to_sharp_s.mean"; array
 // elements by number: "bandwidth.per_level.0.disk_read_MBps"), or nullptr. The CSV, the report

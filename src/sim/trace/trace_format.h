@@ -73,6 +73,9 @@ struct TraceFormat {
   // format cannot give back (two times within the format's resolution).
   void (*write)(const Trace& trace, const TraceTextSink& poses, const TraceTextSink* times,
                 const std::string& where) = nullptr;
+  // The unit of the source times as one power of ten of seconds (0: seconds, -9: nanoseconds), for
+  // import's check of implausible rates (check_time_units); nullopt: not checked (native: as stored).
+  std::optional<int> time_unit_pow10;
 };
 
 // The table (trace_format_registry.cpp), in detection order.

@@ -2,6 +2,7 @@
 // Importing recorded trajectories (TUM RGB-D, EuRoC MAV ground truth, KITTI odometry poses; the
 // formats of the evo trajectory tool) and format detection (docs/traces.md, "Importers"). The
 // formats themselves are the entries of trace_format.h.
+#include <cstdint>
 #include <string>
 #include <string_view>
 
@@ -16,11 +17,29 @@ namespace vtsim {
 // InputError(where, "unknown trace format 'x' (one of: ...; did you mean 'y'?)") otherwise.
 const TraceFormat& parse_trace_format(std::string_view name, const std::string& where);
 
+// The plausible mean pose rate of a recording: 1 Hz (GPS, sparse keyframes) to 10 kHz (fast
+// motion capture) widened by a decade each way. A time unit mistaken reads the rate wrong by a
+// factor of 1e3 to 1e9 (seconds as nanoseconds: 1e9), far outside even the widened range.
+inline constexpr double kMinPlausibleRate_hz = 0.1;
+inline constexpr double kMaxPlausibleRate_hz = 1e5;
+// Fewer poses than this say too little about their rate to refuse a file for it.
+inline constexpr std::int64_t kTimeUnitCheckMinPoses = 10;
+
+// Throws InputError(path, "N poses span S s (R Hz), far outside 1 Hz-10 kHz: ...") naming the likely
+// unit and the --time-scale that would fix it, when poses >= kTimeUnitCheckMinPoses and the mean
+// rate (poses - 1) / span_s is outside [kMinPlausibleRate_hz, kMaxPlausibleRate_hz] (span_s <= 0:
+// infinite). unit_pow10: the format's unit (TraceFormat::time_unit_pow10); time_scale: the
+// --time-scale already applied to span_s.
+void check_time_units(std::int64_t poses, double span_s, int unit_pow10, double time_scale, std::string_view format,
+                      const std::string& path);
+
 // The name of the format of path, by asking the formats' sniffs (trace_format.h) in table order
 // about each line up to the first data line. Today's rules: a first line starting "# vtsim-trace"
-// -> native; a "p_RS_R_x" header or a comma-separated first data line with >= 8 fields -> euroc; a
-// whitespace-separated first data line with 8 fields -> tum, with 12 -> kitti. Throws
-// InputError("path:line", ...) when none fits.
+// -> native, and so is a first data line starting "t_s" (a native header: the native reader names
+// what is missing); a "p_RS_R_x" header or a comma-separated first data line with >= 8 fields and
+// an integer first field -> euroc; a whitespace-separated first data line with 8 fields -> tum,
+// with 12 -> kitti. Throws InputError("path:line", ...) asking for --format when none fits (a
+// comma-separated line whose time has a fraction: TUM with commas or EuRoC in seconds, refused).
 std::string detect_trace_format(const std::string& path, const TraceReadLimits& limits = {});
 
 struct ImportOptions {
@@ -36,7 +55,9 @@ struct ImportOptions {
 // Reads path in its format, then applies options.transform (trace_transform.h). Times are read
 // as exact integer nanoseconds and rebased before conversion to double seconds, so a 2011 Unix
 // time keeps its 0.1 ms digits. The result satisfies validate_trace. An unknown options.format is
-// an InputError("format", ...).
+// an InputError("format", ...). Refuses implausible time units (check_time_units, after the
+// transform's --time-scale) and more dropped poses than check_repairs allows
+// (options.read.allow_repairs); the repairs made are in report->repairs.
 Trace import_trace(const std::string& path, const ImportOptions& options = {},
                    TraceLoadReport* report = nullptr);
 

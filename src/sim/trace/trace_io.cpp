@@ -4,8 +4,11 @@
 #include <fmt/core.h>
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iterator>
+#include <string_view>
+#include <vector>
 
 #include "core/error.h"
 #include "sim/trace/trace_text.h"
@@ -28,6 +31,23 @@ bool header_matches(std::string_view line) {
   for (std::size_t i = 0; i < f.size(); ++i)
     if (f[i] != kFields[i]) return false;
   return true;
+}
+
+// What is wrong with a column header line, naming the missing or unexpected columns.
+std::string header_error(std::string_view line) {
+  std::vector<std::string_view> f;
+  trace_text::split_csv(line, f);
+  std::string missing, extra;
+  for (std::string_view k : kFields)
+    if (std::find(f.begin(), f.end(), k) == f.end()) missing += fmt::format("{}'{}'", missing.empty() ? "" : ", ", k);
+  for (std::string_view k : f)
+    if (std::find(std::begin(kFields), std::end(kFields), k) == std::end(kFields))
+      extra += fmt::format("{}{}", extra.empty() ? "" : ", ", trace_text::quote(k));
+  std::string why;
+  if (!missing.empty()) why = "lacks " + missing;
+  if (!extra.empty()) why += (why.empty() ? "has " : "; has ") + extra;
+  if (why.empty()) why = "has the columns in another order";
+  return fmt::format("the column header {}: expected '{}'", why, kHeader);
 }
 
 // "# vtsim-trace v1 image_width=W image_height=H"
@@ -100,8 +120,7 @@ Trace load_trace(const std::string& path, const TraceReadOptions& options, Trace
       continue;
     }
     if (!have_header) {
-      if (!header_matches(line))
-        throw InputError(in.where(), fmt::format("expected the column header '{}'", kHeader));
+      if (!header_matches(line)) throw InputError(in.where(), header_error(line));
       have_header = true;
       continue;
     }
@@ -139,6 +158,8 @@ Trace load_trace(const std::string& path, const TraceReadOptions& options, Trace
     throw InputError(in.where(), fmt::format("no column header '{}' and no poses", kHeader));
   if (trace.poses.empty()) throw InputError(in.where(), "no poses after the column header");
   if (!have_name) trace.name = trace_text::sanitize_line(path);
+  check_repairs(repairs, static_cast<std::int64_t>(trace.poses.size()) + repairs.dropped(), path,
+                options.allow_repairs);
   if (report) {
     report->format = "native";
     report->lines = in.line_no();
@@ -146,6 +167,30 @@ Trace load_trace(const std::string& path, const TraceReadOptions& options, Trace
     report->repairs = repairs;
   }
   return trace;
+}
+
+void check_repairs(const TraceRepairs& repairs, std::int64_t poses_read, const std::string& path,
+                   bool allow_repairs) {
+  const std::int64_t dropped = repairs.dropped();
+  if (allow_repairs || dropped <= kMaxDroppedPoses ||
+      static_cast<double>(dropped) <= kMaxDroppedFraction * static_cast<double>(poses_read))
+    return;
+  throw InputError(path, fmt::format("{} of {} poses dropped ({} with a repeated time): more than {} pose and "
+                                     "more than {:g} %, so the times are probably misread (a wrong --format or time unit); "
+                                     "check them, or give --allow-repairs to keep the {} poses left",
+                                     dropped, poses_read, repairs.duplicate_times_dropped, kMaxDroppedPoses,
+                                     kMaxDroppedFraction * 100, poses_read - dropped));
+}
+
+std::vector<std::string> repair_warnings(const TraceRepairs& r, std::int64_t poses_read, const std::string& path) {
+  std::vector<std::string> out;
+  const auto add = [&](std::int64_t n, std::string_view one, std::string_view many, std::string_view what) {
+    if (n > 0) out.push_back(fmt::format("{}: {} {} {} (of {} poses read)", path, n, n == 1 ? one : many, what, poses_read));
+  };
+  add(r.duplicate_times_dropped, "pose", "poses", "with a repeated time dropped");
+  add(r.quats_renormalised, "quaternion", "quaternions", "renormalised");
+  add(r.rotations_orthonormalised, "rotation", "rotations", "orthonormalised");
+  return out;
 }
 
 void validate_trace(const Trace& trace, const std::string& where) {

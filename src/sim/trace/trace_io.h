@@ -12,6 +12,7 @@
 #include <functional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "core/trace.h"
 
@@ -25,7 +26,8 @@ struct TraceReadLimits {
 };
 
 // Documented repairs a reader made instead of failing; each is counted (and each is an error
-// under TraceReadOptions::strict).
+// under TraceReadOptions::strict). Callers print them (repair_warnings); a reader refuses a file
+// whose repairs dropped more poses than check_repairs allows.
 struct TraceRepairs {
   std::int64_t quats_renormalised = 0;       // | |q| - 1 | <= 1e-3 but more than 1e-6 and more than
                                              // the rounding of the printed digits explains: q / |q| used
@@ -34,11 +36,13 @@ struct TraceRepairs {
   std::int64_t total() const {
     return quats_renormalised + duplicate_times_dropped + rotations_orthonormalised;
   }
+  std::int64_t dropped() const { return duplicate_times_dropped; }  // poses read but not kept
 };
 
 struct TraceReadOptions {
   TraceReadLimits limits;
-  bool strict = false;  // turn every repair into an InputError
+  bool strict = false;         // turn every repair into an InputError
+  bool allow_repairs = false;  // keep a file whose repairs dropped more than check_repairs allows
 };
 
 // What a reader saw, for `trace info` and the import summary.
@@ -48,6 +52,25 @@ struct TraceLoadReport {
   std::int64_t poses = 0;    // poses kept
   TraceRepairs repairs;
 };
+
+// The repair policy (docs/traces.md, "Errors and repairs"): a reader may drop at most
+// kMaxDroppedPoses poses or kMaxDroppedFraction of the poses it read, whichever is more. One
+// doubled time stamp is the usual harmless glitch of a recorder (a frame sent twice); more than 1 %
+// dropped means the times are being misread (the wrong format or unit: issue 26 saw 2,969 of 3,000
+// poses dropped from a TUM file read as EuRoC), so the file is refused unless allow_repairs.
+inline constexpr std::int64_t kMaxDroppedPoses = 1;
+inline constexpr double kMaxDroppedFraction = 0.01;
+
+// Throws InputError(path, "N of M poses dropped (...) ...; give --allow-repairs ...") when
+// repairs.dropped() is beyond the policy above and allow_repairs is false. poses_read counts the
+// poses kept plus those dropped.
+void check_repairs(const TraceRepairs& repairs, std::int64_t poses_read, const std::string& path,
+                   bool allow_repairs);
+
+// One line per kind of repair made, naming the file and the count: "walk.csv: 1 pose with a
+// repeated time dropped (of 1202 read)". Empty when there was none. For the CLI's warnings.
+std::vector<std::string> repair_warnings(const TraceRepairs& repairs, std::int64_t poses_read,
+                                         const std::string& path);
 
 // Tolerances shared by all readers and by validate_trace.
 inline constexpr double kQuatUnitTolerance = 1e-9;   // what validate_trace accepts as unit; readers

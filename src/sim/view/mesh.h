@@ -54,6 +54,10 @@ struct ObjStats {
 // continuation, a file larger than max_bytes or more vertices/triangles than the limits, and
 // InputError(path, ...) for an unreadable file or one without any triangle.
 Mesh load_obj(const std::string& path, ObjStats* stats = nullptr, const ObjLimits& limits = {});
+// One line per kind of input load_obj dropped, naming path and the count: "path: 3 of 1200
+// triangles skipped: zero area (collinear or repeated corners)". Empty when nothing was dropped.
+// (Statements the renderer does not need, such as vn or usemtl, are not data dropped.)
+std::vector<std::string> obj_warnings(const ObjStats& stats, const std::string& path);
 // The same on text already in memory; `name` is used in error messages.
 Mesh parse_obj(const std::string& text, const std::string& name, ObjStats* stats = nullptr,
                const ObjLimits& limits = {});

@@ -1,7 +1,10 @@
 // Wavefront OBJ reader for the mesh scene: geometry and texture coordinates only.
 #include <charconv>
 #include <cmath>
+#include <memory>
+#include <string>
 #include <string_view>
+#include <vector>
 
 #include <glm/geometric.hpp>
 
@@ -161,9 +164,21 @@ Mesh load_obj(const std::string& path, ObjStats* stats, const ObjLimits& limits)
   return parse_obj(text, path, stats, limits);
 }
 
+std::vector<std::string> obj_warnings(const ObjStats& stats, const std::string& path) {
+  std::vector<std::string> out;
+  if (stats.degenerate_skipped > 0)
+    out.push_back(path + ": " + std::to_string(stats.degenerate_skipped) + " of " +
+                  std::to_string(stats.degenerate_skipped + stats.triangles) +
+                  " triangles skipped: zero area (collinear or repeated corners)");
+  return out;
+}
+
 // The table's "mesh" (scene.cpp): cfg.file's OBJ.
 std::unique_ptr<IScene> make_obj_scene(const SceneConfig& cfg, TextureExtent extent) {
-  return std::make_unique<MeshScene>(load_obj(cfg.file), extent);
+  ObjStats stats;
+  auto scene = std::make_unique<MeshScene>(load_obj(cfg.file, &stats), extent);
+  scene->set_load_warnings(obj_warnings(stats, cfg.file));
+  return scene;
 }
 
 }  // namespace vtsim

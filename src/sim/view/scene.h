@@ -8,6 +8,7 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "core/camera.h"
 #include "core/registry.h"
@@ -39,6 +40,11 @@ class IScene : public ISampleSource {
   // scenes whose render_spans leaves has_samples false; the default throws std::logic_error.
   void render_pixels(const SpanBuffer& sb, std::uint32_t pixel, std::uint32_t count,
                      std::vector<ViewSample>& out) const override;
+
+  // What the scene's reader left out of its input file, one line each naming the file and the
+  // count ("town.obj: 3 of 1200 triangles skipped: zero area"), for the CLI to print as warnings;
+  // empty for a scene that read everything (and for every generated scene).
+  virtual std::vector<std::string> load_warnings() const { return {}; }
 };
 
 // Parameters of make_scene. Every scene maps into one virtual texture of

@@ -76,6 +76,9 @@ Heightfield load_heightfield(const std::string& path, double spacing_m, double h
   hf.x0_m = x0_m;
   hf.y0_m = y0_m;
   hf.z_m = std::move(px);  // converted in place below
+  if (spec.channels > 1)
+    hf.warnings.push_back(path + ": heights from the first of " + std::to_string(spec.channels) +
+                          " channels; the other " + std::to_string(spec.channels - 1) + " ignored");
   for (std::int64_t j = 0; j < h; ++j)
     for (std::int64_t i = 0; i < w; ++i) {
       const float value = hf.z_m[static_cast<std::size_t>(j * w + i)];

@@ -17,12 +17,14 @@ struct Heightfield {
   double spacing_m = 1.0;        // distance between neighbouring posts, metres
   double x0_m = 0.0, y0_m = 0.0; // world position of post (0, 0)
   std::vector<float> z_m;        // post heights, world metres, row-major: z_m[j·nx + i]
+  std::vector<std::string> warnings;  // what the reader left out (IScene::load_warnings)
 };
 
 // Limits on untrusted heightmaps: at most 2^26 posts (256 MiB of float heights, a 8192² image).
 inline constexpr std::int64_t kMaxHeightfieldPosts = std::int64_t{1} << 26;
 
-// Reads the first channel of any image OpenImageIO reads; z = z0 + scale·value (OIIO maps integer
+// Reads the first channel of any image OpenImageIO reads (more channels: a line in
+// Heightfield::warnings); z = z0 + scale·value (OIIO maps integer
 // pixel types to [0, 1]). Image row j is post row j (world y grows with the image row). Throws
 // InputError(path, ...) for unreadable files, damaged ones (the reader filled rows it could not
 // decode), fewer than 2×2 or more than kMaxHeightfieldPosts posts, and (path:row r, column c) for
@@ -50,6 +52,7 @@ class HeightfieldScene final : public IScene {
   // Surface height at world (x, y) (on the same triangles the renderer draws); NaN outside.
   double height_at(double x_m, double y_m) const;
   const Heightfield& heightfield() const { return hf_; }
+  std::vector<std::string> load_warnings() const override { return hf_.warnings; }
 
  private:
   struct Hit;

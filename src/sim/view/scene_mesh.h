@@ -5,6 +5,8 @@
 // sample is then shaded exactly: its ray meets the triangle's plane, whose affine texel map gives
 // the texel and, through ray differentials, dT/dx and dT/dy per full-resolution pixel.
 #include <cstdint>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "sim/view/mesh.h"
@@ -42,6 +44,8 @@ class MeshScene final : public IScene {
                      std::vector<ViewSample>& out) const override;
 
   std::size_t triangle_count() const { return tris_.size(); }
+  std::vector<std::string> load_warnings() const override { return load_warnings_; }
+  void set_load_warnings(std::vector<std::string> w) { load_warnings_ = std::move(w); }
   // What this thread's last render or render_spans of a mesh did: where the culling stopped each
   // triangle and how many samples the rasteriser and the resolve touched (bench_vt prints it per
   // frame; docs/vt.md "Speed"). Counted per chunk, triangle and row, never per sample.
@@ -106,6 +110,7 @@ class MeshScene final : public IScene {
 
   TextureExtent extent_;
   std::vector<Tri> tris_;
+  std::vector<std::string> load_warnings_;
   std::vector<Chunk> chunks_;
   std::vector<Mesh::Box> solids_;
   bool occlusion_culling_ = true;

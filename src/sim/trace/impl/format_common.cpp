@@ -6,6 +6,7 @@
 #include <glm/gtc/quaternion.hpp>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <vector>
 
@@ -59,6 +60,27 @@ class TimedSink {
 
 }  // namespace
 
+bool is_integer_text(std::string_view tok) {
+  if (!tok.empty() && (tok[0] == '+' || tok[0] == '-')) tok.remove_prefix(1);
+  const std::size_t e = tok.find_first_of("eE");
+  std::string_view mant = tok.substr(0, e);
+  long exp = 0;
+  if (e != std::string_view::npos) {
+    std::string_view x = tok.substr(e + 1);
+    if (!x.empty() && x[0] == '+') x.remove_prefix(1);
+    const auto [p, ec] = std::from_chars(x.data(), x.data() + x.size(), exp);
+    if (x.empty() || ec != std::errc() || p != x.data() + x.size()) return false;
+  }
+  const std::size_t dot = mant.find('.');
+  std::string_view frac = dot == std::string_view::npos ? std::string_view() : mant.substr(dot + 1);
+  const std::string_view whole = mant.substr(0, dot);
+  while (!frac.empty() && frac.back() == '0') frac.remove_suffix(1);
+  const auto digits = [](std::string_view d) {
+    return std::all_of(d.begin(), d.end(), [](char c) { return c >= '0' && c <= '9'; });
+  };
+  return !mant.empty() && mant != "." && digits(whole) && digits(frac) && static_cast<long>(frac.size()) <= exp;
+}
+
 void check_position(const glm::dvec3& p, const std::string& where) {
   for (int k = 0; k < 3; ++k)
     if (std::abs(p[k]) > kMaxAbsCoordinate_m)
@@ -89,11 +111,17 @@ SourceTrace read_timed(const std::string& path, const TraceReadOptions& ro, cons
   while (in.next(line)) {
     if (trace_text::is_blank(line) || trace_text::is_comment(line)) continue;
     const std::string where = in.where();
-    if (form.csv) trace_text::split_csv(line, f);
+    if (form.csv || line.find(',') != std::string_view::npos) trace_text::split_csv(line, f);
     else trace_text::split_ws(line, f);
     if (form.extra_columns ? f.size() < 8 : f.size() != 8)
       wrong_field_count(where, 8, f.size(), form.layout, form.extra_columns);
     const std::int64_t t = trace_text::parse_time_ns(f[0], form.time_unit_pow10, where, form.names[0]);
+    if (form.integer_time && !is_integer_text(f[0]))
+      throw InputError(where, fmt::format("field '{}': {} is not an integer: {} times are integer nanoseconds, and "
+                                          "these look like seconds; write them in nanoseconds (exactly, e.g. awk -F, -v "
+                                          "OFS=, '!/^#/ {{ split($1, p, \".\"); $1 = p[1] substr(p[2] \"000000000\", 1, 9) "
+                                          "}} 1' IN > OUT), or give --format tum for a TUM file with commas",
+                                          form.names[0], trace_text::quote(f[0]), form.name));
     double v[8];
     for (int i = 1; i < 8; ++i) v[i] = trace_text::parse_double(f[static_cast<std::size_t>(i)], where, form.names[i]);
     const glm::dvec3 p(v[1], v[2], v[3]);

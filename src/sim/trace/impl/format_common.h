@@ -33,11 +33,18 @@ struct TimedLayout {
   std::string_view name;         // the format's registry name (the trace is named "<name> <path>")
   std::string_view layout;       // for the field-count error
   std::string_view names[8];     // per field, for parse errors
-  bool csv = false;              // comma-separated (EuRoC) or whitespace-separated (TUM)
+  bool csv = false;              // comma-separated (EuRoC) or whitespace-separated (TUM; a line with
+                                 // commas is split at them: --format tum reads TUM with commas)
   bool extra_columns = false;    // more than 8 fields allowed (ignored)
   int time_unit_pow10 = 0;       // the time unit is 10^k ns (9: seconds, 0: nanoseconds)
   bool w_first = false;          // quaternion w x y z (EuRoC) or x y z w (TUM)
+  bool integer_time = false;     // a time with a fraction or exponent is an error (EuRoC: such
+                                 // times are seconds and would round to a few nanoseconds)
 };
+
+// A decimal whose value is a whole number: "1403715524907143168", "-3", "1.5e9", "2.0"; not
+// "1403715524.907143" or "15e-1". (Not a full number check: the parser does that.)
+bool is_integer_text(std::string_view tok);
 
 // Reads a timed text file: '#' comments and blank lines anywhere; times to integer nanoseconds,
 // rebased to the first pose (t0_s set); a repeated time dropped (counted), one going backwards an

@@ -17,13 +17,16 @@ constexpr format_impl::TimedLayout kEurocLayout{"euroc",
                                                 true,
                                                 true,
                                                 0,
+                                                true,
                                                 true};
 
 // EuRoC's header names p_RS_R_x; a headerless file has a comma-separated first data line of at
-// least 8 fields.
+// least 8 fields whose time is an integer (nanoseconds). A time with a fraction is left to nobody:
+// it is seconds, so not EuRoC, and detection refuses rather than drop the poses whose times round
+// to the same nanosecond (issue 26: a TUM file with commas lost 2,969 of 3,000 poses that way).
 bool sniff_euroc(const SniffLine& l) {
   if (l.comment) return l.text.find("p_RS_R_x") != std::string_view::npos;
-  return l.commas && l.fields.size() >= 8;
+  return l.commas && l.fields.size() >= 8 && format_impl::is_integer_text(l.fields[0]);
 }
 
 SourceTrace read_euroc(const std::string& path, const ImportOptions& options) {
@@ -55,10 +58,11 @@ TraceFormat trace_format_euroc() {
                  "nanoseconds; later columns ignored",
           .axes = {"z-up", "imu-urf"},
           .separate_times = false,
-          .sniff_fields = ">= 8 comma-separated",
+          .sniff_fields = ">= 8 comma-separated (an integer time)",
           .sniff = sniff_euroc,
           .read = read_euroc,
-          .write = write_euroc};
+          .write = write_euroc,
+          .time_unit_pow10 = -9};
 }
 
 }  // namespace vtsim

@@ -158,7 +158,8 @@ TraceFormat trace_format_kitti() {
           .sniff_fields = "12",
           .sniff = sniff_kitti,
           .read = read_kitti,
-          .write = write_kitti};
+          .write = write_kitti,
+          .time_unit_pow10 = 0};
 }
 
 }  // namespace vtsim

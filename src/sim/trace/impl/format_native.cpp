@@ -1,4 +1,6 @@
 // The native format (trace_io.h): vtsim's own CSV, read exactly as stored and written bit-exact.
+#include <optional>
+
 #include "sim/trace/trace_format.h"
 #include "sim/trace/trace_import.h"
 #include "sim/trace/trace_io.h"
@@ -7,9 +9,12 @@ namespace vtsim {
 
 namespace {
 
-// The magic first line: "# vtsim-trace v1 ...".
+// The magic first line: "# vtsim-trace v1 ...". Also a native column header ("t_s,...") as the first
+// data line, even a damaged one: the native reader then names what is wrong (the missing magic line
+// or column) rather than another format's reader failing on field 't_s'.
 bool sniff_native(const SniffLine& l) {
-  return l.comment && l.line_no == 1 && !l.fields.empty() && l.fields[0] == "vtsim-trace";
+  if (l.comment) return l.line_no == 1 && !l.fields.empty() && l.fields[0] == "vtsim-trace";
+  return !l.fields.empty() && l.fields[0] == "t_s";
 }
 
 SourceTrace read_native(const std::string& path, const ImportOptions& options) {
@@ -36,7 +41,8 @@ TraceFormat trace_format_native() {
           .sniff_fields = "",
           .sniff = sniff_native,
           .read = read_native,
-          .write = write_native};
+          .write = write_native,
+          .time_unit_pow10 = std::nullopt};
 }
 
 }  // namespace vtsim

@@ -47,7 +47,8 @@ TraceFormat trace_format_tum() {
           .sniff_fields = "8",
           .sniff = sniff_tum,
           .read = read_tum,
-          .write = write_tum};
+          .write = write_tum,
+          .time_unit_pow10 = 0};
 }
 
 }  // namespace vtsim
