@@ -3,8 +3,8 @@
 # each compared with its committed summary in tests/baselines/ by `vtsim compare --strict`.
 #   scripts/baselines.sh check  [--vtsim PATH] [--out DIR] [--quick] [NAME...]
 #   scripts/baselines.sh update [--vtsim PATH] [NAME...]      (scripts/update_baselines.sh)
-# check: exit 0 when every summary matches its baseline (timings `run.*` ignored, everything else
-# exact), 1 on any difference (a regression, or an improvement whose baseline was not updated),
+# check: exit 0 when every summary matches its baseline (timings `run.*` and the build ignored,
+# everything else exact, floats within max(1e-12, 1e-9 relative)), 1 on any difference (a regression, or an improvement whose baseline was not updated),
 # 2 on a usage error or a missing baseline. --quick runs only the cases marked quick (the
 # sanitizer builds: the same code paths, less time). update: rewrites the baselines; review
 # `git diff tests/baselines` and commit them with the change that explains them.
@@ -70,13 +70,15 @@ for line in "${CASES[@]}"; do
   for s in $sets; do args+=(--set "$s"); done
   if [ "$mode" = update ]; then
     "$vtsim" "${args[@]}" --summary "$out/$name.json"
-    # The run's own cost (run.*) differs on every run and is not compared: leave it out so that
-    # the reviewed diff shows only behaviour.
+    # The run's own cost (run.*) differs on every run, the build (provenance: version, commit,
+    # compiler) with every commit; neither is compared: leave them out so that the reviewed diff
+    # shows only behaviour (and the run's config and trace identity).
     python3 - "$out/$name.json" "$dir/$name.json" <<'PY'
 import json, sys
 with open(sys.argv[1]) as f:
     d = json.load(f)
 d.pop("run", None)
+d.pop("provenance", None)
 with open(sys.argv[2], "w") as f:
     json.dump(d, f, indent=2)
     f.write("\n")

@@ -83,13 +83,13 @@ TEST_CASE("compare: identical summaries are all same, provenance is ignored") {
   json b = summary(), n = summary();
   n["vtsim_version"] = "9.9.9";
   n["trace"]["name"] = "renamed";
-  n["run"]["wall_s"] = 1.1;  // within the 25% band
+  n["run"]["wall_s"] = 1.1;  // wall clock: not compared by default
   const auto r = cmp(b, n);
   CHECK_FALSE(r.failed(false));
   CHECK_FALSE(r.failed(true));
   CHECK(row(r, "vtsim_version").verdict == Verdict::ignored);
   CHECK(row(r, "trace.name").verdict == Verdict::ignored);
-  CHECK(row(r, "run.wall_s").verdict == Verdict::within);
+  CHECK(row(r, "run.wall_s").verdict == Verdict::ignored);
   CHECK(row(r, "popin.blurry_fraction_mean").verdict == Verdict::same);
   CHECK(row(r, "trace.image[]").verdict == Verdict::same);
   CHECK(row(r, "trace.image[1]").verdict == Verdict::same);
@@ -160,17 +160,19 @@ TEST_CASE("compare: simulated metrics are exact with a direction") {
   }
 }
 
-TEST_CASE("compare: timings use relative bands") {
+TEST_CASE("compare: timings use relative bands with --wall-clock") {
   const json b = summary();
   json n = summary();
   n["run"]["wall_s"] = 1.3;
   n["run"]["x_realtime"] = 14.0;
   n["run"]["frames_per_s"] = 1500.0;
-  auto r = cmp(b, n);
+  CompareOptions wall;
+  wall.wall_clock = true;
+  auto r = cmp(b, n, wall);
   CHECK(row(r, "run.wall_s").verdict == Verdict::worse);
   CHECK(row(r, "run.x_realtime").verdict == Verdict::worse);  // -30%
   CHECK(row(r, "run.frames_per_s").verdict == Verdict::within);   // +25% is on the band's edge
-  CompareOptions opt;
+  CompareOptions opt = wall;
   opt.rules.push_back({.pattern = "run.*", .abs = {}, .rel = {}, .better = {}, .ignore = true, .origin = "--ignore"});
   r = cmp(b, n, opt);
   CHECK(row(r, "run.wall_s").verdict == Verdict::ignored);
@@ -315,7 +317,8 @@ TEST_CASE("compare: tolerance TOML overrides fields and inherits the rest") {
   CHECK(t.rel == 0.1);
   CHECK(t.better == Better::lower);
   CHECK(resolve_tolerance(rules, defaults, "run.wall_s").ignore);
-  CHECK(resolve_tolerance(rules, defaults, "run.wall_s").rel == 0.25);
+  CHECK(resolve_tolerance(rules, default_tolerances(DocKind::summary, true), "run.wall_s").rel == 0.25);
+  CHECK(resolve_tolerance({}, defaults, "run.wall_s").ignore);  // wall clock: not compared by default
   // The most specific rule wins: an exact key beats a wildcard, longer literals beat shorter.
   CHECK(resolve_tolerance({}, defaults, "latency_ms.count").better == Better::both);
   CHECK(resolve_tolerance({}, defaults, "latency_ms.p99").better == Better::lower);
@@ -466,9 +469,11 @@ TEST_CASE("compare: CLI exit codes 0 same, 1 regression, 2 bad input") {
   CHECK(r.code == 0);
   CHECK(contains(r.out, "OK: 0 worse"));
   r = test::vtsim_run(dir, "compare " + base + " " + same);
+  CHECK(r.code == 0);  // the wall clock moved: not a regression
+  r = test::vtsim_run(dir, "compare --wall-clock " + base + " " + same);
   CHECK(r.code == 1);
   CHECK(contains(r.out, "run.wall_s"));
-  r = test::vtsim_run(dir, "compare --ignore 'run.*' " + base + " " + same);
+  r = test::vtsim_run(dir, "compare --wall-clock --ignore 'run.*' " + base + " " + same);
   CHECK(r.code == 0);
   r = test::vtsim_run(dir, "compare --ignore 'run.*' " + base + " " + worse);
   CHECK(r.code == 1);

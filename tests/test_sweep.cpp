@@ -81,7 +81,9 @@ TEST_CASE("sweep: the lockstep rows equal each config's replay alone, every syst
       CAPTURE(cfgs[i].throttle.policy);
       REQUIRE(rows[i].ok);
       ReplayResult alone = run_replay(cfgs[i], walk, *scene);
+      // A row is the replay's summary less its run's cost and build (sweep.json has the build).
       alone.summary.erase("run");
+      alone.summary.erase("provenance");
       CHECK(rows[i].summary.dump() == alone.summary.dump());
     }
   }
@@ -171,9 +173,16 @@ TEST_CASE("sweep: shards merged give exactly the unsharded outputs, and --jobs c
   const nlohmann::json row = nlohmann::json::parse(first);
   ReplayResult alone = run_replay(spec.points[0].cfg, load_sweep_trace(spec.traces[0]), *make_scene_from_config(spec.points[0].cfg));
   alone.summary.erase("run");
+  alone.summary.erase("provenance");
   CHECK(row["summary"].dump() == alone.summary.dump());
   CHECK(row["config"] == 0);
   CHECK(row["trace"] == 0);
+  // The row keeps the effective config; the build is recorded once, in sweep.json.
+  CHECK(row["summary"]["config"]["disk.preset"] == spec.points[0].cfg.disk.preset);
+  CHECK_FALSE(row["summary"].contains("provenance"));
+  const nlohmann::json sweep_json = nlohmann::json::parse(test::slurp(one.out_dir + "/sweep.json"));
+  CHECK(sweep_json["provenance"]["vtsim_version"] == VTSIM_VERSION);
+  CHECK(sweep_json["provenance"]["vtsim_commit"].is_string());
 
   // Merge refuses a missing shard, a shard twice, a shard of another spec, an incomplete one.
   CHECK_THROWS_WITH_AS(merge_sweep({shards[0], shards[2]}, d.file("m2")), doctest::Contains("shard 1/3 is missing"), InputError);

@@ -14,12 +14,14 @@ struct CompareArgs {
   std::string base, now;
   std::vector<std::string> tolerances;
   std::vector<std::string> ignore;
-  bool strict = false, all = false, json = false, quiet = false;
+  bool strict = false, all = false, json = false, quiet = false, wall_clock = false, exact_floats = false;
 };
 
 void run_compare_command(const CompareArgs& a) {
   CompareOptions opt;
   opt.strict = a.strict;
+  opt.wall_clock = a.wall_clock;
+  opt.exact_floats = a.exact_floats;
   for (const auto& path : a.tolerances) {
     auto rules = load_tolerances(path);
     opt.rules.insert(opt.rules.end(), rules.begin(), rules.end());
@@ -54,6 +56,11 @@ void register_compare_commands(CLI::App& app) {
                 "overrides the defaults (repeatable; docs/compare.md)");
   c->add_option("--ignore", a->ignore, "do not compare keys matching this pattern ('*' wildcard), e.g. 'run.*' (repeatable)");
   c->add_flag("--strict", a->strict, "also fail on improvements and on added or removed keys (baselines must be updated)");
+  c->add_flag("--wall-clock", a->wall_clock,
+              "also compare the wall-clock sections run.* and real_clock.* (within 25%; not compared by default: they "
+              "move between runs of the same build)");
+  c->add_flag("--exact-floats", a->exact_floats,
+              "compare floats exactly (default: within max(1e-12, 1e-9 relative); integers are always exact)");
   c->add_flag("--all", a->all, "list every key, not only those that changed");
   c->add_flag("--json", a->json, "print the comparison as JSON");
   c->add_flag("--quiet,-q", a->quiet, "print nothing; the exit code tells");

@@ -26,6 +26,9 @@ using ConfigValue = std::variant<bool, std::int64_t, double, std::string>;
 
 std::string config_value_to_string(const ConfigValue& v);
 
+// The JSON type of a field's value (the effective config in a summary, docs/metrics.md).
+enum class ConfigType { integer, real, boolean, text };
+
 template <class Cfg>
 struct ConfigField {
   std::string key;    // dotted name, e.g. "disk.bandwidth_MBps"
@@ -34,6 +37,7 @@ struct ConfigField {
   // problem (the loader adds the key and the source).
   std::function<void(Cfg&, const ConfigValue&)> set;
   std::function<std::string(const Cfg&)> get;  // current value, TOML syntax
+  ConfigType type = ConfigType::text;
 };
 
 template <class Cfg>
@@ -145,7 +149,7 @@ ConfigField<Cfg> integer(std::string key, Ref m, std::int64_t lo, std::int64_t h
                                           ", " + std::to_string(hi) + "]");
             member(c, m) = static_cast<T>(x);
           },
-          [m](const Cfg& c) { return std::to_string(static_cast<std::int64_t>(member(c, m))); }};
+          [m](const Cfg& c) { return std::to_string(static_cast<std::int64_t>(member(c, m))); }, ConfigType::integer};
 }
 
 template <class Cfg, class Ref>
@@ -159,14 +163,14 @@ ConfigField<Cfg> real(std::string key, Ref m, double lo, double hi, std::string 
                                           fmt_double(hi) + "]");
             member(c, m) = x;
           },
-          [m](const Cfg& c) { return fmt_double(member(c, m)); }};
+          [m](const Cfg& c) { return fmt_double(member(c, m)); }, ConfigType::real};
 }
 
 template <class Cfg, class Ref>
 ConfigField<Cfg> boolean(std::string key, Ref m, std::string why) {
   static_assert(std::is_same_v<MemberType<Cfg, Ref>, bool>, "cfg::boolean binds a bool");
   return {std::move(key), std::move(why), [m](Cfg& c, const ConfigValue& v) { member(c, m) = as_bool(v); },
-          [m](const Cfg& c) { return std::string(member(c, m) ? "true" : "false"); }};
+          [m](const Cfg& c) { return std::string(member(c, m) ? "true" : "false"); }, ConfigType::boolean};
 }
 
 // A string field with a validator; `check` throws std::invalid_argument on a bad value.
@@ -179,7 +183,7 @@ ConfigField<Cfg> text(std::string key, Ref m, std::function<void(const std::stri
             if (check) check(s);
             member(c, m) = std::move(s);
           },
-          [m](const Cfg& c) { return "\"" + member(c, m) + "\""; }};
+          [m](const Cfg& c) { return "\"" + member(c, m) + "\""; }, ConfigType::text};
 }
 
 // A string field naming an entry of a registry (core/registry.h): an unknown name is refused with

@@ -5,6 +5,7 @@
 //  - camera body frame "FLU": +x forward (the view direction), +y left, +z up. The identity
 //    orientation looks horizontally along world +x with the image's up along world +z.
 //  - q rotates camera-frame vectors into the world frame (world = q * body).
+#include <cstdint>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/vec3.hpp>
 #include <string>
@@ -31,6 +32,10 @@ struct Trace {
   int image_width = 1920;        // trace-wide image size, pixels
   int image_height = 1080;
   std::string name;              // free text (generator name and parameters, or source file)
+  // Where it was read from, the run's trace identity (summary "trace", docs/metrics.md): set by
+  // load_any_trace (sim/trace/trace_import.h), kept by resampling; empty / 0 for a generated trace.
+  std::string source_path;       // as given to the loader
+  std::uint64_t source_hash = 0; // FNV-1a 64 of the file's bytes (core/hash.h)
 };
 
 }  // namespace vtsim

@@ -11,6 +11,7 @@
 #include "core/config_table.h"
 #include "core/error.h"
 #include "core/input_file.h"
+#include "sim/run/provenance.h"
 
 namespace vtsim {
 
@@ -70,22 +71,38 @@ constexpr std::optional<double> kExact = 0.0;
 
 }  // namespace
 
-std::vector<ToleranceRule> default_tolerances(DocKind kind) {
+std::vector<ToleranceRule> default_tolerances(DocKind kind, bool wall_clock) {
   using B = Better;
   if (kind == DocKind::summary) {
     // Simulated metrics are bit-for-bit reproducible (docs/architecture.md: one pipeline, an
     // event queue of integer ticks), so everything but the run's own cost compares exactly.
-    // The provenance fields: a version bump or a renamed trace file is not a change in
-    // behaviour (trace.frames and trace.duration_s still catch a different trace).
-    return {
-        rule("vtsim_version", {}, {}, true),
+    // The provenance fields: a version bump, a new commit, another machine or a renamed trace
+    // file is not a change in behaviour (trace.frames and trace.duration_s still catch a
+    // different trace, and the notes say so).
+    std::vector<ToleranceRule> r = {
+        rule("vtsim_version", {}, {}, true),  // summaries from before vtsim-summary/1
+        rule("provenance.*", {}, {}, true),
         rule("trace.name", {}, {}, true),
-        // Timings: the machine is shared and single runs swing; a 25% band catches real slowdowns.
-        rule("run.*", 0.25, B::info),
-        rule("run.wall_s", 0.25, B::lower),
-        rule("run.frames_per_s", 0.25, B::higher),
-        rule("run.x_realtime", 0.25, B::higher),
-        rule("run.peak_rss_MB", 0.25, B::lower),
+        // What the run was: reported (rows and notes), never a regression by itself.
+        rule("config.*", {}, B::info),
+        rule("trace.path", {}, B::info),
+        rule("trace.content_hash", {}, B::info),
+        rule("trace.poses", {}, B::info),
+        rule("trace.poses_duration_s", {}, B::info),
+    };
+    if (!wall_clock) {
+      // Wall-clock figures differ on every run (a loaded machine: run.wall_s +31.8% on an
+      // unchanged build): an exact check would cry wolf. --wall-clock compares them in bands.
+      r.push_back(rule("run.*", {}, {}, true));
+      r.push_back(rule("real_clock.*", {}, {}, true));
+    } else {
+      // The machine is shared and single runs swing; a 25% band catches real slowdowns.
+      for (auto x : {rule("run.*", 0.25, B::info), rule("run.wall_s", 0.25, B::lower), rule("run.frames_per_s", 0.25, B::higher),
+                     rule("run.x_realtime", 0.25, B::higher), rule("run.peak_rss_MB", 0.25, B::lower),
+                     rule("real_clock.*", 0.25, B::info)})
+        r.push_back(std::move(x));
+    }
+    std::vector<ToleranceRule> metrics = {
         // What a player sees: more latency, more blur, more pops are worse.
         rule("latency_ms.*", kExact, B::lower),
         rule("latency_ms.*count", kExact, B::both),
@@ -107,6 +124,8 @@ std::vector<ToleranceRule> default_tolerances(DocKind kind) {
         rule("throttle.max_clamp", kExact, B::lower),
         rule("faults.*", kExact, B::lower),
     };
+    r.insert(r.end(), metrics.begin(), metrics.end());
+    return r;
   }
   // Benchmarks (schema vtsim-bench/1): medians and ratios are timings; the per-repetition samples
   // and spreads are noise at the comparison's scale; provenance and machine are not metrics.
@@ -296,8 +315,13 @@ DocKind detect_kind(const json& doc, const std::string& path) {
   if (!doc.is_object()) throw InputError(path, "not a vtsim summary or benchmark JSON (the top level is not an object)");
   if (doc.contains("schema")) {
     const json& schema = doc.at("schema");
+    if (schema == kSummarySchema) {
+      if (!doc.contains("trace")) throw InputError(path, "key 'trace' is missing (required in a replay summary)");
+      return DocKind::summary;
+    }
     if (!schema.is_string() || schema.get<std::string>() != "vtsim-bench/1")
-      throw InputError(path, "key 'schema': " + schema.dump() + " is not a schema vtsim compare knows (\"vtsim-bench/1\")");
+      throw InputError(path, "key 'schema': " + schema.dump() + " is not a schema vtsim compare knows (\"vtsim-bench/1\", \"" +
+                                 kSummarySchema + "\")");
     for (const char* k : {"benchmark", "results"})
       if (!doc.contains(k)) throw InputError(path, std::string("key '") + k + "' is missing (required by vtsim-bench/1)");
     if (!doc["benchmark"].is_string()) throw InputError(path, "key 'benchmark' must be a string");
@@ -364,7 +388,7 @@ long double as_ld(const json& j) {
 class Walker {
  public:
   Walker(const CompareOptions& opt, DocKind kind, std::string base_path, std::string new_path, std::vector<MetricDiff>& rows)
-      : opt_(opt), defaults_(default_tolerances(kind)), kind_(kind), base_path_(std::move(base_path)),
+      : opt_(opt), defaults_(default_tolerances(kind, opt.wall_clock)), kind_(kind), base_path_(std::move(base_path)),
         new_path_(std::move(new_path)), rows_(rows) {}
 
   void walk(const json& b, const json& n, const std::string& key, Better hint) {
@@ -403,6 +427,7 @@ class Walker {
                             (b.is_null() || n.is_null() || (b.is_string() == n.is_string() && b.is_boolean() == n.is_boolean()));
     if (!compatible) {
       if (tolerance(key, hint).ignore) return one_side(b, key, hint, Verdict::ignored);
+      if (kind_ == DocKind::summary && is_identity_key(key)) return identity_row(b, n, key, hint);
       throw InputError(new_path_, fmt::format("key '{}' is {}, but {} in the base {}", key, type_name(n), type_name(b), base_path_));
     }
     leaf(key, b, n, hint);
@@ -442,8 +467,10 @@ class Walker {
 
   Tolerance tolerance(const std::string& key, Better hint) const { return resolve_tolerance(opt_.rules, defaults_, key, hint); }
 
-  // A base object member absent from the new document: bad input unless every leaf is ignored.
+  // A base object member absent from the new document: bad input unless every leaf is ignored
+  // (or says what the run was: an older summary has no config).
   void missing(const json& b, const std::string& key, Better hint) {
+    if (kind_ == DocKind::summary && is_identity_key(key)) return one_side(b, key, hint, Verdict::info);
     if (b.is_structured()) {
       bool any = false;
       const auto check = [&](const json&, const std::string& k) {
@@ -481,6 +508,7 @@ class Walker {
       d.tol = tolerance(k, hint);
       (verdict == Verdict::added ? d.now : d.base) = x;
       d.verdict = d.tol.ignore ? Verdict::ignored : verdict;
+      if (!d.tol.ignore && kind_ == DocKind::summary && is_identity_key(k)) d.verdict = Verdict::info;
       rows_.push_back(std::move(d));
     });
   }
@@ -491,7 +519,24 @@ class Walker {
     d.base = b;
     d.now = n;
     d.tol = tolerance(key, hint);
+    // Floats get at least the float band (compare.h, kFloatRel): their last bits are not behaviour.
+    if (!opt_.exact_floats && !d.tol.ignore && (b.is_number_float() || n.is_number_float())) {
+      d.tol.abs = std::max(d.tol.abs, kFloatAbs);
+      d.tol.rel = std::max(d.tol.rel, kFloatRel);
+    }
     d.verdict = judge(b, n, d);
+    rows_.push_back(std::move(d));
+  }
+
+  // An identity key whose two values have different shapes (a config value that became a table):
+  // one info row with both sides as text.
+  void identity_row(const json& b, const json& n, const std::string& key, Better hint) {
+    MetricDiff d;
+    d.key = key;
+    d.base = b.is_structured() ? json(b.dump()) : b;
+    d.now = n.is_structured() ? json(n.dump()) : n;
+    d.tol = tolerance(key, hint);
+    d.verdict = Verdict::info;
     rows_.push_back(std::move(d));
   }
 
@@ -526,6 +571,86 @@ class Walker {
 
 }  // namespace
 
+bool is_identity_key(const std::string& key) {
+  return key == "schema" || key == "config" || key.rfind("config.", 0) == 0 || key == "trace.path" ||
+         key == "trace.content_hash" || key == "trace.poses" || key == "trace.poses_duration_s";
+}
+
+namespace {
+
+std::string compare_note_value(const json* v) {
+  if (!v) return "(absent)";
+  return v->is_string() ? v->get<std::string>() : v->dump();
+}
+
+// "path (hash, N poses, D s)" of a summary's trace, from what it has.
+std::string compare_trace_identity(const json& t) {
+  std::string out = t.contains("path") && t["path"].is_string() && !t["path"].get<std::string>().empty()
+                        ? t["path"].get<std::string>()
+                        : "'" + compare_note_value(t.contains("name") ? &t["name"] : nullptr) + "'";
+  std::vector<std::string> parts;
+  if (t.contains("content_hash") && t["content_hash"].is_string()) parts.push_back(t["content_hash"].get<std::string>());
+  if (t.contains("poses")) parts.push_back(compare_note_value(&t["poses"]) + " poses");
+  if (t.contains("poses_duration_s") && t["poses_duration_s"].is_number())
+    parts.push_back(fmt::format("{:.6g} s", t["poses_duration_s"].get<double>()));
+  for (std::size_t i = 0; i < parts.size(); ++i) out += (i ? ", " : " (") + parts[i] + (i + 1 == parts.size() ? ")" : "");
+  return out;
+}
+
+// The notes of a summary comparison (CompareReport::notes).
+std::vector<std::string> summary_notes(const json& base, const json& now, const CompareOptions& opt) {
+  std::vector<std::string> notes;
+  if (base.contains("schema") != now.contains("schema"))
+    notes.push_back(fmt::format("the {} summary has no schema (written before {}): it lacks the run's identity", 
+                                base.contains("schema") ? "new" : "base", kSummarySchema));
+  // Configs: every key, defaults included, so any difference is a real one.
+  const json* bc = base.contains("config") && base["config"].is_object() ? &base["config"] : nullptr;
+  const json* nc = now.contains("config") && now["config"].is_object() ? &now["config"] : nullptr;
+  if (bc && nc) {
+    std::vector<std::string> diffs;
+    std::map<std::string, int> keys;
+    for (const auto& [k, v] : bc->items()) keys[k] |= 1;
+    for (const auto& [k, v] : nc->items()) keys[k] |= 2;
+    for (const auto& [k, sides] : keys) {
+      const json* b = sides & 1 ? &(*bc)[k] : nullptr;
+      const json* n = sides & 2 ? &(*nc)[k] : nullptr;
+      if (b && n && *b == *n) continue;
+      diffs.push_back(fmt::format("{} ({} -> {})", k, compare_note_value(b), compare_note_value(n)));
+    }
+    constexpr std::size_t kShown = 12;  // a sweep-sized difference: the first ones and a count
+    if (!diffs.empty()) {
+      std::string list;
+      for (std::size_t i = 0; i < diffs.size() && i < kShown; ++i) list += (i ? ", " : "") + diffs[i];
+      if (diffs.size() > kShown) list += fmt::format(" and {} more", diffs.size() - kShown);
+      notes.push_back(fmt::format("the two runs' configs differ in {} key{}: {}", diffs.size(), diffs.size() == 1 ? "" : "s", list));
+    }
+  } else if (bc || nc) {
+    notes.push_back(fmt::format("the {} summary records no config: whether the configs differ is unknown", bc ? "new" : "base"));
+  }
+  // Traces: by content when both have a hash, else by what both record.
+  const json& bt = base["trace"];
+  const json& nt = now["trace"];
+  if (bt.is_object() && nt.is_object()) {
+    const auto field = [](const json& t, const char* k) { return t.contains(k) ? t[k] : json(); };
+    const json bh = field(bt, "content_hash"), nh = field(nt, "content_hash");
+    bool differ;
+    if (bh.is_string() && nh.is_string()) differ = bh != nh;
+    else differ = field(bt, "name") != field(nt, "name") || field(bt, "poses") != field(nt, "poses") ||
+                  field(bt, "poses_duration_s") != field(nt, "poses_duration_s");
+    if (differ)
+      notes.push_back(fmt::format("the two runs' traces differ: base {}, new {}", compare_trace_identity(bt), compare_trace_identity(nt)));
+  }
+  const auto real = [](const json& d) { return d.contains("clock") && d["clock"] == "real"; };
+  if (real(base) || real(now))
+    notes.push_back("a real-clock run: its latency, pop-in and bandwidth were measured in wall-clock time and move between "
+                    "runs; compare them with a --tolerances file (docs/compare.md)");
+  if (!opt.wall_clock && (base.contains("run") || base.contains("real_clock")))
+    notes.push_back("wall-clock sections (run.*, real_clock.*) not compared; --wall-clock compares them within 25%");
+  return notes;
+}
+
+}  // namespace
+
 CompareReport compare_documents(const json& base, const std::string& base_path, const json& now, const std::string& new_path,
                                 const CompareOptions& opt) {
   CompareReport r;
@@ -543,6 +668,7 @@ CompareReport compare_documents(const json& base, const std::string& base_path, 
     w.walk(key_bench_results(base, base_path), key_bench_results(now, new_path), "", Better::auto_);
   } else {
     w.walk(base, now, "", Better::auto_);
+    r.notes = summary_notes(base, now, opt);
   }
   return r;
 }
@@ -613,6 +739,7 @@ std::string format_report(const CompareReport& r, bool all, bool strict) {
   } else {
     out += "  no differences\n";
   }
+  for (const auto& n : r.notes) out += "note: " + n + "\n";
   out += fmt::format("{}: {} worse, {} changed, {} better, {} within tolerance, {} info, {} added, {} removed, {} same, "
                      "{} ignored ({} keys{})\n",
                      result_word(r, strict), r.count(Verdict::worse), r.count(Verdict::changed), r.count(Verdict::better),
@@ -641,7 +768,7 @@ json report_json(const CompareReport& r, bool all, bool strict) {
     counts[name] = r.count(v);
   }
   return {{"base", r.base_path}, {"new", r.new_path}, {"kind", to_string(r.kind)}, {"strict", strict},
-          {"result", r.failed(strict) ? "regression" : "ok"}, {"counts", counts}, {"rows", rows}};
+          {"result", r.failed(strict) ? "regression" : "ok"}, {"counts", counts}, {"notes", r.notes}, {"rows", rows}};
 }
 
 }  // namespace vtsim

@@ -47,10 +47,22 @@ struct ToleranceRule {
 enum class DocKind { summary, bench };
 const char* to_string(DocKind k);
 
-// The built-in rules of a document kind (docs/compare.md lists them): summaries exact except the
-// run's own cost (`run.*`, relative 25% bands); benchmarks: medians and ratios within 15%, the
-// samples and spreads ignored; provenance (version, git, time, machine, trace name) ignored.
-std::vector<ToleranceRule> default_tolerances(DocKind kind);
+// The built-in rules of a document kind (docs/compare.md lists them): summaries exact (floats
+// within kFloatRel/kFloatAbs), the wall-clock sections (`run.*`, `real_clock.*`) ignored unless
+// `wall_clock` (then relative 25% bands), the run's identity (config.*, the trace's path, hash and
+// poses) info; benchmarks: medians and ratios within 15%, the samples and spreads ignored;
+// provenance (version, commit, time, machine, trace name) ignored.
+std::vector<ToleranceRule> default_tolerances(DocKind kind, bool wall_clock = false);
+
+// Floats (a JSON number with a fraction or exponent on either side) pass when
+// |new − base| <= max(kFloatAbs, kFloatRel·|base|) unless a rule allows more; integers compare
+// exactly. Why these values: a simulated run is bit-for-bit reproducible on one build, but another
+// compiler or summation order moves a double's last bits (+4e-17 on a blurry fraction); a sum of n
+// doubles can drift by ~n·2^-53 relative, which stays under 1e-9 up to 10^7 terms, while no metric
+// means anything at 1e-9 of its value (one sample in 10^9). kFloatAbs covers a value near 0,
+// where a relative band is empty: 1e-12 of any unit the summaries use (ms, MB/s, fraction, levels).
+inline constexpr double kFloatRel = 1e-9;
+inline constexpr double kFloatAbs = 1e-12;
 
 // Rules from a TOML file: each table is a key pattern with fields abs, rel (numbers >= 0), better
 // (string) and ignore (bool):   ["latency_ms.*"]  rel = 0.05  better = "lower"
@@ -69,8 +81,9 @@ Tolerance resolve_tolerance(const std::vector<ToleranceRule>& user, const std::v
 // Reads and parses a JSON file; throws InputError(path, ...) when unreadable or not JSON.
 nlohmann::json load_json_file(const std::string& path);
 
-// The kind of a document: "schema": "vtsim-bench/1" is a benchmark; an object with
-// "vtsim_version" and no "schema" a replay summary. Throws InputError(path, ...) otherwise.
+// The kind of a document: "schema": "vtsim-bench/1" is a benchmark, "vtsim-summary/1" a replay
+// summary (as is an object with "vtsim_version" and no "schema": a summary from before the schema).
+// Throws InputError(path, ...) otherwise.
 DocKind detect_kind(const nlohmann::json& doc, const std::string& path);
 
 enum class Verdict {
@@ -96,28 +109,38 @@ struct MetricDiff {
 };
 
 struct CompareOptions {
-  std::vector<ToleranceRule> rules;  // consulted before default_tolerances(kind)
+  std::vector<ToleranceRule> rules;  // consulted before default_tolerances(kind, wall_clock)
   bool strict = false;               // improvements, added and removed keys also fail
+  bool wall_clock = false;           // also compare the wall-clock sections (run.*, real_clock.*)
+  bool exact_floats = false;         // no float tolerance (kFloatRel, kFloatAbs)
 };
 
 struct CompareReport {
   DocKind kind = DocKind::summary;
   std::string base_path, new_path;
   std::vector<MetricDiff> rows;  // every leaf, base order, then keys only in the new document
+  // What a reader must know before trusting the rows: the two runs' configs or traces differ
+  // (naming the keys), a side has no config (an older summary), real-clock figures. Never fails.
+  std::vector<std::string> notes;
   std::size_t count(Verdict v) const;
   // A regression: a worse or changed row; with strict also better, added or removed rows.
   bool failed(bool strict) const;
 };
 
 // Compares two parsed documents. Throws InputError naming the file and key when they are not the
-// same kind or schema, when a key of the base (not ignored) is missing from the new document, or
+// same kind or schema (summaries: the same "vtsim-summary/N"), when a key of the base (not ignored) is missing from the new document, or
 // when a key holds different types (object, array, string, number) on the two sides.
 CompareReport compare_documents(const nlohmann::json& base, const std::string& base_path, const nlohmann::json& now,
                                 const std::string& new_path, const CompareOptions& opt);
 
-// The table a person reads: changed rows (all rows with `all`), then a one-line verdict.
+// The keys of a summary that say what the run was rather than what it measured: config.*,
+// trace.path, trace.content_hash, trace.poses, trace.poses_duration_s. A difference is reported
+// (info and a note), never a regression; one side lacking such a key is not an error.
+bool is_identity_key(const std::string& key);
+
+// The table a person reads: changed rows (all rows with `all`), the notes, then a one-line verdict.
 std::string format_report(const CompareReport& r, bool all, bool strict);
-// The same as JSON: {"base","new","kind","result","counts",rows:[{key,base,new,delta,rel,...}]}.
+// The same as JSON: {"base","new","kind","result","counts","notes",rows:[{key,base,new,delta,rel,...}]}.
 nlohmann::json report_json(const CompareReport& r, bool all, bool strict);
 
 }  // namespace vtsim

@@ -11,6 +11,7 @@
 #include "core/camera.h"
 #include "core/error.h"
 #include "sim/run/cache_bounds.h"
+#include "sim/run/provenance.h"
 #include "sim/run/render_ahead.h"
 #include "sim/run/systems.h"
 #include "sim/trace/trace_resample.h"
@@ -56,6 +57,8 @@ FramePlan plan_frames(const ReplayConfig& cfg, const Trace& trace_in) {
   if (trace_in.poses.empty()) throw InputError(trace_in.name, "the trace has no poses");
   FramePlan p;
   p.trace = cfg.run.fps > 0 ? resample(trace_in, cfg.run.fps) : trace_in;
+  p.input_poses = trace_in.poses.size();
+  p.input_duration_s = trace_in.poses.back().t_s - trace_in.poses.front().t_s;
   p.frames = static_cast<int>(p.trace.poses.size());
   if (p.frames == 0) throw InputError(trace_in.name, "the trace has no poses");
   const auto& poses = p.trace.poses;
@@ -363,10 +366,17 @@ ReplayResult SystemRun::summarize(const RunCost& cost) {
   const double duration_s = plan_.duration_s;
   const auto MBps = [&](std::uint64_t bytes) { return static_cast<double>(bytes) / duration_s / 1e6; };
   nlohmann::json& s = res_.summary;
-  s["vtsim_version"] = VTSIM_VERSION;
+  // What the run was (docs/metrics.md): the schema, the build, the effective config, the trace.
+  s["schema"] = kSummarySchema;
+  s["provenance"] = build_json();
+  s["config"] = config_json(cfg_);
   s["system"] = cfg_.run.system;
   s["clock"] = env_.clock_name;
   s["trace"] = {{"name", plan_.trace.name},
+                {"path", plan_.trace.source_path},
+                {"content_hash", trace_hash_json(plan_.trace)},
+                {"poses", plan_.input_poses},
+                {"poses_duration_s", plan_.input_duration_s},
                 {"frames", plan_.frames},
                 {"duration_s", duration_s},
                 {"fps", 1.0 / plan_.period_s},

@@ -78,6 +78,8 @@ struct ReplayResult {
 // The frames of a replay.
 struct FramePlan {
   Trace trace;                     // resampled to run.fps (as given for run.fps = 0)
+  std::size_t input_poses = 0;     // poses of the trace as given, before resampling
+  double input_duration_s = 0.0;   // its last pose time − its first, s
   int frames = 0;
   double t0_s = 0.0;               // trace time of frame 0
   double period_s = 1.0 / 60.0;    // frame period (run.fps = 0: the trace's mean)

@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "core/host_memory.h"
+#include "sim/run/provenance.h"
 #include "sim/run/systems.h"
 #include "sim/view/scene.h"
 #include "sim/trace/trace_io.h"
@@ -226,6 +227,7 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
   }
   rc["injected_faults"] = {{"io_error", inj.io_error}, {"short_read", inj.short_read}, {"checksum", inj.checksum}, {"slow", inj.slow}};
   rc["fault_examples"] = exec.fault_examples();
+  run.result.summary["provenance"]["machine"] = machine_json();  // what the real-clock figures measured
   return run;
 }
 

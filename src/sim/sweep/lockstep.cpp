@@ -264,7 +264,10 @@ std::vector<LockstepResult> run_lockstep(const std::vector<const ReplayConfig*>&
     }
     try {
       ReplayResult r = runs[i]->summarize(RunCost{});
+      // The run's cost and the build are not the row's: sweep.json records the build once
+      // (docs/sweep.md), so rows stay byte-identical across builds and machines.
       r.summary.erase("run");
+      r.summary.erase("provenance");
       out[i].summary = std::move(r.summary);
       out[i].ok = true;
     } catch (const std::exception& e) {

@@ -19,7 +19,9 @@
 #include <vector>
 
 #include "core/error.h"
+#include "core/hash.h"
 #include "core/input_file.h"
+#include "sim/run/provenance.h"
 #include "sim/run/replay.h"
 #include "sim/sweep/lockstep.h"
 #include "sim/sweep/sweep_report.h"
@@ -226,7 +228,7 @@ void write_joined(nlohmann::json meta, std::vector<nlohmann::json> rows, const f
   write_atomic(out / "rows.jsonl", jsonl);
   write_atomic(out / "rows.csv", rows_csv(meta, rows));
   write_atomic(out / "report.html", sweep_report_html(meta, rows));
-  nlohmann::json s = {{"schema", kSchema}, {"meta", meta}, {"cost", cost}};
+  nlohmann::json s = {{"schema", kSchema}, {"provenance", build_json()}, {"meta", meta}, {"cost", cost}};
   write_atomic(out / "sweep.json", s.dump(2) + "\n");
 }
 

@@ -123,11 +123,6 @@ const nlohmann::json* summary_path(const nlohmann::json& summary, std::string_vi
   }
 }
 
-std::uint64_t fnv1a64(std::string_view bytes, std::uint64_t h) {
-  for (const unsigned char c : bytes) h = (h ^ c) * 0x100000001b3ull;
-  return h;
-}
-
 const std::vector<std::string>& default_sweep_metrics() {
   static const std::vector<std::string> m = {
       "popin.blurry_fraction_mean", "popin.blurry_fraction_p99", "popin.time_to_sharp_s.mean",

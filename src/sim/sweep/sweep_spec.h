@@ -97,7 +97,5 @@ Trace load_sweep_trace(const SweepTraceSource& src, std::vector<std::string>* wa
 // and tune's constraints all read metrics through it.
 const nlohmann::json* summary_path(const nlohmann::json& summary, std::string_view dotted);
 
-// 64-bit FNV-1a, for identities (spec hash, trace content), not for security.
-std::uint64_t fnv1a64(std::string_view bytes, std::uint64_t h = 0xcbf29ce484222325ull);
 
 }  // namespace vtsim

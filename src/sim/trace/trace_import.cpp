@@ -4,10 +4,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <string_view>
 #include <stdexcept>
 #include <vector>
 
 #include "core/error.h"
+#include "core/hash.h"
 #include "sim/trace/impl/format_common.h"
 #include "sim/trace/trace_text.h"
 
@@ -129,13 +132,38 @@ Trace import_trace(const std::string& path, const ImportOptions& options, TraceL
   return s.trace;
 }
 
+namespace {
+
+// FNV-1a 64 of a file's bytes, read in 1 MiB blocks; 0 when it cannot be read again (the loader
+// has already reported what was wrong with it).
+std::uint64_t trace_import_file_hash(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return 0;
+  std::uint64_t h = fnv1a64({});
+  std::vector<char> buf(1 << 20);
+  while (in) {
+    in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+    h = fnv1a64(std::string_view(buf.data(), static_cast<std::size_t>(in.gcount())), h);
+  }
+  return in.eof() ? h : 0;
+}
+
+}  // namespace
+
 Trace load_any_trace(const std::string& path, const TraceReadOptions& read, TraceLoadReport* report) {
   const std::string format = detect_trace_format(path, read.limits);
-  if (format == "native") return load_trace(path, read, report);
-  ImportOptions o;
-  o.format = format;
-  o.read = read;
-  return import_trace(path, o, report);
+  Trace t;
+  if (format == "native") {
+    t = load_trace(path, read, report);
+  } else {
+    ImportOptions o;
+    o.format = format;
+    o.read = read;
+    t = import_trace(path, o, report);
+  }
+  t.source_path = path;
+  t.source_hash = trace_import_file_hash(path);
+  return t;
 }
 
 }  // namespace vtsim

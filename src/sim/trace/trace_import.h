@@ -62,6 +62,7 @@ Trace import_trace(const std::string& path, const ImportOptions& options = {},
                    TraceLoadReport* report = nullptr);
 
 // Native files exactly as stored (load_trace); other formats through import_trace with defaults.
+// Sets the trace's source_path (path) and source_hash (FNV-1a 64 of the file's bytes).
 Trace load_any_trace(const std::string& path, const TraceReadOptions& read = {},
                      TraceLoadReport* report = nullptr);
 

@@ -70,6 +70,8 @@ Trace resample(const Trace& in, const ResampleOptions& o, ResampleReport* report
   out.image_width = in.image_width;
   out.image_height = in.image_height;
   out.name = in.name;
+  out.source_path = in.source_path;
+  out.source_hash = in.source_hash;
   out.poses.reserve(static_cast<std::size_t>(last_k + 1));
   std::size_t j = 0;  // ps[j].t_s <= t < ps[j + 1].t_s
   for (std::int64_t k = 0; k <= last_k; ++k) {

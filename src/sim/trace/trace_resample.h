@@ -32,7 +32,7 @@ inline constexpr std::int64_t kMaxTraceFrames = 20'000'000;
 
 // Output frame k (k = 0..K) is at t_first + k / fps (closed form, no accumulated sum), where
 // K = floor((t_last - t_first) * fps + 1e-6): the last frame is the last one not after t_last
-// (within 1e-6 of a frame). Image size and name are kept. The input must satisfy validate_trace.
+// (within 1e-6 of a frame). Image size, name and source (path, hash) are kept. The input must satisfy validate_trace.
 // Throws InputError for bad options, too many frames, or a gap under GapPolicy::error.
 Trace resample(const Trace& in, const ResampleOptions& options, ResampleReport* report = nullptr);
 inline Trace resample(const Trace& in, double fps) {
