@@ -1,0 +1,57 @@
+#!/usr/bin/env bash
+# ctest report_browser (label browser): the HTML reports rendered in headless Chromium. Writes a
+# replay report of each system (clipmap, vt) and a `vtsim report` of both runs, opens each with
+# `?check` (report_check_script in src/sim/run/report_html.h measures every chart text's bounding
+# box in the DOM) and fails on overlapping texts, a text outside its chart, or a console error;
+# writes a full-page screenshot of each next to it, for a person to open:
+#   WORKDIR/{clipmap,vt,runs}.html and .png
+# Exit 77 (skipped) when chromium is missing and cannot be installed (scripts/test.sh installs
+# Debian's chromium as root).
+#   tests/browser/report_browser.sh VTSIM SRCDIR WORKDIR
+set -euo pipefail
+[ $# -eq 3 ] || { echo "usage: $0 VTSIM SRCDIR WORKDIR" >&2; exit 2; }
+vtsim=$(realpath "$1")
+src=$(cd "$2" && pwd)
+mkdir -p "$3"
+work=$(cd "$3" && pwd)
+browser=$(command -v chromium || command -v chromium-browser || true)
+if [ -z "$browser" ]; then
+  echo "report_browser: chromium is not installed (scripts/test.sh installs it as root); skipped" >&2
+  exit 77
+fi
+# A profile of its own: no first-run state, no lock shared with another chromium.
+profile=$work/profile
+rm -rf "$profile"
+run_browser() {
+  timeout 120 "$browser" --headless --disable-gpu --no-sandbox --no-first-run --disable-extensions \
+    --user-data-dir="$profile" --hide-scrollbars --virtual-time-budget=5000 "$@" 2>>"$work/chromium.log"
+}
+
+# The default walk: a report of each system, and the two side by side.
+"$vtsim" replay -t "$src/traces/walk.csv" --summary "$work/clipmap.json" --report "$work/clipmap.html" -q
+"$vtsim" replay -t "$src/traces/walk.csv" --system vt --summary "$work/vt.json" --report "$work/vt.html" -q
+"$vtsim" report "$work/clipmap.json" "$work/vt.json" --names clipmap,vt -o "$work/runs.html"
+
+fail=0
+for page in clipmap vt runs; do
+  html=$work/$page.html
+  dom=$(run_browser --dump-dom "file://$html?check")
+  result=$(printf '%s\n' "$dom" | sed -n '/<pre id="vtsim-check">/,/<\/pre>/p' | sed -e 's/<pre id="vtsim-check">//' -e 's/<\/pre>.*//')
+  first=$(printf '%s\n' "$result" | head -n 1)
+  if [[ $first != VTSIM-CHECK* ]]; then
+    echo "report_browser: $page.html: the check script left no result (see $work/chromium.log)" >&2
+    fail=1
+    continue
+  fi
+  echo "$page.html: $first"
+  charts=$(sed -n 's/.*charts=\([0-9]*\).*/\1/p' <<<"$first")
+  if [[ $first != *" overlaps=0 console_errors=0"* ]] || [ "${charts:-0}" -lt 3 ]; then
+    printf '%s\n' "$result" | sed 's/^/  /' >&2
+    fail=1
+  fi
+  height=$(( charts * 180 + 1400 ))
+  run_browser --screenshot="$work/$page.png" --window-size=1400,"$height" "file://$html" >/dev/null
+  [ -s "$work/$page.png" ] || { echo "report_browser: no screenshot $work/$page.png" >&2; fail=1; }
+done
+[ "$fail" -eq 0 ] && echo "report_browser: screenshots in $work/*.png"
+exit "$fail"
