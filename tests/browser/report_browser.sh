@@ -32,8 +32,12 @@ run_browser() {
 "$vtsim" replay -t "$src/traces/walk.csv" --system vt --summary "$work/vt.json" --report "$work/vt.html" -q
 "$vtsim" report "$work/clipmap.json" "$work/vt.json" --names clipmap,vt -o "$work/runs.html"
 
+# The checker itself: a page with two overlapping texts and a console error must fail it.
+sed -e 's|</body>|<svg class="chart" width="200" height="40" aria-label="bad"><text x="5" y="20">overlapping</text><text x="9" y="22">texts</text></svg><script>console.error("planted")</script></body>|' \
+  "$work/runs.html" >"$work/planted.html"
+
 fail=0
-for page in clipmap vt runs; do
+for page in planted clipmap vt runs; do
   html=$work/$page.html
   dom=$(run_browser --dump-dom "file://$html?check")
   result=$(printf '%s\n' "$dom" | sed -n '/<pre id="vtsim-check">/,/<\/pre>/p' | sed -e 's/<pre id="vtsim-check">//' -e 's/<\/pre>.*//')
@@ -44,12 +48,19 @@ for page in clipmap vt runs; do
     continue
   fi
   echo "$page.html: $first"
+  if [ "$page" = planted ]; then
+    if [[ $first != *" overlaps=1 console_errors=1"* ]]; then
+      echo "report_browser: the check missed the planted overlap or console error: $first" >&2
+      fail=1
+    fi
+    continue
+  fi
   charts=$(sed -n 's/.*charts=\([0-9]*\).*/\1/p' <<<"$first")
   if [[ $first != *" overlaps=0 console_errors=0"* ]] || [ "${charts:-0}" -lt 3 ]; then
     printf '%s\n' "$result" | sed 's/^/  /' >&2
     fail=1
   fi
-  height=$(( charts * 180 + 1400 ))
+  height=$(( charts * 130 + 1000 ))
   run_browser --screenshot="$work/$page.png" --window-size=1400,"$height" "file://$html" >/dev/null
   [ -s "$work/$page.png" ] || { echo "report_browser: no screenshot $work/$page.png" >&2; fail=1; }
 done

@@ -266,7 +266,7 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m, cons
   std::sort(lat.begin(), lat.end());
   if (!lat.empty()) {
     const ChartScale xs = robust_scale(lat);
-    std::vector<double> x, y;
+    std::vector<double> x{0.0}, y{0.0};  // the axis starts at 0 ms
     for (std::size_t i = 0; i < lat.size() && lat[i] <= xs.hi; ++i) {
       x.push_back(lat[i]);
       y.push_back(100.0 * static_cast<double>(i + 1) / static_cast<double>(lat.size()));

@@ -139,9 +139,9 @@ ChartScale robust_scale(std::vector<double> values) {
   if (values.empty()) return nice_scale(0, 1);
   std::sort(values.begin(), values.end());
   const double lo = std::min(0.0, values.front()), max = values.back();
-  const double p98 = svgc_percentile(values, 0.98);
+  const double p95 = svgc_percentile(values, 0.95);
   double hi = max;
-  if (p98 > 0 && max > 2 * p98) hi = 1.25 * p98;
+  if (p95 > 0 && max > 2 * p95) hi = 1.25 * p95;
   ChartScale sc = nice_scale(lo, hi);
   sc.max = max;
   sc.clipped = max > sc.hi * (1 + 1e-9);
@@ -242,7 +242,7 @@ std::string time_chart_svg(const TimeChart& c, double W) {
   double h = T + PH + 22 + lg_h;
   if (ys.clipped) {
     lg += svgc_text(8, h + 14,
-                    fmt::format("▲ off the scale: max {} {} at {} {} (the scale fits 98 % of the values; docs/report.md)",
+                    fmt::format("▲ off the scale: max {} {} at {} {} (the scale fits 95 % of the values; docs/report.md)",
                                 svgc_value(ys.max), c.y_unit, svgc_value(clip_at), c.x_unit),
                     "lgd", "start", W - 16);
     h += 18;

@@ -25,7 +25,7 @@ struct ChartScale {
 ChartScale nice_scale(double lo, double hi, int target = 4);
 
 // The scale the report uses for a series: from 0 when all values are >= 0; its top is the data's
-// maximum unless that exceeds 2× the 98th percentile (nearest rank): then the top is 1.25× that
+// maximum unless that exceeds 2× the 95th percentile (nearest rank): then the top is 1.25× that
 // percentile and `clipped` is set — a start-up spike or a cut then no longer flattens the steady
 // state to a line at 0 (issue 26 §3: 3.8 MB/s on a 0–500 axis).
 ChartScale robust_scale(std::vector<double> values);
