@@ -3,12 +3,15 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
 #include "sim/run/report_html.h"
 #include "sim/run/report_runs.h"
 #include "sim/run/svg_chart.h"
+#include "test_util.h"
 
 namespace {
 
@@ -124,5 +127,31 @@ TEST_SUITE("report") {
     nlohmann::json s2 = s;
     s2["config"] = {{"upload", {{"tiles_per_frame", 8}}}};
     CHECK(report_test_contains(vtsim::html_report(s2, m), "upload.tiles_per_frame = 8"));
+  }
+
+  TEST_CASE("vtsim report: runs side by side; bad inputs exit 2 naming the file or flag") {
+    const std::string dir = std::filesystem::temp_directory_path().string() + "/vtsim_report_cli";
+    std::filesystem::create_directories(dir);
+    const std::string a = dir + "/a.json", b = dir + "/b.json", bad = dir + "/bad.json", out = dir + "/runs.html", err = dir + "/err.txt";
+    std::ofstream(a) << R"({"vtsim_version":"x","system":"clipmap","latency_ms":{"p50":10}})";
+    std::ofstream(b) << R"({"vtsim_version":"x","system":"vt","latency_ms":{"p50":12}})";
+    std::ofstream(bad) << R"({"schema":"vtsim-bench/1"})";
+    auto r = vtsim::test::run_vtsim_capture("report " + a + " " + b + " --names one,two -o " + out, err);
+    CHECK(r.code == 0);
+    const std::string html = vtsim::test::slurp(out);
+    CHECK(report_test_contains(html, "12 (+20.0 %)"));
+    CHECK(report_test_contains(html, "<th>two</th>"));
+    r = vtsim::test::run_vtsim_capture("report " + a + " " + bad + " -o " + out, err);
+    CHECK(r.code == 2);
+    CHECK(report_test_contains(r.err, "bad.json"));
+    r = vtsim::test::run_vtsim_capture("report " + a + " " + b + " --names one -o " + out, err);
+    CHECK(r.code == 2);
+    CHECK(report_test_contains(r.err, "--names"));
+    r = vtsim::test::run_vtsim_capture("report " + a + " -o " + dir + "/no/such/dir/x.html", err);
+    CHECK(r.code == 2);
+    CHECK(report_test_contains(r.err, "-o"));
+    r = vtsim::test::run_vtsim_capture("report " + a + " -o -", err);
+    CHECK(r.code == 0);
+    CHECK(r.out.rfind("<!doctype html>", 0) == 0);
   }
 }

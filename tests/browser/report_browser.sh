@@ -29,7 +29,7 @@ run_browser() {
 
 # The default walk: a report of each system, and the two side by side.
 "$vtsim" replay -t "$src/traces/walk.csv" --summary "$work/clipmap.json" --report "$work/clipmap.html" -q
-"$vtsim" replay -t "$src/traces/walk.csv" --system vt --summary "$work/vt.json" --report "$work/vt.html" -q
+"$vtsim" replay -t "$src/traces/walk.csv" --system vt --opt --summary "$work/vt.json" --report "$work/vt.html" -q
 "$vtsim" report "$work/clipmap.json" "$work/vt.json" --names clipmap,vt -o "$work/runs.html"
 
 # The checker itself: a page with two overlapping texts and a console error must fail it.
