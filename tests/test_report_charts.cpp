@@ -90,18 +90,19 @@ TEST_SUITE("report") {
     CHECK(report_test_contains(svg, ">2</text>"));
     const nlohmann::json j = {{"a", 1}, {"b", {{"c", "x"}, {"per_level", {{{"level", 3}, {"v", 2.5}}}}}}, {"long", std::vector<int>(20, 1)}};
     const auto f = vtsim::flatten_scalars(j);
-    REQUIRE(f.size() == 3);
+    REQUIRE(f.size() == 4);  // the long array is left out
     CHECK(f[0].first == "a");
     CHECK(f[1].first == "b.c");
-    CHECK(f[2].first == "b.per_level.level3.v");
-    CHECK(f[2].second == 2.5);
+    CHECK(f[2].first == "b.per_level.level3.level");
+    CHECK(f[3].first == "b.per_level.level3.v");
+    CHECK(f[3].second == 2.5);
   }
 
   TEST_CASE("html_runs_report: every metric side by side, differences marked") {
     const nlohmann::json a = {{"vtsim_version", "1"}, {"system", "clipmap"}, {"latency_ms", {{"p50", 10.0}}}, {"config", {{"k", 1}}}};
     nlohmann::json b = a;
     b["latency_ms"]["p50"] = 15.0;
-    const std::string h = vtsim::html_runs_report({{"base", a}, {"new <b>", b}});
+    const std::string h = vtsim::html_runs_report({{"base", a, {}}, {"new <b>", b, {}}});
     CHECK(report_test_contains(h, "new &lt;b&gt;"));
     CHECK(report_test_contains(h, "<tr class=\"diff\"><th>latency_ms.p50</th>"));
     CHECK(report_test_contains(h, "15 (+50.0 %)"));
@@ -122,7 +123,7 @@ TEST_SUITE("report") {
     const std::string h = vtsim::html_report(s, m, {{"upload.tiles_per_frame", "16"}, {"disk.preset", "\"hdd\""}});
     CHECK(report_test_contains(h, "budget (upload.tiles_per_frame)"));
     CHECK(report_test_contains(h, "disk.preset = &quot;hdd&quot;"));
-    CHECK(report_test_contains(h, "id=\"vtsim-check\""));  // the check script is there
+    CHECK(report_test_contains(h, "out.id = 'vtsim-check'"));  // the check script is there
     // Without a config argument, the summary's own "config" object is used.
     nlohmann::json s2 = s;
     s2["config"] = {{"upload", {{"tiles_per_frame", 8}}}};
@@ -150,6 +151,17 @@ TEST_SUITE("report") {
     r = vtsim::test::run_vtsim_capture("report " + a + " -o " + dir + "/no/such/dir/x.html", err);
     CHECK(r.code == 2);
     CHECK(report_test_contains(r.err, "-o"));
+    // Frames CSVs add charts over time; a bad one is refused naming its line.
+    const std::string fa = dir + "/a.csv", fb = dir + "/b.csv";
+    std::ofstream(fa) << "frame,t_s,disk_bytes,upload_bytes,blurry_fraction,ram_bytes\n0,0,100,100,0.5,1048576\n1,0.1,0,0,0.25,2097152\n";
+    std::ofstream(fb) << "t_s,disk_bytes,upload_bytes,blurry_fraction,ram_bytes\n0,1,1,0.5,0\n0.1,x,1,0.5,0\n";
+    r = vtsim::test::run_vtsim_capture("report " + a + " " + b + " --frames " + fa + "," + fa + " -o " + out, err);
+    CHECK(r.code == 0);
+    CHECK(report_test_contains(vtsim::test::slurp(out), "aria-label=\"RAM cache occupancy\""));
+    r = vtsim::test::run_vtsim_capture("report " + a + " " + b + " --frames " + fa + "," + fb + " -o " + out, err);
+    CHECK(r.code == 2);
+    CHECK(report_test_contains(r.err, "b.csv:3"));
+    CHECK(report_test_contains(r.err, "disk_bytes"));
     r = vtsim::test::run_vtsim_capture("report " + a + " -o -", err);
     CHECK(r.code == 0);
     CHECK(r.out.rfind("<!doctype html>", 0) == 0);

@@ -19,6 +19,7 @@ namespace {
 struct ReportArgs {
   std::vector<std::string> runs;
   std::vector<std::string> names;
+  std::vector<std::string> frames;
   std::string out;
 };
 
@@ -34,6 +35,9 @@ void run_report_command(const ReportArgs& a) {
   if (a.runs.empty()) throw InputError("RUN.json", "give at least one replay summary (vtsim replay --summary FILE)");
   if (!a.names.empty() && a.names.size() != a.runs.size())
     throw InputError("--names", fmt::format("{} names for {} runs: give one name per run, in order", a.names.size(), a.runs.size()));
+  if (!a.frames.empty() && a.frames.size() != a.runs.size())
+    throw InputError("--frames", fmt::format("{} frames CSVs for {} runs: give one per run, in order", a.frames.size(),
+                                             a.runs.size()));
   if (a.out.empty()) throw InputError("-o", "an output file is required (-o report.html, or -o - for stdout)");
   std::unique_ptr<FILE, int (*)(FILE*)> f(nullptr, &std::fclose);
   if (a.out != "-") {  // opened before reading the runs: a bad path fails first
@@ -45,7 +49,8 @@ void run_report_command(const ReportArgs& a) {
     nlohmann::json s = load_json_file(a.runs[i]);
     if (!s.is_object() || !(s.contains("vtsim_version") || s.contains("latency_ms")))
       throw InputError(a.runs[i], "not a replay summary (no \"vtsim_version\" or \"latency_ms\"; write one with vtsim replay --summary)");
-    runs.push_back({a.names.empty() ? report_run_name(a.runs[i]) : a.names[i], std::move(s)});
+    runs.push_back({a.names.empty() ? report_run_name(a.runs[i]) : a.names[i], std::move(s), {}});
+    if (!a.frames.empty() && !a.frames[i].empty()) runs.back().frames = read_run_frames(a.frames[i]);
   }
   // Names that repeat (every file called summary.json) get their directory back.
   for (std::size_t i = 0; i < runs.size() && a.names.empty(); ++i)
@@ -71,6 +76,8 @@ void register_report_commands(CLI::App& app) {
   c->add_option("runs", a->runs, "summary JSON files (vtsim replay --summary FILE), the first is the reference")->required();
   c->add_option("-o,--out", a->out, "write the HTML page here (- for stdout)")->required();
   c->add_option("--names", a->names, "a name per run for legends and columns (default: the file names)")->delimiter(',');
+  c->add_option("--frames", a->frames, "each run's frames CSV (vtsim replay --frames), comma separated, one per run: adds charts "
+                                       "over time")->delimiter(',');
   c->callback([a] { run_report_command(*a); });
 }
 

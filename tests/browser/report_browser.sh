@@ -28,9 +28,9 @@ run_browser() {
 }
 
 # The default walk: a report of each system, and the two side by side.
-"$vtsim" replay -t "$src/traces/walk.csv" --summary "$work/clipmap.json" --report "$work/clipmap.html" -q
-"$vtsim" replay -t "$src/traces/walk.csv" --system vt --opt --summary "$work/vt.json" --report "$work/vt.html" -q
-"$vtsim" report "$work/clipmap.json" "$work/vt.json" --names clipmap,vt -o "$work/runs.html"
+"$vtsim" replay -t "$src/traces/walk.csv" --summary "$work/clipmap.json" --frames "$work/clipmap.csv" --report "$work/clipmap.html" -q
+"$vtsim" replay -t "$src/traces/walk.csv" --system vt --opt --summary "$work/vt.json" --frames "$work/vt.csv" --report "$work/vt.html" -q
+"$vtsim" report "$work/clipmap.json" "$work/vt.json" --names clipmap,vt --frames "$work/clipmap.csv,$work/vt.csv" -o "$work/runs.html"
 
 # The checker itself: a page with two overlapping texts and a console error must fail it.
 sed -e 's|</body>|<svg class="chart" width="200" height="40" aria-label="bad"><text x="5" y="20">overlapping</text><text x="9" y="22">texts</text></svg><script>console.error("planted")</script></body>|' \

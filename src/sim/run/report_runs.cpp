@@ -3,11 +3,15 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
+#include <fstream>
 #include <map>
 #include <set>
+#include <string_view>
 #include <utility>
 
+#include "core/error.h"
 #include "sim/run/report_html.h"
 #include "sim/run/svg_chart.h"
 
@@ -47,7 +51,81 @@ std::string rr_cell(const nlohmann::json& v) {
   return v.dump();
 }
 
+std::vector<std::string_view> rr_split(std::string_view line) {
+  std::vector<std::string_view> out;
+  std::size_t start = 0;
+  for (std::size_t i = 0; i <= line.size(); ++i)
+    if (i == line.size() || line[i] == ',') {
+      out.push_back(line.substr(start, i - start));
+      start = i + 1;
+    }
+  return out;
+}
+
+// A series sampled at times `at`: the value of the last frame at or before each time (the first
+// frame's before it starts); empty when the run has no frames.
+std::vector<double> rr_resample(const std::vector<double>& t, const std::vector<double>& v, const std::vector<double>& at) {
+  std::vector<double> out;
+  if (t.empty()) return out;
+  for (double x : at) {
+    const auto it = std::upper_bound(t.begin(), t.end(), x + 1e-9);
+    out.push_back(v[it == t.begin() ? 0 : static_cast<std::size_t>(it - t.begin()) - 1]);
+  }
+  return out;
+}
+
+// Bytes per frame as MB/s, 0.25 s moving average (as the replay report).
+std::vector<double> rr_rate(const std::vector<double>& t, const std::vector<double>& bytes) {
+  std::vector<double> out;
+  double sum = 0;
+  std::size_t first = 0;
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    sum += bytes[i];
+    while (first < i && t[i] - t[first] >= 0.25 - 1e-9) sum -= bytes[first++];
+    const double span = i > first ? t[i] - t[first] + (t[i] - t[i - 1]) : (i > 0 ? t[i] - t[i - 1] : 0.0);
+    out.push_back(span > 0 ? sum / span / 1e6 : 0.0);
+  }
+  return out;
+}
+
 }  // namespace
+
+RunFrames read_run_frames(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, "cannot open the frames CSV");
+  std::string line;
+  if (!std::getline(in, line)) throw InputError(path, "empty: expected the header of `vtsim replay --frames`");
+  if (!line.empty() && line.back() == '\r') line.pop_back();
+  const std::vector<std::string_view> head = rr_split(line);
+  const char* const wanted[5] = {"t_s", "disk_bytes", "upload_bytes", "blurry_fraction", "ram_bytes"};
+  std::size_t col[5];
+  for (int k = 0; k < 5; ++k) {
+    const auto it = std::find(head.begin(), head.end(), std::string_view(wanted[k]));
+    if (it == head.end()) throw InputError(path, std::string("no column '") + wanted[k] + "' (write it with vtsim replay --frames)");
+    col[k] = static_cast<std::size_t>(it - head.begin());
+  }
+  RunFrames f;
+  std::vector<double>* dest[5] = {&f.t_s, &f.disk_bytes, &f.upload_bytes, &f.blurry, &f.ram_bytes};
+  long long n = 1;
+  while (std::getline(in, line)) {
+    ++n;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty()) continue;
+    const std::vector<std::string_view> cells = rr_split(line);
+    for (int k = 0; k < 5; ++k) {
+      if (col[k] >= cells.size()) throw InputError(at_line(path, n), std::string("no value in column '") + wanted[k] + "'");
+      double v = 0;
+      const std::string_view c = cells[col[k]];
+      const auto [p, ec] = std::from_chars(c.data(), c.data() + c.size(), v);
+      if (ec != std::errc() || p != c.data() + c.size() || !std::isfinite(v))
+        throw InputError(at_line(path, n), std::string("column '") + wanted[k] + "': '" + std::string(c.substr(0, 40)) + "' is not a number");
+      dest[k]->push_back(v);
+    }
+    if (f.t_s.size() > 1 && f.t_s.back() < f.t_s[f.t_s.size() - 2])
+      throw InputError(at_line(path, n), "column 't_s': time goes backwards");
+  }
+  return f;
+}
 
 std::vector<std::pair<std::string, nlohmann::json>> flatten_scalars(const nlohmann::json& j, std::size_t max_array) {
   std::vector<std::pair<std::string, nlohmann::json>> out;
@@ -124,6 +202,25 @@ std::string html_runs_report(const std::vector<ReportRun>& runs) {
     }
   }
   h += "</div>\n";
+  // Over time, when frames CSVs were given: every run on the time axis of the first run with frames.
+  const auto with_frames = std::find_if(runs.begin(), runs.end(), [](const ReportRun& r) { return !r.frames.t_s.empty(); });
+  if (with_frames != runs.end()) {
+    const std::vector<double>& at = with_frames->frames.t_s;
+    TimeChart disk{"Disk read", "0.25 s moving average, per run", "MB/s", "s", at, {}, {}, ""};
+    TimeChart blur{"Blurry fraction", "samples drawn ≥ 1 level coarser than wanted, per run", "%", "s", at, {}, {}, ""};
+    TimeChart ram{"RAM cache occupancy", "decoded tiles held in RAM, per run", "MiB", "s", at, {}, {}, "", false};
+    for (std::size_t i = 0; i < runs.size(); ++i) {
+      const RunFrames& f = runs[i].frames;
+      if (f.t_s.empty()) continue;
+      std::vector<double> pc, mib;
+      for (double v : f.blurry) pc.push_back(100 * v);
+      for (double v : f.ram_bytes) mib.push_back(v / (1024.0 * 1024.0));
+      disk.lines.push_back({runs[i].name, chart_colour(i), rr_resample(f.t_s, rr_rate(f.t_s, f.disk_bytes), at)});
+      blur.lines.push_back({runs[i].name, chart_colour(i), rr_resample(f.t_s, pc, at)});
+      ram.lines.push_back({runs[i].name, chart_colour(i), rr_resample(f.t_s, mib, at), true});
+    }
+    h += "<h2>Over time</h2>\n<div class=\"charts\">\n" + time_chart_svg(disk) + time_chart_svg(blur) + time_chart_svg(ram) + "</div>\n";
+  }
   // Every scalar, rows in first-seen order; the config rows (summary "config") first.
   std::vector<std::string> order;
   std::map<std::string, std::vector<const nlohmann::json*>> cells;

@@ -10,12 +10,27 @@
 
 namespace vtsim {
 
-struct ReportRun {
-  std::string name;      // shown in the legend and column heads (the file name by default)
-  nlohmann::json summary;  // a replay's summary.json
+// The per-frame series of a run's frames CSV (`vtsim replay --frames`) that the page charts.
+struct RunFrames {
+  std::vector<double> t_s;           // frame time, s
+  std::vector<double> disk_bytes;    // read this frame, bytes
+  std::vector<double> upload_bytes;  // uploaded this frame, bytes
+  std::vector<double> blurry;        // blurry fraction of the frame's samples, 0..1
+  std::vector<double> ram_bytes;     // RAM cache occupancy, bytes
 };
 
-// The page. Runs whose summary is not a JSON object are rejected by the caller (cmd_report).
+// Reads a frames CSV; throws InputError naming the file, and the line or column, when it cannot be
+// read, lacks one of the columns above, or holds a value that is not a finite number.
+RunFrames read_run_frames(const std::string& path);
+
+struct ReportRun {
+  std::string name;        // shown in the legend and column heads (the file name by default)
+  nlohmann::json summary;  // a replay's summary.json
+  RunFrames frames;        // empty unless given (vtsim report --frames)
+};
+
+// The page; runs with frames also get charts over time (each run on its own time axis, resampled
+// at the first such run's frame times). Runs whose summary is not a JSON object are rejected by the caller (cmd_report).
 std::string html_runs_report(const std::vector<ReportRun>& runs);
 
 // Every scalar leaf of a JSON value as (dotted path, value) pairs in document order; arrays of
