@@ -60,7 +60,9 @@ for page in planted clipmap vt runs; do
     printf '%s\n' "$result" | sed 's/^/  /' >&2
     fail=1
   fi
-  height=$(( charts * 130 + 1000 ))
+  # The window holds the whole page: charts in two columns, table rows of ~21 px, the config.
+  rows=$(grep -o '<tr' "$html" | wc -l)
+  height=$(( charts * 130 + rows * 21 + 1200 ))
   run_browser --screenshot="$work/$page.png" --window-size=1400,"$height" "file://$html" >/dev/null
   [ -s "$work/$page.png" ] || { echo "report_browser: no screenshot $work/$page.png" >&2; fail=1; }
 done
