@@ -130,7 +130,7 @@ TEST_SUITE("report") {
     CHECK(report_test_contains(vtsim::html_report(s2, m), "upload.tiles_per_frame = 8"));
   }
 
-  TEST_CASE("vtsim report: runs side by side; bad inputs exit 2 naming the file or flag") {
+  TEST_CASE("vtsim report: runs side by side, bad inputs exit 2 naming the file or flag") {
     const std::string dir = std::filesystem::temp_directory_path().string() + "/vtsim_report_cli";
     std::filesystem::create_directories(dir);
     const std::string a = dir + "/a.json", b = dir + "/b.json", bad = dir + "/bad.json", out = dir + "/runs.html", err = dir + "/err.txt";
