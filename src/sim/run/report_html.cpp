@@ -213,8 +213,9 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m, cons
 
   h += "<h2>Over time</h2>\n<div class=\"charts\">\n";
   const std::string cuts = "cut / fast turn";
+  // A share: its full range, never clipped (a clipped 100 % would read as an error).
   h += time_chart_svg({"Blurry fraction", "samples drawn ≥ 1 level coarser than wanted", "%", "s", t, {{"blurry", chart_colour(1), blurry}},
-                       events, cuts});
+                       events, cuts, false});
   h += time_chart_svg({"MaxTextureLOD clamp and the finest level wanted", "level (0 = finest)", "", "s", t,
                        {{"clamp", chart_colour(4), clamp, true}, {"finest wanted", chart_colour(2), finest, true}}, events, cuts, false});
   h += time_chart_svg({"Disk read and upload", "0.25 s moving average", "MB/s", "s", t,
@@ -248,7 +249,7 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m, cons
     for (double v : occ) occ_pc.push_back(100 * v);
     for (double v : pressure) pressure_pc.push_back(100 * v);
     TimeChart c{"VT page pool: occupancy and pressure", "share of the pool's slots: used recently; wanted this frame", "% of slots", "s", t,
-                {{"occupancy", chart_colour(0), occ_pc}, {"pressure", chart_colour(1), pressure_pc}}, events, cuts};
+                {{"occupancy", chart_colour(0), occ_pc}, {"pressure", chart_colour(1), pressure_pc}}, events, cuts, false};
     c.y_max_hint = 100;
     const double hw = rh_config_number(config, "throttle.high_water");
     if (hw > 0) c.lines.push_back({"high water (throttle.high_water)", "#555", std::vector<double>(t.size(), 100 * hw), false, true});

@@ -207,7 +207,7 @@ std::string html_runs_report(const std::vector<ReportRun>& runs) {
   if (with_frames != runs.end()) {
     const std::vector<double>& at = with_frames->frames.t_s;
     TimeChart disk{"Disk read", "0.25 s moving average, per run", "MB/s", "s", at, {}, {}, ""};
-    TimeChart blur{"Blurry fraction", "samples drawn ≥ 1 level coarser than wanted, per run", "%", "s", at, {}, {}, ""};
+    TimeChart blur{"Blurry fraction", "samples drawn ≥ 1 level coarser than wanted, per run", "%", "s", at, {}, {}, "", false};
     TimeChart ram{"RAM cache occupancy", "decoded tiles held in RAM, per run", "MiB", "s", at, {}, {}, "", false};
     for (std::size_t i = 0; i < runs.size(); ++i) {
       const RunFrames& f = runs[i].frames;
