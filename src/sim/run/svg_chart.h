@@ -2,8 +2,9 @@
 // Inline SVG charts for the HTML reports (replay --report, vtsim report): a line chart over time
 // and a grouped horizontal bar chart, self-contained (no scripts, no external files). Layout rules
 // that a browser test checks (tests/browser/report_browser.sh): the title and subtitle sit on
-// their own lines at the top, the legend below the plot, y tick labels at least one text line
-// apart, x tick labels that would collide are dropped, and every text fits inside its chart.
+// their own lines at the top, the legend below the plot, about four y intervals over a 150 px
+// plot (~30 px apart, 11 px text), x tick labels that would collide dropped, and every text cut to
+// fit inside its chart (the whole text in a tooltip).
 // Scales: robust_scale() in docs/report.md ("Scales"). Pure functions; thread-safe.
 #include <string>
 #include <string_view>
