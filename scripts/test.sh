@@ -13,10 +13,11 @@ jobs=$(nproc)
 tck=$(getconf CLK_TCK)
 cpu() { local s; read -ra s < /proc/$$/stat; echo $(( (s[15] + s[16]) / tck )); }
 # The ctest sweep_slurm starts a local Slurm cluster (scripts/slurm_local.sh), as root only: its
-# packages are installed here, before ctest runs tests in parallel.
+# packages are installed here, before ctest runs tests in parallel; so is Debian's chromium, in
+# which the ctest report_browser renders the HTML reports.
 if [ "$(id -u)" -eq 0 ] && [[ $variants == *release* || $variants == *asan* ]]; then
   . scripts/packages.sh
-  ensure_packages slurm-wlm munge
+  ensure_packages slurm-wlm munge chromium
 fi
 # Sanitizer builds at -O1 with line tables only (-g1): ASan+UBSan at -O2 -g compiled 2x slower
 # (37.6 s vs 18.7 s for src/sim/run/compare.cpp) for stack traces that -g1 already gives file:line.

@@ -195,7 +195,11 @@ void run_replay_command(const ReplayArgs& a) {
     fmt::print(stderr, "vtsim: warning: {}\n", blind);
   if (!a.summary.empty()) write_text(a.summary, r.summary.dump(2) + "\n");
   if (!a.frames.empty()) r.metrics.write_frames_csv(a.frames);
-  if (!a.report.empty()) write_text(a.report, html_report(r.summary, r.metrics));
+  if (!a.report.empty()) {
+    ReportConfig shown;
+    for (const auto& f : replay_config_table().fields()) shown.emplace_back(f.key, f.get(cfg));
+    write_text(a.report, html_report(r.summary, r.metrics, shown));
+  }
   if (a.json) fmt::print("{}\n", r.summary.dump(2));
   else if (!a.quiet) fmt::print("{}", format_summary(r.summary));
 }

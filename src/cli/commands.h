@@ -26,5 +26,6 @@ void register_vt_commands(CLI::App& app);
 void register_sweep_commands(CLI::App& app);
 void register_tune_commands(CLI::App& app);
 void register_mrc_commands(CLI::App& app);
+void register_report_commands(CLI::App& app);
 
 }  // namespace vtsim::cli

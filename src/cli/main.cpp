@@ -39,6 +39,7 @@ int main(int argc, char** argv) {
   vtsim::cli::register_sweep_commands(app);
   vtsim::cli::register_tune_commands(app);
   vtsim::cli::register_mrc_commands(app);
+  vtsim::cli::register_report_commands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -75,6 +75,8 @@ class MetricsCollector {
   const std::vector<FrameRow>& frames() const { return frames_; }
   const std::vector<TileLatency>& latencies() const { return latencies_; }
   const std::vector<ThrottleChange>& throttle_changes() const { return throttle_; }
+  // Names of FrameRow::system's columns (set_system_columns), in order.
+  const std::vector<std::string>& system_columns() const { return system_columns_; }
 
   // Pop-in, latency, bandwidth-per-frame and throttle sections; `duration_s` averages rates.
   nlohmann::json latency_json() const;

@@ -2,83 +2,20 @@
 
 #include "cache/policy/mrc.h"
 #include "sim/run/mrc_chart.h"
+#include "sim/run/svg_chart.h"
 
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <vector>
 
 namespace vtsim {
 
 namespace {
 
-struct Series {
-  std::string name;
-  std::string colour;
-  std::vector<double> y;  // one value per x
-};
-
 std::string escape(const std::string& s) { return html_escape(s); }
-
-// A line chart of several series over x; at most ~1200 points per series (min and max of each
-// bucket are both kept, so spikes survive the downsampling). `marks` are x positions drawn as
-// vertical lines (cuts, turns).
-std::string chart(const std::string& title, const std::string& unit, const std::vector<double>& x,
-                  const std::vector<Series>& series, const std::vector<double>& marks = {}, bool step = false) {
-  constexpr double W = 900, H = 220, L = 60, R = 10, T = 28, B = 30;
-  if (x.empty()) return {};
-  const double x0 = x.front(), x1 = std::max(x.back(), x0 + 1e-9);
-  double ymax = 0;
-  for (const auto& s : series)
-    for (double v : s.y) ymax = std::max(ymax, v);
-  if (!(ymax > 0)) ymax = 1;
-  // A round upper bound: 1, 2 or 5 times a power of ten.
-  const double p = std::pow(10.0, std::floor(std::log10(ymax)));
-  const double top = ymax <= p ? p : ymax <= 2 * p ? 2 * p : ymax <= 5 * p ? 5 * p : 10 * p;
-  auto X = [&](double v) { return L + (v - x0) / (x1 - x0) * (W - L - R); };
-  auto Y = [&](double v) { return T + (1.0 - v / top) * (H - T - B); };
-  std::string o = fmt::format("<svg viewBox=\"0 0 {} {}\" width=\"{}\" height=\"{}\" class=\"chart\">\n", W, H, W, H);
-  o += fmt::format("<text x=\"{}\" y=\"16\" class=\"title\">{}</text>\n", L, escape(title));
-  for (int k = 0; k <= 4; ++k) {
-    const double v = top * k / 4;
-    o += fmt::format("<line x1=\"{}\" x2=\"{}\" y1=\"{:.1f}\" y2=\"{:.1f}\" class=\"grid\"/>", L, W - R, Y(v), Y(v));
-    o += fmt::format("<text x=\"{}\" y=\"{:.1f}\" class=\"tick\" text-anchor=\"end\">{:.4g}</text>\n", L - 4, Y(v) + 4, v);
-  }
-  for (int k = 0; k <= 5; ++k) {
-    const double v = x0 + (x1 - x0) * k / 5;
-    o += fmt::format("<text x=\"{:.1f}\" y=\"{}\" class=\"tick\" text-anchor=\"middle\">{:.4g} s</text>", X(v), H - 10, v);
-  }
-  o += fmt::format("<text x=\"6\" y=\"{}\" class=\"tick\">{}</text>\n", T - 8, escape(unit));
-  for (double m : marks)
-    o += fmt::format("<line x1=\"{:.1f}\" x2=\"{:.1f}\" y1=\"{}\" y2=\"{}\" class=\"mark\"/>\n", X(m), X(m), T, H - B);
-  const std::size_t n = x.size();
-  const std::size_t buckets = std::min<std::size_t>(n, 600);
-  int legend_x = static_cast<int>(L) + 250;
-  for (const auto& s : series) {
-    std::string pts;
-    double last_y = 0;
-    for (std::size_t b = 0; b < buckets; ++b) {
-      const std::size_t i0 = b * n / buckets, i1 = std::max(i0 + 1, (b + 1) * n / buckets);
-      std::size_t imin = i0, imax = i0;
-      for (std::size_t i = i0; i < i1; ++i) {
-        if (s.y[i] < s.y[imin]) imin = i;
-        if (s.y[i] > s.y[imax]) imax = i;
-      }
-      for (std::size_t i : {std::min(imin, imax), std::max(imin, imax)}) {
-        if (step && !pts.empty()) pts += fmt::format("{:.1f},{:.1f} ", X(x[i]), Y(last_y));
-        pts += fmt::format("{:.1f},{:.1f} ", X(x[i]), Y(s.y[i]));
-        last_y = s.y[i];
-      }
-    }
-    o += fmt::format("<polyline points=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"1.2\"/>\n", pts, s.colour);
-    o += fmt::format("<rect x=\"{}\" y=\"7\" width=\"10\" height=\"10\" fill=\"{}\"/><text x=\"{}\" y=\"16\" class=\"tick\">{}</text>\n",
-                     legend_x, s.colour, legend_x + 14, escape(s.name));
-    legend_x += 16 + 7 * static_cast<int>(s.name.size()) + 20;
-  }
-  o += "</svg>\n";
-  return o;
-}
 
 std::string row(const std::string& k, const std::string& v) {
   return fmt::format("<tr><th>{}</th><td>{}</td></tr>\n", escape(k), escape(v));
@@ -88,10 +25,35 @@ double num(const nlohmann::json& j, const char* a, const char* b = nullptr, cons
   const nlohmann::json* p = &j;
   for (const char* k : {a, b, c}) {
     if (!k) break;
-    if (!p->contains(k)) return 0.0;
+    if (!p->is_object() || !p->contains(k)) return 0.0;
     p = &(*p)[k];
   }
   return p->is_number() ? p->get<double>() : 0.0;
+}
+
+// A config value as a number (TOML text such as "16", "-1", "256.0"); NaN when absent or not one.
+double rh_config_number(const ReportConfig& cfg, std::string_view key) {
+  for (const auto& [k, v] : cfg)
+    if (k == key) {
+      char* end = nullptr;
+      const double d = std::strtod(v.c_str(), &end);
+      return end != v.c_str() && *end == '\0' ? d : std::nan("");
+    }
+  return std::nan("");
+}
+
+std::string rh_config_value(const ReportConfig& cfg, std::string_view key) {
+  for (const auto& [k, v] : cfg)
+    if (k == key) return v;
+  return {};
+}
+
+void rh_flatten(const nlohmann::json& j, const std::string& prefix, ReportConfig& out) {
+  if (j.is_object()) {
+    for (auto it = j.begin(); it != j.end(); ++it) rh_flatten(it.value(), prefix.empty() ? it.key() : prefix + "." + it.key(), out);
+    return;
+  }
+  out.emplace_back(prefix, j.dump());
 }
 
 }  // namespace
@@ -112,9 +74,73 @@ std::string html_escape(std::string_view s) {
   return o;
 }
 
-std::string html_report(const nlohmann::json& s, const MetricsCollector& m) {
+ReportConfig report_config_of(const nlohmann::json& summary) {
+  ReportConfig out;
+  if (summary.is_object() && summary.contains("config") && summary["config"].is_object()) rh_flatten(summary["config"], "", out);
+  return out;
+}
+
+std::string report_check_script() {
+  return R"JS(<script>
+(function () {
+  if (!/[?&]check\b/.test(location.search)) return;
+  var errors = [];
+  var oe = console.error;
+  console.error = function () { errors.push('console.error: ' + Array.prototype.join.call(arguments, ' ')); oe.apply(console, arguments); };
+  window.addEventListener('error', function (e) { errors.push('error: ' + (e.message || e.type)); }, true);
+  window.addEventListener('load', function () {
+    var problems = [], ntext = 0;
+    var svgs = document.querySelectorAll('svg.chart');
+    svgs.forEach(function (svg) {
+      var sb = svg.getBoundingClientRect(), name = svg.getAttribute('aria-label') || 'chart';
+      var ts = Array.prototype.slice.call(svg.querySelectorAll('text'));
+      var bs = ts.map(function (t) { return t.getBoundingClientRect(); });
+      ntext += ts.length;
+      for (var i = 0; i < ts.length; i++) {
+        var a = bs[i];
+        if (a.width === 0) continue;
+        if (a.left < sb.left - 0.5 || a.right > sb.right + 0.5 || a.top < sb.top - 0.5 || a.bottom > sb.bottom + 0.5)
+          problems.push(name + ': "' + ts[i].textContent + '" outside its chart');
+        for (var j = i + 1; j < ts.length; j++) {
+          var b = bs[j];
+          var ox = Math.min(a.right, b.right) - Math.max(a.left, b.left), oy = Math.min(a.bottom, b.bottom) - Math.max(a.top, b.top);
+          if (ox > 1 && oy > 1) problems.push(name + ': "' + ts[i].textContent + '" overlaps "' + ts[j].textContent + '"');
+        }
+      }
+    });
+    var out = document.createElement('pre');
+    out.id = 'vtsim-check';
+    out.textContent = 'VTSIM-CHECK charts=' + svgs.length + ' texts=' + ntext + ' overlaps=' + problems.length +
+                      ' console_errors=' + errors.length + '\n' + problems.concat(errors).join('\n');
+    document.body.appendChild(out);
+  });
+})();
+</script>
+)JS";
+}
+
+std::string report_page_head(const std::string& title) {
+  return "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>" + escape(title) + "</title>\n" + report_check_script() +
+         "<style>"
+         "body{font:14px 'DejaVu Sans',system-ui,sans-serif;margin:20px;color:#222}"
+         "h1{font-size:20px;margin:0 0 6px}h2{font-size:16px;margin:22px 0 6px}"
+         "table{border-collapse:collapse;margin:6px 0 14px}th,td{padding:2px 10px;border-bottom:1px solid #ddd;text-align:left;"
+         "vertical-align:top}th{font-weight:600;color:#444}td.num{text-align:right;font-variant-numeric:tabular-nums}"
+         ".top{display:flex;flex-wrap:wrap;gap:10px 32px;align-items:flex-start}"
+         ".charts{display:flex;flex-wrap:wrap;gap:12px;align-items:flex-start}"
+         ".chart{display:block;background:#fcfcfc;border:1px solid #e4e4e4}"
+         ".chart text{font-family:'DejaVu Sans',sans-serif}"
+         ".title{font-weight:600;font-size:13px}.sub,.lgd,.tick,.val{font-size:11px}.sub{fill:#555}.tick,.val{fill:#444}.lgd{fill:#333}"
+         ".grid{stroke:#e5e5e5}.frame{fill:none;stroke:#ccc}.mark{stroke:#d33;stroke-dasharray:3,3}"
+         ".cfg{columns:2 420px;font:12px 'DejaVu Sans Mono',monospace}.cfg div{break-inside:avoid}"
+         "tr.diff td.d{background:#fff3cd}td.worse{color:#b00}td.better{color:#070}"
+         "</style></head><body>\n";
+}
+
+std::string html_report(const nlohmann::json& s, const MetricsCollector& m, const ReportConfig& config_in) {
+  const ReportConfig config = config_in.empty() ? report_config_of(s) : config_in;
   const auto& frames = m.frames();
-  std::vector<double> t, blurry, clamp, finest, disk, upload, live;
+  std::vector<double> t, blurry, clamp, finest, disk, upload, live, needs, ram, up_tiles, up_bytes;
   std::vector<double> events;
   const double fps = num(s, "trace", "fps") > 0 ? num(s, "trace", "fps") : 60.0;
   const auto window = static_cast<std::size_t>(std::max(1.0, std::round(fps / 4)));  // 0.25 s moving sum
@@ -135,29 +161,38 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m) {
     disk.push_back(dsum / span / 1e6);
     upload.push_back(usum / span / 1e6);
     live.push_back(r.live_requests);
+    needs.push_back(r.needs);
+    ram.push_back(static_cast<double>(r.ram_bytes) / (1024.0 * 1024.0));
+    up_tiles.push_back(r.uploads);
+    up_bytes.push_back(static_cast<double>(r.upload_bytes) / 1024.0);
     if (r.event) events.push_back(r.t_s);
   }
-  // Latency distribution: the fraction of tiles resident within x ms (a CDF), on a log-ish grid.
-  std::vector<double> lat;
-  for (const auto& l : m.latencies()) lat.push_back(ticks_to_ms(l.total));
-  std::sort(lat.begin(), lat.end());
+  // A system column by name (FrameRow::system), empty when the system has none.
+  const auto column = [&](std::string_view name) {
+    std::vector<double> v;
+    const auto& names = m.system_columns();
+    const auto it = std::find(names.begin(), names.end(), name);
+    if (it == names.end()) return v;
+    const auto k = static_cast<std::size_t>(it - names.begin());
+    for (const FrameRow& r : frames) v.push_back(r.system[k]);
+    return v;
+  };
+  const std::string system = s.value("system", "");
 
-  std::string h = "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>vtsim replay report</title>\n<style>"
-                  "body{font:14px system-ui,sans-serif;margin:24px;max-width:960px;color:#222}"
-                  "table{border-collapse:collapse;margin:8px 0 20px}th,td{padding:3px 10px;border-bottom:1px solid #ddd;text-align:left}"
-                  "th{font-weight:600;color:#444}.chart{display:block;margin:8px 0 18px;background:#fcfcfc;border:1px solid #eee}"
-                  ".title{font-weight:600;font-size:13px}.tick{font-size:11px;fill:#555}.grid{stroke:#e5e5e5}"
-                  ".mark{stroke:#d33;stroke-dasharray:3,3}</style></head><body>\n";
-  h += fmt::format("<h1>vtsim replay: {} ({} clock)</h1>\n", escape(s.value("system", "")), escape(s.value("clock", "")));
-  h += fmt::format("<p>trace <code>{}</code>: {} frames, {:.1f} s at {:.4g} Hz. Metrics are defined in docs/metrics.md.</p>\n",
-                   escape(s["trace"].value("name", "")), s["trace"].value("frames", 0), num(s, "trace", "duration_s"), fps);
-  h += "<table>\n";
+  std::string h = report_page_head("vtsim replay report");
+  h += fmt::format("<h1>vtsim replay: {} ({} clock)</h1>\n", escape(system), escape(s.value("clock", "")));
+  const nlohmann::json trace = s.contains("trace") && s["trace"].is_object() ? s["trace"] : nlohmann::json::object();
+  h += fmt::format("<p>trace <code>{}</code>: {} frames, {:.1f} s at {:.4g} Hz; vtsim {}. Metrics are defined in docs/metrics.md, "
+                   "the charts in docs/report.md.</p>\n",
+                   escape(trace.value("name", "")), trace.value("frames", 0), num(s, "trace", "duration_s"), fps,
+                   escape(s.value("vtsim_version", "?")));
+  h += "<div class=\"top\"><table>\n";
   h += row("disk read", fmt::format("{:.3f} MB/s ({:.0f} bytes)", num(s, "bandwidth", "disk_read_MBps"), num(s, "bandwidth", "disk_read_bytes")));
   h += row("decoded / uploaded", fmt::format("{:.3f} / {:.3f} MB/s", num(s, "bandwidth", "decoded_MBps"), num(s, "bandwidth", "upload_MBps")));
   h += row("upload per frame", fmt::format("p50 {:.0f} B, p99 {:.0f} B, max {:.0f} B", num(s, "bandwidth", "upload_bytes_per_frame", "p50"),
                                            num(s, "bandwidth", "upload_bytes_per_frame", "p99"), num(s, "bandwidth", "upload_bytes_per_frame", "max")));
   h += row("latency", fmt::format("p50 {:.1f} ms, p95 {:.1f} ms, p99 {:.1f} ms, max {:.1f} ms ({:.0f} tiles)", num(s, "latency_ms", "p50"),
-                                  num(s, "latency_ms", "p95"), num(s, "latency_ms", "p99"), num(s, "latency_ms", "max"), num(s, "latency_ms", "tiles")));
+                                  num(s, "latency_ms", "p95"), num(s, "latency_ms", "p99"), num(s, "latency_ms", "max"), num(s, "latency_ms", "count")));
   h += row("pop-in", fmt::format("blurry {:.2f}% mean, {:.2f}% p99; mean deficit {:.3f} levels; {:.0f} visible pops",
                                  100 * num(s, "popin", "blurry_fraction_mean"), 100 * num(s, "popin", "blurry_fraction_p99"),
                                  num(s, "popin", "mean_deficit"), num(s, "popin", "visible_pops")));
@@ -167,23 +202,107 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m) {
                                 num(s, "cache", "ram_evictions"), num(s, "cache", "vram_evictions")));
   h += row("throttle", fmt::format("{:.0f} frames throttled, max clamp {:.0f}, {:.0f} changes", num(s, "throttle", "frames_throttled"),
                                    num(s, "throttle", "max_clamp"), num(s, "throttle", "changes")));
+  if (!config.empty()) {
+    const std::string disk_preset = rh_config_value(config, "disk.preset");
+    h += row("storage", fmt::format("disk {}, RAM {} MiB, upload {} tiles / {} bytes per frame", disk_preset.empty() ? "?" : disk_preset,
+                                    rh_config_value(config, "ram.capacity_MiB"), rh_config_value(config, "upload.tiles_per_frame"),
+                                    rh_config_value(config, "upload.bytes_per_frame")));
+  }
   h += row("run", fmt::format("{:.2f} s wall, {:.0f}× real time", num(s, "run", "wall_s"), num(s, "run", "x_realtime")));
-  h += "</table>\n";
-  h += chart("Blurry fraction (samples drawn ≥ 1 level coarser than wanted); dashed: cuts and fast turns", "%", t,
-             {{"blurry", "#c0392b", blurry}}, events);
-  h += chart("MaxTextureLOD clamp and the finest level any sample wants", "level", t,
-             {{"clamp", "#8e44ad", clamp}, {"finest wanted", "#16a085", finest}}, events, true);
-  h += chart("Disk read and upload, 0.25 s moving average", "MB/s", t,
-             {{"disk read", "#2c3e50", disk}, {"upload", "#e67e22", upload}}, events);
-  h += chart("Requests in the pipeline (queued, in flight, waiting for upload)", "tiles", t, {{"live", "#2980b9", live}}, events);
+  h += "</table></div>\n";
+
+  h += "<h2>Over time</h2>\n<div class=\"charts\">\n";
+  const std::string cuts = "cut / fast turn";
+  // A share: its full range, never clipped (a clipped 100 % would read as an error).
+  h += time_chart_svg({"Blurry fraction", "samples drawn ≥ 1 level coarser than wanted", "%", "s", t, {{"blurry", chart_colour(1), blurry}},
+                       events, cuts, false});
+  h += time_chart_svg({"MaxTextureLOD clamp and the finest level wanted", "level (0 = finest)", "", "s", t,
+                       {{"clamp", chart_colour(4), clamp, true}, {"finest wanted", chart_colour(2), finest, true}}, events, cuts, false});
+  h += time_chart_svg({"Disk read and upload", "0.25 s moving average", "MB/s", "s", t,
+                       {{"disk read", chart_colour(0), disk}, {"upload", chart_colour(3), upload}}, events, cuts});
+  {
+    TimeChart c{"Upload per frame against the budget", "tiles uploaded each frame", "tiles", "s", t, {{"uploaded", chart_colour(3), up_tiles, true}},
+                {}, ""};
+    const double budget = rh_config_number(config, "upload.tiles_per_frame");
+    if (budget > 0) c.lines.push_back({"budget (upload.tiles_per_frame)", "#555", std::vector<double>(t.size(), budget), false, true});
+    h += time_chart_svg(c);
+    const double byte_budget = rh_config_number(config, "upload.bytes_per_frame");
+    if (byte_budget > 0) {
+      TimeChart b{"Upload bytes per frame against the budget", "KiB uploaded each frame", "KiB", "s", t,
+                  {{"uploaded", chart_colour(3), up_bytes, true},
+                   {"budget (upload.bytes_per_frame)", "#555", std::vector<double>(t.size(), byte_budget / 1024.0), false, true}},
+                  {}, ""};
+      h += time_chart_svg(b);
+    }
+  }
+  h += time_chart_svg({"Requests in the pipeline", "queued, in flight, waiting for upload; and tiles needed, not resident", "tiles", "s", t,
+                       {{"in the pipeline", chart_colour(0), live}, {"needed, not resident", chart_colour(5), needs}}, events, cuts});
+  {
+    TimeChart c{"RAM cache occupancy", "decoded tiles held in RAM", "MiB", "s", t, {{"RAM", chart_colour(0), ram, true}}, {}, "", false};
+    const double cap = rh_config_number(config, "ram.capacity_MiB");
+    if (cap > 0) c.lines.push_back({"capacity (ram.capacity_MiB)", "#555", std::vector<double>(t.size(), cap), false, true});
+    h += time_chart_svg(c);
+  }
+  if (const auto occ = column("vt_pool_occupancy"); !occ.empty()) {
+    const auto pressure = column("vt_pool_pressure");
+    std::vector<double> occ_pc, pressure_pc;
+    for (double v : occ) occ_pc.push_back(100 * v);
+    for (double v : pressure) pressure_pc.push_back(100 * v);
+    TimeChart c{"VT page pool: occupancy and pressure", "share of the pool's slots: used recently; wanted this frame", "% of slots", "s", t,
+                {{"occupancy", chart_colour(0), occ_pc}, {"pressure", chart_colour(1), pressure_pc}}, events, cuts, false};
+    c.y_max_hint = 100;
+    const double hw = rh_config_number(config, "throttle.high_water");
+    if (hw > 0) c.lines.push_back({"high water (throttle.high_water)", "#555", std::vector<double>(t.size(), 100 * hw), false, true});
+    h += time_chart_svg(c);
+    std::vector<double> bias;
+    for (const FrameRow& r : frames) bias.push_back(r.bias);
+    h += time_chart_svg({"VT feedback LOD bias", "levels added to every desired level by the residency policy", "levels", "s", t,
+                         {{"bias", chart_colour(4), bias, true}}, events, cuts, false});
+  }
+  h += "</div>\n<h2>Latency and bandwidth</h2>\n<div class=\"charts\">\n";
+  // Latency distribution: the share of tiles resident within x ms (a CDF). The x axis ends at the
+  // robust scale of the latencies; a tail beyond it is stated in the subtitle.
+  std::vector<double> lat;
+  for (const auto& l : m.latencies()) lat.push_back(ticks_to_ms(l.total));
+  std::sort(lat.begin(), lat.end());
   if (!lat.empty()) {
-    std::vector<double> x, y;
-    for (std::size_t i = 0; i < lat.size(); ++i) {
-      x.push_back(lat[i] / 1e3);
+    const ChartScale xs = robust_scale(lat);
+    std::vector<double> x{0.0}, y{0.0};  // the axis starts at 0 ms
+    for (std::size_t i = 0; i < lat.size() && lat[i] <= xs.hi; ++i) {
+      x.push_back(lat[i]);
       y.push_back(100.0 * static_cast<double>(i + 1) / static_cast<double>(lat.size()));
     }
-    h += chart("Latency: share of tiles resident within x (x axis in seconds)", "% of tiles", x, {{"tiles", "#27ae60", y}}, {}, true);
+    const std::string sub = xs.clipped ? fmt::format("% of tiles resident within x ms; {:.1f} % beyond the axis, max {} ms",
+                                                     100.0 - (y.empty() ? 0.0 : y.back()), fmt::format("{:.0f}", xs.max))
+                                       : "% of tiles resident within x ms";
+    TimeChart c{"Latency: first needed to resident", sub, "", "ms", x, {{"tiles", chart_colour(2), y, true}}, {}, "", false, 100};
+    h += time_chart_svg(c);
   }
+  if (s.contains("latency_ms") && s["latency_ms"].contains("stages_ms") && s["latency_ms"]["stages_ms"].is_object()) {
+    const auto& st = s["latency_ms"]["stages_ms"];
+    std::vector<std::string> groups;
+    std::vector<BarSeries> series{{"p50", chart_colour(0), {}}, {"p95", chart_colour(3), {}}, {"p99", chart_colour(1), {}}};
+    for (const char* k : {"queue", "io", "decode_wait", "decode", "upload_wait", "upload"}) {
+      if (!st.contains(k)) continue;
+      groups.push_back(k);
+      series[0].v.push_back(num(st, k, "p50"));
+      series[1].v.push_back(num(st, k, "p95"));
+      series[2].v.push_back(num(st, k, "p99"));
+    }
+    h += bar_chart_svg("Latency by stage", "ms per tile in each stage of the pipeline (docs/pipeline.md)", groups, series);
+  }
+  if (s.contains("bandwidth") && s["bandwidth"].contains("per_level") && s["bandwidth"]["per_level"].is_array() &&
+      !s["bandwidth"]["per_level"].empty()) {
+    std::vector<std::string> groups;
+    std::vector<BarSeries> series{{"disk read", chart_colour(0), {}}, {"upload", chart_colour(3), {}}};
+    for (const auto& l : s["bandwidth"]["per_level"]) {
+      groups.push_back(fmt::format("level {}", l.value("level", 0)));
+      series[0].v.push_back(num(l, "disk_read_MBps"));
+      series[1].v.push_back(num(l, "upload_MBps"));
+    }
+    h += bar_chart_svg("Bandwidth per level", "MB/s averaged over the run, by mip level (0 = finest)", groups, series);
+  }
+  h += "</div>\n";
   // metrics.opt: each level's LRU miss-ratio curve from the summary with its knee, and above it the
   // offline figures at the run's capacity and the live miss ratio.
   const auto mrc_section = [&](const nlohmann::json& b, const char* title, double live_ratio) {
@@ -223,6 +342,11 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m) {
     const double acc = pool["hits"].get<double>() + pool["misses"].get<double>();
     mrc_section(pool["bounds"], "VT page pool: LRU miss-ratio curve of the recorded accesses",
                 acc > 0 ? pool["misses"].get<double>() / acc : 0.0);
+  }
+  if (!config.empty()) {
+    h += "<h2>Config</h2>\n<p>Every key of the run's effective config, defaults included (docs/config.md).</p>\n<div class=\"cfg\">\n";
+    for (const auto& [k, v] : config) h += "<div>" + escape(k) + " = " + escape(v) + "</div>\n";
+    h += "</div>\n";
   }
   h += "</body></html>\n";
   return h;
