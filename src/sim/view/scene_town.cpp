@@ -1,5 +1,7 @@
 #include "sim/view/scene_town.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 #include <string>
 
@@ -46,8 +48,11 @@ struct Builder {
       shelf_h = 0;
     }
     if (wi > tw || cur_y + hi > th)
-      throw InputError("texels_per_m", "the town's faces do not fit into the virtual texture; lower the "
-                                       "texel density or the town size, or enlarge the texture");
+      throw InputError("texture.texels_per_m",
+                       fmt::format("{:g} texels/m packs the town's faces into more than the {}x{}-texel texture: lower "
+                                   "texture.texels_per_m (e.g. --set texture.texels_per_m={:g}), or use a larger texture "
+                                   "(texture.width and texture.height, or a store made with a larger `vtsim store gen --size`)",
+                                   tpm, tw, th, tpm / 2));
     const double u0 = static_cast<double>(cur_x), v0 = static_cast<double>(cur_y);
     cur_x += wi + kGapTexels;
     shelf_h = std::max(shelf_h, hi);
