@@ -5,6 +5,7 @@
 #include <doctest/doctest.h>
 
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include "test_util.h"
@@ -190,4 +191,24 @@ TEST_CASE("cli: vt compare finds its standard traces beside the executable, what
   CHECK(r.code == 0);
   CHECK(vtsim::test::contains(r.out, "\"trace\": \"walk\""));
   CHECK(vtsim::test::contains(r.out, "\"trace\": \"static\""));
+}
+
+TEST_CASE("cli: --json prints the results as JSON on stdout in every command that has it, --json-file writes them") {
+  const std::string acc = conv_tmp("acc.txt");
+  {
+    std::ofstream f(acc);
+    f << "1\n2\n1\n3\n1\n";
+  }
+  const auto mrc = conv_sh("$V mrc --accesses " + acc + " --sizes 3 --json");
+  CHECK(mrc.code == 0);
+  CHECK(mrc.out.rfind("{", 0) == 0);
+  CHECK(vtsim::test::contains(mrc.out, "\"curve\""));
+  CHECK_FALSE(vtsim::test::contains(mrc.out, "LRU miss-ratio curve, exact"));  // no table mixed in
+  const auto mrc_stdin = conv_sh("$V mrc --accesses - --sizes 3 --json-file - < " + acc);
+  CHECK(mrc_stdin.code == 0);
+  CHECK(vtsim::test::contains(mrc_stdin.out, "\"curve\""));
+  for (const std::string cmd : {"$V store info $SRC/tests/data/none.vts --json", "$V trace info $SRC/traces/walk.csv --json"}) {
+    const auto r = conv_sh(cmd);
+    CHECK((r.code == 2 || r.out.rfind("{", 0) == 0));
+  }
 }

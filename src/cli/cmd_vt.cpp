@@ -23,7 +23,7 @@ struct VtCompareArgs {
   std::string policies = throttle_policies().names(",");  // all of them
   std::string config;
   std::vector<std::string> sets;
-  std::string markdown, rows;
+  std::string markdown, json_file;
   bool quiet = false, json = false;
 };
 
@@ -88,9 +88,9 @@ void run_compare(const VtCompareArgs& a) {
   for (const auto& p : policies)
     if (!throttle_policies().find(p)) throw InputError("--policies", throttle_policies().unknown(p));
   check_output("--markdown", a.markdown);
-  check_output("--rows", a.rows);
-  if (a.json && (a.markdown == "-" || a.rows == "-"))
-    throw InputError("--json", "prints to stdout already: give --markdown / --rows a file");
+  check_output("--json-file", a.json_file);
+  if (a.json && (a.markdown == "-" || a.json_file == "-"))
+    throw InputError("--json", "prints to stdout already: give --markdown / --json-file a file");
   const auto files = trace_files(a.traces.empty() ? std::vector<std::string>{default_traces_dir()} : a.traces);
   // The shared budget: one config for every run, the policy the only difference.
   ReplayConfig base = load_replay_config(a.config, a.sets, "vt");
@@ -177,9 +177,9 @@ void run_compare(const VtCompareArgs& a) {
                       pops / n, l / n, disk / n, up / n, ev / n);
   }
   if (!a.markdown.empty()) write_output(a.markdown, md);
-  if (!a.rows.empty()) write_output(a.rows, rows.dump(2) + "\n");
+  if (!a.json_file.empty()) write_output(a.json_file, rows.dump(2) + "\n");
   if (a.json) fmt::print("{}\n", rows.dump(2));
-  else if (a.markdown != "-" && a.rows != "-" && (a.markdown.empty() || !a.quiet)) fmt::print("{}", md);
+  else if (a.markdown != "-" && a.json_file != "-" && (a.markdown.empty() || !a.quiet)) fmt::print("{}", md);
 }
 
 }  // namespace
@@ -195,7 +195,7 @@ void register_vt_commands(CLI::App& app) {
   c->add_option("--config,-c", a->config, "TOML config file shared by every run (docs/config.md)");
   c->add_option("--set", a->sets, "override one config key for every run (repeatable)");
   c->add_option("--markdown", a->markdown, "write the table here (- for stdout)");
-  c->add_option("--rows", a->rows, "write every run's figures as JSON here (- for stdout)");
+  c->add_option("--json-file", a->json_file, "write every run's figures as JSON here (- for stdout)");
   c->add_flag("--json", a->json, "print every run's figures as JSON instead of the table");
   c->add_flag("--quiet,-q", a->quiet, "no progress; with --markdown, nothing on stdout");
   c->callback([a] { run_compare(*a); });
