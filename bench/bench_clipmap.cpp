@@ -61,8 +61,18 @@ int main(int argc, char** argv) {
     w.stack_levels = make_system(cfg, scene->texture())->coarsest_clamp();
     const double predicted = clipmap_walk_disk_Bps(w);
     const double err = std::fabs(measured - predicted) / predicted;
-    fmt::print("  closed form {:<9} predicted {:.4f} MB/s  measured {:.4f} MB/s  error {:.3f}% (target 1%){}\n",
-               diagonal ? "diagonal" : "axis", predicted / 1e6, measured / 1e6, 100.0 * err, err <= 0.01 ? "" : "  MISSED");
+    // The 1 % bound is for the full run's long walk: the first window fill and the partial
+    // tiles at both ends weigh more on quick mode's short walk (4-6 % measured there), which
+    // prints the error without a target.
+    if (h.quick()) {
+      fmt::print("  closed form {:<9} predicted {:.4f} MB/s  measured {:.4f} MB/s  error {:.3f}% (quick: no target, the walk "
+                 "is too short)\n",
+                 diagonal ? "diagonal" : "axis", predicted / 1e6, measured / 1e6, 100.0 * err);
+    } else {
+      fmt::print("  closed form {:<9} predicted {:.4f} MB/s  measured {:.4f} MB/s  error {:.3f}% (target 1%){}\n",
+                 diagonal ? "diagonal" : "axis", predicted / 1e6, measured / 1e6, 100.0 * err, err <= 0.01 ? "" : "  MISSED");
+      if (err > 0.01) h.missed_target();
+    }
     h.param(diagonal ? "closed_form_diagonal" : "closed_form_axis",
             {{"predicted_MBps", predicted / 1e6}, {"measured_MBps", measured / 1e6}, {"error", err}});
   }

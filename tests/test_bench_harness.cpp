@@ -126,3 +126,30 @@ TEST_CASE("bench harness: add_measured() pairs externally timed repetitions, def
   CHECK(vb::Harness("test", 2, argv_q, 3, 1).options().reps == 1);
   CHECK(vb::Harness("test", 2, argv_q).options().reps == 7);
 }
+
+TEST_CASE("bench harness: quick mode holds no target a case did not declare valid there; --strict exits 1 on a miss") {
+  std::string a0 = "bench_test", q = "--quick", s = "--strict";
+  char* argv_q[] = {a0.data(), q.data(), s.data()};
+  vb::Harness h("test", 3, argv_q, 3, 1);
+  // A full-run target on a quick run: not checked, null in the JSON.
+  const vb::Result* r = h.add_measured({.name = "full_only", .metric = vb::Metric::kMsPerRep, .target_ratio = 1e9}, "a", {1},
+                                       "b", {2});
+  REQUIRE(r != nullptr);
+  CHECK(r->meets_target);
+  CHECK(r->spec.target_ratio == 0);
+  // A target declared valid in quick mode is held.
+  const vb::Result* held = h.add_measured(
+      {.name = "quick_too", .metric = vb::Metric::kMsPerRep, .target_ratio = 1e9, .target_in_quick = true}, "a", {1}, "b", {2});
+  REQUIRE(held != nullptr);
+  CHECK_FALSE(held->meets_target);
+  const auto j = h.to_json();
+  CHECK(j["results"][0]["target_ratio"].is_null());
+  CHECK(j["results"][1]["target_ratio"] == 1e9);
+  CHECK(h.finish() == 1);  // --strict: the held target was missed
+
+  char* argv_strict[] = {a0.data(), s.data()};
+  vb::Harness h2("test", 2, argv_strict, 3, 1);
+  CHECK(h2.finish() == 0);
+  h2.missed_target();  // a benchmark's own accuracy check
+  CHECK(h2.finish() == 1);
+}

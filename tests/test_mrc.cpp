@@ -307,7 +307,7 @@ TEST_CASE("mrc CLI: the curve, its outputs, and exit 2 naming the flag or file:l
     for (int r = 0; r < 50; ++r)
       for (int k = 0; k < 10; ++k) f << (k < 3 || r % 5 == 0 ? k : 100 + r * 10 + k) << " 1000\n";
   }
-  auto r = vtsim::test::run_vtsim_capture("mrc --accesses " + acc + " --sizes 5 --json " + json + " --csv " + csv + " --svg " + svg, err);
+  auto r = vtsim::test::run_vtsim_capture("mrc --accesses " + acc + " --sizes 5 --json-file " + json + " --csv " + csv + " --svg " + svg, err);
   CHECK(r.code == 0);
   CHECK(vtsim::test::contains(r.out, "500 accesses"));
   CHECK(vtsim::test::contains(r.out, "knee"));
@@ -320,7 +320,7 @@ TEST_CASE("mrc CLI: the curve, its outputs, and exit 2 naming the flag or file:l
   const std::pair<std::string, std::string> bad[] = {
       {"--shards 0", "--shards"},   {"--shards 1.5", "--shards"}, {"--shards 1e-9", "--shards"},
       {"--unit kb", "--unit"},      {"--sizes 1", "--sizes"},      {"--sizes 1000000", "--sizes"},
-      {"--json " + dir + "/no/such/x.json", "cannot open for writing"}};
+      {"--json-file " + dir + "/no/such/x.json", "--json-file: '" + dir + "/no/such/x.json': the directory"}};
   for (const auto& [args, want] : bad) {
     CAPTURE(args);
     r = vtsim::test::run_vtsim_capture("mrc --accesses " + acc + " " + args, err);
@@ -350,7 +350,7 @@ TEST_CASE("mrc CLI: a replay's recorded accesses, the pool in pages or RAM in by
   const std::string err = dir + "/err", json = dir + "/c.json", rec = dir + "/rec.txt";
   const std::string trace = vtsim::test::kData + "/../../traces/turn.csv";  // 20 s over the plane
   const std::string base = "mrc -t " + trace + " --system vt --set vt.pool_pages=96 ";
-  auto r = vtsim::test::run_vtsim_capture(base + "--opt --sizes 5 --json " + json + " --record " + rec, err);
+  auto r = vtsim::test::run_vtsim_capture(base + "--opt --sizes 5 --json-file " + json + " --record " + rec, err);
   CHECK(r.code == 0);
   CHECK(vtsim::test::contains(r.out, "(vt, pool level)"));
   CHECK(vtsim::test::contains(r.out, "Belady ratio"));
@@ -359,7 +359,7 @@ TEST_CASE("mrc CLI: a replay's recorded accesses, the pool in pages or RAM in by
   REQUIRE(j["curve"].size() == 5);
   for (const auto& p : j["curve"]) CHECK(p["belady_miss_ratio"].get<double>() <= p["miss_ratio"].get<double>() + 1e-12);
   // The recorded file gives the same curve.
-  r = vtsim::test::run_vtsim_capture("mrc --accesses " + rec + " --sizes 5 --json " + json + ".2", err);
+  r = vtsim::test::run_vtsim_capture("mrc --accesses " + rec + " --sizes 5 --json-file " + json + ".2", err);
   CHECK(r.code == 0);
   const nlohmann::json j2 = nlohmann::json::parse(vtsim::test::slurp(json + ".2"));
   for (std::size_t i = 0; i < 5; ++i) CHECK(j2["curve"][i]["miss_ratio"] == j["curve"][i]["miss_ratio"]);

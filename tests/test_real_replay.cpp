@@ -234,6 +234,31 @@ TEST_CASE("real clock with injected faults: retried or failed, every fault count
   }
 }
 
+TEST_CASE("real clock: the summary names the tiles that failed (layer, level, x, y, reason), capped with a count") {
+  const TileStore store = TileStore::open(test::small_store());
+  const ReplayConfig cfg = bound_cfg(store, {"io.fault_rate=1", "io.max_retries=0"});  // every read fails
+  const auto scene = make_scene_from_config(cfg);
+  const RealRun run = run_real_replay(cfg, still_trace(0.5), *scene, store);
+  const auto& rc = run.result.summary["real_clock"];
+  const auto& failed = rc["failed_tiles"];
+  const std::uint64_t failed_count = run.result.summary["faults"]["failed_tiles"].get<std::uint64_t>();
+  REQUIRE(failed_count > 0);
+  REQUIRE(!failed.empty());
+  CHECK(failed.size() <= 50);
+  const std::uint64_t named = failed.size() + rc["failed_tiles_not_listed"].get<std::uint64_t>();
+  // Each failed tile is named once; a read whose fault arrived after its tile was no longer
+  // needed is a fault, not a failed tile, so it can be named too (never more than the faults).
+  CHECK(named >= failed_count);
+  CHECK(named <= run.result.summary["faults"]["faults"].get<std::uint64_t>());
+  for (const auto& t : failed) {
+    CHECK(t["fault"] == "io_error");
+    CHECK(!t["reason"].get<std::string>().empty());
+    CHECK(t["attempts"].get<int>() >= 1);
+    CHECK(store.contains(TileKey(t["layer"].get<std::uint32_t>(), t["level"].get<std::uint32_t>(), t["x"].get<std::int64_t>(),
+                                 t["y"].get<std::int64_t>())));
+  }
+}
+
 // Virtual texturing in the real clock: pages go to the slots the page pool chose (VramArena's pool
 // layout). Every page complete in the pool at the end is in the arena at its own slot, every layer
 // the store's bytes (what sampling through the page table would read); any other layer a slot holds

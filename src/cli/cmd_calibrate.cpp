@@ -8,6 +8,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "cli/cli_io.h"
 #include "cli/commands.h"
 #include "core/error.h"
 #include "stream/exec/calibrate.h"
@@ -26,6 +27,8 @@ struct CalibrateArgs {
 };
 
 void run_calibrate(const CalibrateArgs& a) {
+  check_output("--output", a.out);  // before the measurements, not after
+  if (a.json && a.out == "-") throw InputError("--output", "--json already prints to stdout: give a file or drop --json");
   const TileStore store = TileStore::open(a.store);
   CalibrateOptions o;
   o.io_threads = a.io_threads;
@@ -43,12 +46,9 @@ void run_calibrate(const CalibrateArgs& a) {
     };
   const Calibration c = calibrate(store, o, progress);
   if (!a.quiet && tty) fmt::print(stderr, "\r{:60}\r", "");
-  if (!c.direct_warning.empty() && !a.quiet) fmt::print(stderr, "vtsim: warning: {}\n", c.direct_warning);
+  if (!c.direct_warning.empty()) warn(c.direct_warning);
   const std::string toml = profile_toml(c, a.store);
-  if (!a.out.empty()) {
-    std::ofstream f(a.out, std::ios::binary | std::ios::trunc);
-    if (!f || !(f << toml) || !f.flush()) throw InputError(a.out, "cannot write the profile");
-  }
+  if (!a.out.empty()) write_output(a.out, toml);
   if (a.json) {
     nlohmann::json j;
     for (const auto& p : c.reads)
@@ -65,6 +65,8 @@ void run_calibrate(const CalibrateArgs& a) {
     fmt::print("{}\n", j.dump(2));
   } else if (a.out.empty()) {
     fmt::print("{}", toml);
+  } else if (a.out == "-") {
+    // written above
   } else if (!a.quiet) {
     fmt::print("{}", toml.substr(0, toml.find("\n[disk]")));
     fmt::print("\nwrote {}\n", a.out);
@@ -78,7 +80,7 @@ void register_calibrate_commands(CLI::App& app) {
   auto* c = app.add_subcommand("calibrate",
                                "Measure read latency/bandwidth and decode speed on a tile store; write a device profile for the simulated clock");
   c->add_option("--store,-s", a->store, "tile store (.vts) to measure on")->required();
-  c->add_option("--output,-o", a->out, "write the profile (TOML config keys) here; default: print it");
+  c->add_option("--output,-o", a->out, "write the profile (TOML config keys) here (- for stdout); default: print it");
   c->add_option("--io-threads", a->io_threads, "IO pool threads the profile is for (io.threads)")->capture_default_str();
   c->add_option("--decode-workers", a->decode_workers, "decode workers the profile is for (decode.workers)")->capture_default_str();
   c->add_option("--seconds", a->seconds, "measuring time per point, s")->capture_default_str();
@@ -86,7 +88,7 @@ void register_calibrate_commands(CLI::App& app) {
   c->add_flag("--buffered", a->buffered, "read through the page cache instead of O_DIRECT (io.direct = false)");
   c->add_flag("--quick", a->quick, "fewer, shorter points (a smoke run; less accurate)");
   c->add_flag("--json", a->json, "print the measurements and the fitted keys as JSON");
-  c->add_flag("--quiet,-q", a->quiet, "no progress or table");
+  c->add_flag("--quiet,-q", a->quiet, "no progress or table (warnings are still printed)");
   c->callback([a] { run_calibrate(*a); });
 }
 

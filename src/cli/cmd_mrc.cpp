@@ -14,6 +14,7 @@
 
 #include "cache/policy/access_io.h"
 #include "cache/policy/mrc.h"
+#include "cli/cli_io.h"
 #include "cli/commands.h"
 #include "cli/trace_load.h"
 #include "cli/format.h"
@@ -38,18 +39,14 @@ struct MrcArgs {
   std::string unit;  // empty: pages for an access file; a replay's level sets its own
   std::optional<double> shards;  // absent: exact
   int sizes = 17;
-  std::string json, csv, svg;
+  std::string json_file, csv, svg;
+  bool json = false;
 };
 
 // Most sizes a curve is printed or written at: a few hundred kB of JSON.
 constexpr int kMrcMaxSizes = 10000;
 
-void mrc_write_text(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw InputError(path, "cannot open for writing");
-  out << text;
-  if (!out.flush()) throw InputError(path, "write failed");
-}
+void mrc_write_text(const std::string& path, const std::string& text) { write_output(path, text); }
 
 std::string mrc_size_text(std::uint64_t c, MrcUnit unit) {
   return unit == MrcUnit::kBytes ? human_bytes(static_cast<double>(c)) : fmt::format("{} pages", c);
@@ -81,32 +78,35 @@ void report_mrc(const MissRatioCurve& c, const std::string& source, const MrcArg
     return c.accesses ? static_cast<double>(opt[i]) / static_cast<double>(c.accesses) : 0.0;
   };
   const char* unit = mrc_unit_name(c.unit);
-  fmt::print("{}: {} accesses, {} keys, footprint {}\n", source, c.accesses, c.keys, mrc_size_text(c.footprint, c.unit));
-  if (c.shards_rate > 0)
-    fmt::print("LRU miss-ratio curve, SHARDS_adj at rate {:g} (Waldspurger et al. 2015; estimated)\n", c.shards_rate);
-  else
-    fmt::print("LRU miss-ratio curve, exact (Mattson et al. 1970 stack distances)\n");
-  fmt::print("  {:>16}  {:>10}{}\n", fmt::format("size ({})", unit), "miss ratio", opt.empty() ? "" : "  Belady ratio");
-  for (std::size_t i = 0; i < c.capacity.size(); ++i)
-    fmt::print("  {:>16}  {:>10.4f}{}{}{}\n", c.capacity[i], c.miss_ratio[i],
-               opt.empty() ? std::string() : fmt::format("  {:>12.4f}", opt_ratio(i)),
-               c.unit == MrcUnit::kBytes ? "  " + human_bytes(static_cast<double>(c.capacity[i])) : "",
-               c.knee.found && c.knee.index == i ? "  <- nearest the knee" : "");
-  if (c.knee.found)
-    fmt::print("knee (Kneedle): {} ({} {}), miss ratio {:.4f}\n", mrc_size_text(c.knee.capacity, c.unit), c.knee.capacity,
-               unit, c.knee.miss_ratio);
-  else
-    fmt::print("knee: none (the curve is straight or concave)\n");
-  if (c.unit == MrcUnit::kBytes && c.max_size > 1)
-    fmt::print("note: below the largest access ({}) an LruCache rejects entries: there the curve is an upper bound\n",
-               human_bytes(static_cast<double>(c.max_size)));
-  if (c.size_changes > 0)
-    fmt::print("note: {} re-accesses changed their key's size; each counts as a miss at every size\n", c.size_changes);
-  if (!a.json.empty()) {
+  if (!a.json) {  // --json: the JSON below instead
+    fmt::print("{}: {} accesses, {} keys, footprint {}\n", source, c.accesses, c.keys, mrc_size_text(c.footprint, c.unit));
+    if (c.shards_rate > 0)
+      fmt::print("LRU miss-ratio curve, SHARDS_adj at rate {:g} (Waldspurger et al. 2015; estimated)\n", c.shards_rate);
+    else
+      fmt::print("LRU miss-ratio curve, exact (Mattson et al. 1970 stack distances)\n");
+    fmt::print("  {:>16}  {:>10}{}\n", fmt::format("size ({})", unit), "miss ratio", opt.empty() ? "" : "  Belady ratio");
+    for (std::size_t i = 0; i < c.capacity.size(); ++i)
+      fmt::print("  {:>16}  {:>10.4f}{}{}{}\n", c.capacity[i], c.miss_ratio[i],
+                 opt.empty() ? std::string() : fmt::format("  {:>12.4f}", opt_ratio(i)),
+                 c.unit == MrcUnit::kBytes ? "  " + human_bytes(static_cast<double>(c.capacity[i])) : "",
+                 c.knee.found && c.knee.index == i ? "  <- nearest the knee" : "");
+    if (c.knee.found)
+      fmt::print("knee (Kneedle): {} ({} {}), miss ratio {:.4f}\n", mrc_size_text(c.knee.capacity, c.unit), c.knee.capacity,
+                 unit, c.knee.miss_ratio);
+    else
+      fmt::print("knee: none (the curve is straight or concave)\n");
+    if (c.unit == MrcUnit::kBytes && c.max_size > 1)
+      fmt::print("note: below the largest access ({}) an LruCache rejects entries: there the curve is an upper bound\n",
+                 human_bytes(static_cast<double>(c.max_size)));
+    if (c.size_changes > 0)
+      fmt::print("note: {} re-accesses changed their key's size; each counts as a miss at every size\n", c.size_changes);
+  }
+  if (a.json || !a.json_file.empty()) {
     nlohmann::json j = mrc_json(c, source);
     if (!opt.empty())
       for (std::size_t i = 0; i < opt.size(); ++i) j["curve"][i]["belady_miss_ratio"] = opt_ratio(i);
-    mrc_write_text(a.json, j.dump(2) + "\n");
+    if (!a.json_file.empty()) write_output(a.json_file, j.dump(2) + "\n");
+    if (a.json) fmt::print("{}\n", j.dump(2));
   }
   if (!a.csv.empty()) {
     std::string csv = fmt::format("capacity_{},miss_ratio\n", unit);
@@ -136,6 +136,12 @@ void run_mrc(const MrcArgs& a) {
       throw InputError("--shards", fmt::format("rate {} is outside (0, 1] (a sampling rate; at least 2^-25)", r));
     o.shards_rate = r;
   }
+  check_output("--json-file", a.json_file);
+  check_output("--csv", a.csv);
+  check_output("--svg", a.svg);
+  check_output("--record", a.record);
+  if (a.json && (a.json_file == "-" || a.csv == "-" || a.svg == "-"))
+    throw InputError("--json", "prints to stdout already: give --json-file / --csv / --svg a file");
   if (a.sizes < 2 || a.sizes > kMrcMaxSizes)
     throw InputError("--sizes", fmt::format("{} is outside [2, {}]", a.sizes, kMrcMaxSizes));
   o.points = static_cast<std::size_t>(a.sizes);
@@ -167,7 +173,7 @@ void run_mrc(const MrcArgs& a) {
     if (!a.record.empty()) write_access_file(a.record, log);
   } else {
     if (!a.record.empty()) throw InputError("--record", "records a replay's accesses: give --trace");
-    log = read_access_file(a.accesses);
+    log = with_input(a.accesses, [](const std::string& p) { return read_access_file(p); });
   }
   MissRatioCurve c;
   try {
@@ -194,7 +200,7 @@ void register_mrc_commands(CLI::App& app) {
   auto a = std::make_shared<MrcArgs>();
   auto* c = app.add_subcommand("mrc", "LRU miss-ratio curve of an access sequence at every cache size, exact or by "
                                       "SHARDS sampling, with its knee (docs/cache.md)");
-  c->add_option("--accesses", a->accesses, "access file: 'key [size]' per line, keys decimal or 0x-hex, '#' comments");
+  c->add_option("--accesses", a->accesses, "access file: 'key [size]' per line, keys decimal or 0x-hex, '#' comments (- for stdin)");
   c->add_option("--trace,-t", a->trace, "or record a simulated replay of this trace (with --config, --set, --system)");
   c->add_option("--config,-c", a->config, "replay: TOML config file (docs/config.md)");
   c->add_option("--set", a->sets, "replay: override one config key (repeatable)");
@@ -207,9 +213,10 @@ void register_mrc_commands(CLI::App& app) {
   c->add_option("--unit", a->unit, "access file: pages (every access weighs 1, the default) | bytes (an access weighs its size)");
   c->add_option("--shards", a->shards, "SHARDS sampling rate in (0, 1], e.g. 0.01 (default: exact)");
   c->add_option("--sizes", a->sizes, "cache sizes printed, evenly spaced from 0 to the footprint")->capture_default_str();
-  c->add_option("--json", a->json, "write the curve and knee as JSON to this file");
-  c->add_option("--csv", a->csv, "write the curve as CSV (capacity,miss_ratio) to this file");
-  c->add_option("--svg", a->svg, "write an SVG chart of the curve to this file");
+  c->add_flag("--json", a->json, "print the curve and knee as JSON instead of the table");
+  c->add_option("--json-file", a->json_file, "write the curve and knee as JSON to this file (- for stdout)");
+  c->add_option("--csv", a->csv, "write the curve as CSV (capacity,miss_ratio) to this file (- for stdout)");
+  c->add_option("--svg", a->svg, "write an SVG chart of the curve to this file (- for stdout)");
   c->callback([a] { run_mrc(*a); });
 }
 

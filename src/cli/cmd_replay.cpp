@@ -7,6 +7,7 @@
 #include <fstream>
 #include <optional>
 
+#include "cli/cli_io.h"
 #include "cli/commands.h"
 #include "cli/trace_load.h"
 #include "core/error.h"
@@ -35,13 +36,6 @@ struct ReplayArgs {
   bool print_config = false, quiet = false, json = false, progress = false, opt = false;
   bool allow_repairs = false;
 };
-
-void write_text(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw InputError(path, "cannot open for writing");
-  out << text;
-  if (!out.flush()) throw InputError(path, "write failed");
-}
 
 // A replay whose camera never sees a textured surface measures nothing, and its summary looks
 // like a perfect run (no pop-in, no bandwidth). Usually the trace was made for another texture
@@ -159,20 +153,30 @@ void run_replay_command(const ReplayArgs& a) {
     return;
   }
   if (a.trace.empty()) throw InputError("--trace", "a trace file is required (see `vtsim trace gen --help`)");
+  // Every output checked before the work: a real-clock run is not thrown away for a typo.
+  check_output("--summary", a.summary);
+  check_output("--frames", a.frames);
+  check_output("--report", a.report);
+  int to_stdout = a.json ? 1 : 0;
+  for (const std::string* o : {&a.summary, &a.frames, &a.report}) to_stdout += *o == "-" ? 1 : 0;
+  if (to_stdout > 1)
+    throw InputError(a.json ? "--json" : "--summary/--frames/--report",
+                     "only one of --json, --summary -, --frames -, --report - can write to stdout");
   if (a.clock != "sim" && a.clock != "real")
     throw InputError("--clock", "'" + a.clock + "' is not one of: sim (device models), real (threads and files)");
   if (a.clock == "real" && a.store.empty())
     throw InputError("--store", "the real clock reads a tile store: give --store S (make one with `vtsim store gen`)");
+  check_input("--store", a.store);
   Trace trace = load_cli_trace(a.trace, a.allow_repairs);
   apply_speed(cfg, trace, a.speed);
   std::optional<TileStore> store;
   if (!a.store.empty()) {
     store.emplace(TileStore::open(a.store));
     for (const std::string& note : bind_store_texture(cfg, *store))
-      if (!a.quiet) fmt::print(stderr, "vtsim: {}\n", note);
+      if (!a.quiet) fmt::print(stderr, "vtsim: {}\n", note);  // information: -q hides it
   }
   auto scene = make_scene_from_config(cfg);
-  for (const std::string& w : scene->load_warnings()) fmt::print(stderr, "vtsim: warning: {}\n", w);
+  for (const std::string& w : scene->load_warnings()) warn(w);
   std::function<void(int, int)> progress;
   const bool tty = isatty(fileno(stderr)) != 0;
   if ((a.progress || tty) && !a.quiet)
@@ -181,8 +185,20 @@ void run_replay_command(const ReplayArgs& a) {
   if (a.clock == "real") {
     RealRun run = run_real_replay(cfg, trace, *scene, *store, RealClockOptions{progress});
     r = std::move(run.result);
-    const std::string warning = r.summary["real_clock"]["o_direct_warning"].get<std::string>();
-    if (!warning.empty() && !a.quiet) fmt::print(stderr, "vtsim: warning: {}\n", warning);
+    const nlohmann::json& rc = r.summary["real_clock"];
+    const std::string warning = rc["o_direct_warning"].get<std::string>();
+    if (!warning.empty()) warn(warning);
+    if (const auto& failed = rc["failed_tiles"]; !failed.empty()) {
+      std::string list;
+      for (std::size_t i = 0; i < failed.size() && i < 3; ++i)
+        list += fmt::format("{}layer {} level {} ({}, {}): {}", i ? "; " : "", failed[i]["layer"].get<int>(),
+                            failed[i]["level"].get<int>(), failed[i]["x"].get<std::int64_t>(), failed[i]["y"].get<std::int64_t>(),
+                            failed[i]["reason"].get<std::string>());
+      const std::size_t n = failed.size() + rc["failed_tiles_not_listed"].get<std::size_t>();
+      warn(fmt::format("{} tile{} failed after io.max_retries retries: {}{} (all in the summary's real_clock.failed_tiles; "
+                       "`vtsim store verify {}` checks every tile)",
+                       n, n == 1 ? "" : "s", list, n > 3 ? "; ..." : "", a.store));
+    }
   } else {
     ReplayEnv env;
     env.progress = progress;
@@ -191,23 +207,23 @@ void run_replay_command(const ReplayArgs& a) {
   }
   if (a.speed != 1.0) r.summary["trace"]["speed"] = a.speed;
   if (progress) fmt::print(stderr, "\r{:40}\r", "");
-  if (const std::string blind = blind_replay_warning(r.metrics, trace, cfg); !blind.empty() && !a.quiet)
-    fmt::print(stderr, "vtsim: warning: {}\n", blind);
-  if (!a.summary.empty()) write_text(a.summary, r.summary.dump(2) + "\n");
-  if (!a.frames.empty()) r.metrics.write_frames_csv(a.frames);
+  if (const std::string blind = blind_replay_warning(r.metrics, trace, cfg); !blind.empty()) warn(blind);
+  if (!a.summary.empty()) write_output(a.summary, r.summary.dump(2) + "\n");
+  if (!a.frames.empty()) write_output_via(a.frames, [&](const std::string& p) { r.metrics.write_frames_csv(p); });
   if (!a.report.empty()) {
     ReportConfig shown;
     for (const auto& f : replay_config_table().fields()) shown.emplace_back(f.key, f.get(cfg));
-    write_text(a.report, html_report(r.summary, r.metrics, shown));
+    write_output(a.report, html_report(r.summary, r.metrics, shown));
   }
   if (a.json) fmt::print("{}\n", r.summary.dump(2));
-  else if (!a.quiet) fmt::print("{}", format_summary(r.summary));
+  else if (!a.quiet && to_stdout == 0) fmt::print("{}", format_summary(r.summary));
+  else if (!a.quiet && !a.json) fmt::print(stderr, "{}", format_summary(r.summary));  // stdout carries a file
 }
 
 void register_replay_commands(CLI::App& app) {
   auto a = std::make_shared<ReplayArgs>();
   auto* c = app.add_subcommand("replay", "Replay a camera trace through a streaming system; print and write metrics");
-  c->add_option("--trace,-t", a->trace, "camera trace (native CSV, or TUM / EuRoC / KITTI, see docs/traces.md)");
+  c->add_option("--trace,-t", a->trace, "camera trace (native CSV, or TUM / EuRoC / KITTI, see docs/traces.md; - for stdin)");
   c->add_option("--config,-c", a->config, "TOML config file (docs/config.md)");
   c->add_option("--set", a->sets, "override one config key: --set upload.tiles_per_frame=8 (repeatable)");
   c->add_option("--system", a->system, streaming_systems().names(" | ") + " (overrides run.system)");
@@ -216,12 +232,18 @@ void register_replay_commands(CLI::App& app) {
   c->add_option("--store", a->store,
                 "tile store (.vts): the texture and every tile's disk bytes come from it (both clocks); required by --clock real");
   c->add_option("--speed", a->speed, "play the trace this many times faster (both clocks)")->capture_default_str();
-  c->add_option("--summary", a->summary, "write the summary JSON here");
-  c->add_option("--frames", a->frames, "write one CSV row per frame here");
-  c->add_option("--report", a->report, "write an HTML report with charts here");
+  c->add_option("--summary", a->summary, "write the summary JSON here (- for stdout)");
+  c->add_option("--frames", a->frames, "write one CSV row per frame here (- for stdout)");
+  c->add_option("--report", a->report, "write an HTML report with charts here (- for stdout)");
   c->add_flag("--json", a->json, "print the summary JSON instead of the human summary");
-  c->add_flag("--quiet,-q", a->quiet, "print nothing (files are still written)");
-  c->add_flag("--allow-repairs", a->allow_repairs, kAllowRepairsHelp);
+  if (const std::string blind = blind_replay_warning(r.metrics, trace, cfg); !blind.empty()) warn(blind);
+  if (!a.summary.empty()) write_output(a.summary, r.summary.dump(2) + "\n");
+  if (!a.frames.empty()) write_output_via(a.frames, [&](const std::string& p) { r.metrics.write_frames_csv(p); });
+  if (!a.report.empty()) {
+    ReportConfig shown;
+    for (const auto& f : replay_config_table().fields()) shown.emplace_back(f.key, f.get(cfg));
+    write_output(a.report, html_report(r.summary, r.metrics, shown));
+  }
   c->add_flag("--progress", a->progress, "show progress even when stderr is not a terminal");
   c->add_flag("--opt", a->opt, "also replay each cache level's recorded accesses offline: Belady's bound, the policy, LRU, "
                                  "the miss-ratio curve (= --set metrics.opt=true; docs/cache.md)");

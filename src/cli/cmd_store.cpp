@@ -6,15 +6,19 @@
 #include <csignal>
 #include <cstring>
 #include <cstdio>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <system_error>
 
+#include "cli/cli_io.h"
 #include "cli/commands.h"
 #include "cli/format.h"
 #include "core/error.h"
 #include "stream/store/store_builder.h"
 #include "stream/store/store_generator.h"
 #include "stream/store/tile_store.h"
+#include "sim/run/replay_config.h"
+#include "sim/run/systems.h"
 
 namespace vtsim::cli {
 namespace {
@@ -184,7 +188,7 @@ void print_info(const TileStore& s) {
 // and decode. Returns the number of bad tiles.
 std::uint64_t verify(const TileStore& s, bool want_direct, std::uint64_t max_report, const ProgressFn& progress) {
   DirectOpen f = open_for_read(s.path(), want_direct);
-  if (!f.warning.empty()) fmt::print(stderr, "vtsim: warning: {}\n", f.warning);
+  if (!f.warning.empty()) warn(f.warning);
   const auto& g = s.geometry();
   std::vector<std::uint64_t> order(s.index().size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
@@ -241,6 +245,61 @@ Image8 extract_level(const TileStore& s, std::uint32_t layer, std::uint32_t leve
   return img;
 }
 
+// A store every replay would refuse is refused before it is written (a 228 MiB store of 7-texel
+// tiles was): the tile side, border and size go through the replay config's own checks
+// (texture.tile_size >= 8, ...), and --levels must hold the levels at least one streaming system
+// samples (a warning names the systems that need more). width = 0: the size is not known yet
+// (store build reads it from the image). Throws InputError naming the flag.
+void check_store_replayable(std::uint64_t width, std::uint64_t height, std::uint32_t tile, std::uint32_t border,
+                            std::uint32_t levels) {
+  std::vector<std::string> sets = {fmt::format("texture.tile_size={}", tile), fmt::format("texture.border={}", border)};
+  if (width > 0) {
+    sets.push_back(fmt::format("texture.width={}", width));
+    sets.push_back(fmt::format("texture.height={}", height));
+  }
+  // Accepted when at least one streaming system accepts it (the clipmap wants border 0, a virtual
+  // texture a border: a store is made for one of them).
+  std::optional<ReplayConfig> accepted;
+  std::string refused;
+  for (const SystemInfo& sys : streaming_systems().entries()) {
+    std::vector<std::string> with = sets;
+    with.push_back("run.system=" + std::string(sys.name));
+    try {
+      accepted = load_replay_config("", with);
+      break;
+    } catch (const InputError& e) {
+      if (!refused.empty()) continue;  // the first system's reason
+      const std::string m = e.what();
+      const char* flag = m.find("texture.tile_size") != std::string::npos ? "--tile"
+                         : m.find("texture.border") != std::string::npos ? "--border"
+                                                                           : "--size";
+      const std::size_t colon = m.find("': ");
+      refused = std::string(flag) + "\n" + (colon == std::string::npos ? m : m.substr(colon + 3));
+    }
+  }
+  if (!accepted) {
+    const std::size_t nl = refused.find('\n');
+    throw InputError(refused.substr(0, nl), refused.substr(nl + 1) + " (no replay could read this store)");
+  }
+  const ReplayConfig& cfg = *accepted;
+  if (levels == 0 || width == 0) return;
+  std::string need_more;
+  int fewest = 1 << 30;
+  for (const SystemInfo& sys : streaming_systems().entries()) {
+    ReplayConfig c = cfg;
+    c.run.system = std::string(sys.name);
+    const int need = sys.store_levels(c);  // the levels' count depends on the texture, not on the border
+    fewest = std::min(fewest, need);
+    if (static_cast<int>(levels) < need)
+      need_more += fmt::format("{}{} needs {} ({})", need_more.empty() ? "" : "; ", sys.name, need, sys.store_levels_why);
+  }
+  if (static_cast<int>(levels) < fewest)
+    throw InputError("--levels", fmt::format("{} levels is fewer than any streaming system samples: {}; leave --levels unset "
+                                             "(down to 1x1)",
+                                             levels, need_more));
+  if (!need_more.empty()) warn(fmt::format("--levels {}: some systems will refuse this store: {}", levels, need_more));
+}
+
 // vtsim store build's options as typed.
 struct StoreBuildArgs {
   std::vector<std::string> images;
@@ -289,6 +348,8 @@ void register_store_build(CLI::App* store) {
               "Build from images the reader reports damaged (truncated JPEG/TIFF), its filler included");
   c->callback([o] {
     const BuildOptions b = store_build_options(*o);
+    check_store_replayable(0, 0, o->tile, o->border, o->levels);
+    check_output("--output", o->out);
     run_interruptible(o->out, [&] {
       const BuildResult r = build_store(o->images, b, o->out, interruptible(progress_printer("store build", o->progress)));
       print_result(o->out, r);
@@ -337,6 +398,8 @@ void register_store_gen(CLI::App* store) {
   c->add_flag("--progress", o->progress, "Show progress even when stderr is not a terminal");
   c->callback([o] {
     const GenOptions g = store_gen_options(*o);
+    check_store_replayable(g.width, g.height, o->tile, o->border, o->levels);
+    check_output("--output", o->out);
     run_interruptible(o->out, [&] {
       const BuildResult r = generate_store(g, o->out, interruptible(progress_printer("store gen", o->progress)));
       print_result(o->out, r);

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <memory>
 
+#include "cli/cli_io.h"
 #include "cli/commands.h"
 #include "core/error.h"
 #include "sim/sweep/sweep.h"
@@ -47,7 +48,7 @@ void run_sweep_command(const SweepArgs& a) {
                o.shard.count > 1 ? fmt::format(", shard {}/{}", o.shard.index, o.shard.count) : std::string());
   const SweepRunStats st = run_sweep(spec, o);
   if (o.progress && tty) fmt::print(stderr, "\r{:70}\r", "");
-  for (const std::string& w : st.trace_warnings) fmt::print(stderr, "vtsim: warning: {}\n", w);
+  for (const std::string& w : st.trace_warnings) warn(w);
   if (a.quiet) {
     if (st.rows_failed > 0) throw Exit{kExitFailure};
     return;
@@ -131,7 +132,7 @@ void run_tune_command(const TuneArgs& a) {
   const SweepSpec spec = load_sweep_spec(a.spec);
   std::vector<std::string> trace_warnings;
   const std::vector<Trace> traces = load_sweep_traces(spec, &trace_warnings);
-  for (const std::string& w : trace_warnings) fmt::print(stderr, "vtsim: warning: {}\n", w);
+  for (const std::string& w : trace_warnings) warn(w);
   std::size_t replays = 0;
   const bool show = !a.quiet && isatty(fileno(stderr)) != 0;
   const TuneResult r = run_tune(spec, [&](const std::vector<int>& configs) {

@@ -7,8 +7,10 @@
 #include <numbers>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "cli/cli_io.h"
 #include "cli/commands.h"
 #include "cli/trace_load.h"
 #include "core/error.h"
@@ -181,7 +183,19 @@ void register_gen(CLI::App* trace) {
         p.speed_mps *= a->radius / p.radius_m;  // keep the lap time
       p.radius_m = a->radius;
     }
-    const Trace t = generate_trace(p);
+    Trace t;
+    try {
+      t = generate_trace(p);
+    } catch (const InputError& e) {  // the generator names its parameter; the user typed a flag
+      static const std::pair<const char*, const char*> flags[] = {
+          {"duration_s", "--duration"}, {"fps", "--fps"},         {"speed_mps", "--speed"},     {"heading_deg", "--heading"},
+          {"height_m", "--height"},     {"pitch_deg", "--pitch"}, {"vfov_deg", "--vfov"},       {"start_m", "--start"},
+          {"turn_deg", "--turn"},       {"turn_s", "--turn-time"}, {"event_s", "--at"},         {"jump_m", "--jump"},
+          {"jump_heading_deg", "--jump-heading"}, {"radius_m", "--radius"}, {"image", "--image"}};
+      for (const auto& [field, flag] : flags)
+        if (e.where() == field) throw InputError(flag, std::string(e.what()).substr(e.where().size() + 2));
+      throw;
+    }
     save_trace(t, a->out);
     if (a->out != "-") fmt::print(stderr, "wrote {} poses to {}\n", t.poses.size(), a->out);
   });
@@ -261,7 +275,7 @@ void register_import(CLI::App* trace) {
       ".\nExample (a handheld recording flown over the terrain centre at 300 m, 100x larger):\n"
       "  vtsim trace import --format tum --scale 100 --recenter --offset 4096,4096,300 \\\n"
       "      --resample 60 tum_fr1_xyz_groundtruth.txt -o fr1_flight.csv");
-  c->add_option("input", a->in, "Input trajectory file")->required();
+  c->add_option("input", a->in, "Input trajectory file (- for stdin)")->required();
   c->add_option("-o,--output", a->out, "Output native trace (- for stdout)")->required();
   a->read.add(c);
   a->tf.add(c);
@@ -271,7 +285,7 @@ void register_import(CLI::App* trace) {
     ImportOptions o = a->read.options();
     a->tf.apply(o);
     TraceLoadReport rep;
-    Trace t = import_trace(a->in, o, &rep);
+    Trace t = with_input(a->in, [&](const std::string& in) { return import_trace(in, o, &rep); });
     print_repair_warnings(rep, a->in);
     fmt::print(stderr, "read {} poses ({}, {} lines) from {}; repairs: {}\n", rep.poses, rep.format,
                rep.lines, a->in, repairs_text(rep.repairs));
@@ -309,7 +323,7 @@ void register_export(CLI::App* trace) {
       ".\nExamples (the first for evo_traj tum walk_tum.txt --plot):\n"
       "  vtsim trace export --format tum traces/walk.csv -o walk_tum.txt\n"
       "  vtsim trace export --format kitti traces/walk.csv -o walk_kitti.txt --times walk_times.txt");
-  c->add_option("input", a->in, "Input trace (native; other formats are detected and imported with defaults)")
+  c->add_option("input", a->in, "Input trace (native; other formats are detected and imported with defaults; - for stdin)")
       ->required();
   c->add_option("-o,--output", a->out, "Output file (- for stdout)")->required();
   c->add_option("--format", a->format, "Output format: " + trace_formats().names())->required();
@@ -348,7 +362,7 @@ void register_resample(CLI::App* trace) {
   c->footer(
       "Frame k is at t0 + k / fps; positions and vfov interpolate linearly, orientations by\n"
       "shortest-arc slerp. Example: vtsim trace resample --fps 60 recorded.csv -o recorded_60.csv");
-  c->add_option("input", a->in, "Input trace (native; other formats are detected and imported with defaults)")
+  c->add_option("input", a->in, "Input trace (native; other formats are detected and imported with defaults; - for stdin)")
       ->required();
   c->add_option("-o,--output", a->out, "Output native trace (- for stdout)")->required();
   c->add_option("--fps", a->fps, "Output frame rate in Hz")->required();
@@ -387,7 +401,7 @@ void register_info(CLI::App* trace) {
   c->footer(
       "Any supported format (detected, or --format); non-native files are read with the import\n"
       "defaults (times from 0). Example: vtsim trace info --json traces/walk.csv");
-  c->add_option("input", a->in, "Trace file")->required();
+  c->add_option("input", a->in, "Trace file (- for stdin)")->required();
   c->add_flag("--json", a->json, "Print JSON instead of text");
   a->read.add(c);
   c->add_option("--cut-speed", a->so.cut_speed_mps, "A step faster than this (m/s) ...")->capture_default_str();
@@ -399,9 +413,11 @@ void register_info(CLI::App* trace) {
   c->callback([a] {
     TraceLoadReport rep;
     ImportOptions io = a->read.options();
-    if (io.format.empty()) io.format = detect_trace_format(a->in, io.read.limits);
     // A native file is shown as stored; other formats as imported with the defaults.
-    const Trace t = io.format == "native" ? load_trace(a->in, io.read, &rep) : import_trace(a->in, io, &rep);
+    const Trace t = with_input(a->in, [&](const std::string& in) {
+      if (io.format.empty()) io.format = detect_trace_format(in, io.read.limits);
+      return io.format == "native" ? load_trace(in, io.read, &rep) : import_trace(in, io, &rep);
+    });
     print_repair_warnings(rep, a->in);
     const TraceStats s = trace_stats(t, a->so);
     if (a->json) {

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/cli_io.h"
 #include "cli/commands.h"
 #include "cli/trace_load.h"
 #include "core/error.h"
@@ -99,7 +100,7 @@ void run_view(const ViewOptions& o) {
 
   const auto t_build = std::chrono::steady_clock::now();
   const std::unique_ptr<IScene> scene = make_scene(cfg);
-  for (const std::string& w : scene->load_warnings()) fmt::print(stderr, "vtsim: warning: {}\n", w);
+  for (const std::string& w : scene->load_warnings()) warn(w);
   const double build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_build).count();
   if (o.agl) {
     double ground = 0.0;

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "cli/cli_io.h"
 #include "cli/commands.h"
 #include "cli/trace_load.h"
 #include "core/error.h"
@@ -19,12 +20,12 @@ namespace vtsim::cli {
 namespace {
 
 struct VtCompareArgs {
-  std::vector<std::string> traces{"traces"};
+  std::vector<std::string> traces;  // empty: the installed traces (default_traces_dir)
   std::string policies = throttle_policies().names(",");  // all of them
   std::string config;
   std::vector<std::string> sets;
-  std::string markdown, json;
-  bool quiet = false;
+  std::string markdown, json_file;
+  bool quiet = false, json = false;
 };
 
 std::vector<std::string> split(const std::string& s) {
@@ -36,6 +37,29 @@ std::vector<std::string> split(const std::string& s) {
     b = e + 1;
   }
   return out;
+}
+
+// The standard traces beside this vtsim, not in the working directory: <exe>/../share/vtsim/traces
+// (an installed tree), then the source tree's traces/ (a build tree: the executable sits in
+// build/, or one level deeper). Throws InputError("--traces") when none exists.
+std::string default_traces_dir() {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  std::vector<fs::path> tried;
+  if (!ec) {
+    const fs::path bin = exe.parent_path();
+    tried = {bin / ".." / "share" / "vtsim" / "traces", bin / ".." / "traces", bin / ".." / ".." / "traces"};
+  }
+#ifdef VTSIM_SOURCE_TRACES
+  tried.emplace_back(VTSIM_SOURCE_TRACES);
+#endif
+  std::string list;
+  for (const fs::path& p : tried) {
+    if (fs::is_directory(p, ec) && fs::exists(p / "walk.csv", ec)) return fs::weakly_canonical(p, ec).string();
+    list += (list.empty() ? "" : ", ") + p.lexically_normal().string();
+  }
+  throw InputError("--traces", "no standard traces found beside this vtsim (tried " + list + "); name trace files or directories");
 }
 
 // Files named directly, or every *.csv of a directory (sorted).
@@ -64,7 +88,11 @@ void run_compare(const VtCompareArgs& a) {
   if (policies.empty()) throw InputError("--policies", "no policy named");
   for (const auto& p : policies)
     if (!throttle_policies().find(p)) throw InputError("--policies", throttle_policies().unknown(p));
-  const auto files = trace_files(a.traces);
+  check_output("--markdown", a.markdown);
+  check_output("--json-file", a.json_file);
+  if (a.json && (a.markdown == "-" || a.json_file == "-"))
+    throw InputError("--json", "prints to stdout already: give --markdown / --json-file a file");
+  const auto files = trace_files(a.traces.empty() ? std::vector<std::string>{default_traces_dir()} : a.traces);
   // The shared budget: one config for every run, the policy the only difference.
   ReplayConfig base = load_replay_config(a.config, a.sets, "vt");
   if (base.run.system != "vt")  // --set run.system=... comes after the command's own "vt"
@@ -149,15 +177,10 @@ void run_compare(const VtCompareArgs& a) {
     md += fmt::format("| {} | {:.2f} | {:.3f} | {:.0f} | {:.0f} | {:.2f} | {:.2f} | {:.0f} |\n", p, 100.0 * b / n, d / n,
                       pops / n, l / n, disk / n, up / n, ev / n);
   }
-  if (!a.markdown.empty()) {
-    std::ofstream out(a.markdown, std::ios::binary | std::ios::trunc);
-    if (!out || !(out << md).flush()) throw InputError(a.markdown, "cannot write");
-  }
-  if (!a.json.empty()) {
-    std::ofstream out(a.json, std::ios::binary | std::ios::trunc);
-    if (!out || !(out << rows.dump(2) << "\n").flush()) throw InputError(a.json, "cannot write");
-  }
-  if (a.markdown.empty() || !a.quiet) fmt::print("{}", md);
+  if (!a.markdown.empty()) write_output(a.markdown, md);
+  if (!a.json_file.empty()) write_output(a.json_file, rows.dump(2) + "\n");
+  if (a.json) fmt::print("{}\n", rows.dump(2));
+  else if (a.markdown != "-" && a.json_file != "-" && (a.markdown.empty() || !a.quiet)) fmt::print("{}", md);
 }
 
 }  // namespace
@@ -167,12 +190,14 @@ void register_vt_commands(CLI::App& app) {
   vt->require_subcommand(1);
   auto a = std::make_shared<VtCompareArgs>();
   auto* c = vt->add_subcommand("compare", "Replay traces under each residency policy at equal budgets; print a Markdown table");
-  c->add_option("--traces", a->traces, "trace files or directories of *.csv (default: traces)")->capture_default_str();
+  c->add_option("--traces", a->traces,
+                "trace files or directories of *.csv (default: the standard traces installed beside vtsim, share/vtsim/traces)");
   c->add_option("--policies", a->policies, "comma-separated throttle policies")->capture_default_str();
   c->add_option("--config,-c", a->config, "TOML config file shared by every run (docs/config.md)");
   c->add_option("--set", a->sets, "override one config key for every run (repeatable)");
-  c->add_option("--markdown", a->markdown, "write the table here");
-  c->add_option("--json", a->json, "write every run's figures here");
+  c->add_option("--markdown", a->markdown, "write the table here (- for stdout)");
+  c->add_option("--json-file", a->json_file, "write every run's figures as JSON here (- for stdout)");
+  c->add_flag("--json", a->json, "print every run's figures as JSON instead of the table");
   c->add_flag("--quiet,-q", a->quiet, "no progress; with --markdown, nothing on stdout");
   c->callback([a] { run_compare(*a); });
 }

@@ -15,6 +15,12 @@ struct Exit {
   int code;
 };
 
+// Thrown by `vtsim help CMD...`: main prints that command's help (the same as `vtsim CMD... --help`).
+struct HelpFor {
+  const CLI::App* app;
+  std::string prev;  // the program and parent commands, as CLI::App::help() takes them
+};
+
 void register_trace_commands(CLI::App& app);
 void register_capacity_commands(CLI::App& app);
 void register_replay_commands(CLI::App& app);
@@ -27,5 +33,9 @@ void register_sweep_commands(CLI::App& app);
 void register_tune_commands(CLI::App& app);
 void register_mrc_commands(CLI::App& app);
 void register_report_commands(CLI::App& app);
+// `vtsim help [CMD...]` and `vtsim completion bash`, generated from the commands registered before.
+void register_help_commands(CLI::App& app);
+// The bash completion script for `app`'s commands and options (every subcommand, every flag).
+std::string bash_completion(const CLI::App& app);
 
 }  // namespace vtsim::cli

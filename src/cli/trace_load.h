@@ -1,5 +1,5 @@
 #pragma once
-// How every command reads a --trace / trace input: load_any_trace under the repair policy
+// How every command reads a --trace / trace input ("-": stdin): load_any_trace under the repair policy
 // (trace_io.h, check_repairs), each repair it made printed as a "vtsim: warning:" line on stderr
 // naming the file (warnings are never silenced: issue 26, "Nothing lost silently").
 #include <fmt/core.h>
@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <string>
 
+#include "cli/cli_io.h"
 #include "core/trace.h"
 #include "sim/trace/trace_import.h"
 #include "sim/trace/trace_io.h"
@@ -16,14 +17,14 @@ namespace vtsim::cli {
 
 inline void print_repair_warnings(const TraceLoadReport& rep, const std::string& path) {
   for (const std::string& w : repair_warnings(rep.repairs, rep.poses + rep.repairs.dropped(), path))
-    fmt::print(stderr, "vtsim: warning: {}\n", w);
+    warn(w);
 }
 
 inline Trace load_cli_trace(const std::string& path, bool allow_repairs, TraceLoadReport* report = nullptr) {
   TraceReadOptions read;
   read.allow_repairs = allow_repairs;
   TraceLoadReport rep;
-  Trace t = load_any_trace(path, read, &rep);
+  Trace t = with_input(path, [&](const std::string& p) { return load_any_trace(p, read, &rep); });
   print_repair_warnings(rep, path);
   if (report) *report = rep;
   return t;

@@ -227,6 +227,22 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
   }
   rc["injected_faults"] = {{"io_error", inj.io_error}, {"short_read", inj.short_read}, {"checksum", inj.checksum}, {"slow", inj.slow}};
   rc["fault_examples"] = exec.fault_examples();
+  // The tiles the pipeline gave up on (faulted more than io.max_retries times in a row), named so
+  // a corrupt store can be repaired: the first kMaxListed in key order, and how many more.
+  constexpr std::size_t kMaxListed = 50;  // enough to see a pattern (one level, one file region), small in the JSON
+  nlohmann::json failed = nlohmann::json::array();
+  std::size_t failed_more = 0;
+  for (const ThreadedExecutor::TileFaults& t : exec.faulted_tiles()) {
+    if (t.in_a_row <= static_cast<std::uint32_t>(cfg.io.max_retries)) continue;
+    if (failed.size() == kMaxListed) {
+      ++failed_more;
+      continue;
+    }
+    failed.push_back({{"layer", t.key.layer()}, {"level", t.key.level()}, {"x", t.key.x()}, {"y", t.key.y()},
+                      {"fault", std::string(fault_name(t.fault))}, {"reason", t.error}, {"attempts", t.in_a_row}});
+  }
+  rc["failed_tiles"] = failed;
+  rc["failed_tiles_not_listed"] = failed_more;
   run.result.summary["provenance"]["machine"] = machine_json();  // what the real-clock figures measured
   return run;
 }

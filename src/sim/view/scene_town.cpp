@@ -1,5 +1,8 @@
 #include "sim/view/scene_town.h"
 
+#include <fmt/format.h>
+
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -46,8 +49,12 @@ struct Builder {
       shelf_h = 0;
     }
     if (wi > tw || cur_y + hi > th)
-      throw InputError("texels_per_m", "the town's faces do not fit into the virtual texture; lower the "
-                                       "texel density or the town size, or enlarge the texture");
+      throw InputError("texture.texels_per_m",
+                       fmt::format("{:g} texels/m packs the town's faces into more than the {}x{}-texel texture: lower "
+                                   "texture.texels_per_m or use a larger texture (texture.width and texture.height, or a "
+                                   "store made with a larger `vtsim store gen --size`); texture.texels_per_m=4 fits a "
+                                   "16384x16384 texture",
+                                   tpm, tw, th));
     const double u0 = static_cast<double>(cur_x), v0 = static_cast<double>(cur_y);
     cur_x += wi + kGapTexels;
     shelf_h = std::max(shelf_h, hi);
@@ -103,7 +110,16 @@ Mesh generate_town(const SceneConfig& cfg) {
   check_range(cfg.town_walls_per_block, 0, 64, "town_walls_per_block");
   const double S = town_size_m(cfg);
   if (S * cfg.texels_per_m > static_cast<double>(ext.width) || S * cfg.texels_per_m > static_cast<double>(ext.height))
-    throw InputError("town_blocks", "the town's ground (" + std::to_string(S) + " m) is larger than the terrain texture");
+  {
+    // The town's layout is fixed (SceneConfig's defaults), so the density is the key to change.
+    const double most = std::floor(static_cast<double>(std::min(ext.width, ext.height)) / S * 100.0) / 100.0;
+    throw InputError("texture.texels_per_m",
+                     fmt::format("{:g} texels/m puts the town's {:g} m ground on {:.0f} texels a side, more than the {}x{}-texel "
+                                 "texture: lower texture.texels_per_m below {:g} (the ground alone; the faces need room too) or use a "
+                                 "larger texture (texture.width and texture.height, or a larger `vtsim store gen --size`); "
+                                 "texture.texels_per_m=4 fits a 16384x16384 texture",
+                                 cfg.texels_per_m, S, S * cfg.texels_per_m, ext.width, ext.height, most));
+  }
   Builder b;
   b.tpm = cfg.texels_per_m;
   b.tw = ext.width;

@@ -98,6 +98,15 @@ void ThreadedExecutor::finish(std::unordered_map<RequestId, Job>::iterator it, J
     for (const auto& e : fault_examples_) seen |= e.rfind(std::string(fault_name(fault)) + ": ", 0) == 0;
     if (!seen) fault_examples_.push_back(std::string(fault_name(fault)) + ": " + error);
   }
+  if (fault != Fault::none) {
+    TileFaults& t = faulted_[r.key];
+    t.key = r.key;
+    ++t.in_a_row;
+    t.fault = fault;
+    t.error = error;
+  } else if (outcome == JobOutcome::ready) {
+    faulted_.erase(r.key);
+  }
   done_.push_back(std::move(r));
   jobs_.erase(it);
   done_cv_.notify_all();
@@ -170,6 +179,16 @@ bool ThreadedExecutor::wait_for_results(std::size_t n, std::chrono::milliseconds
 std::vector<std::string> ThreadedExecutor::fault_examples() const {
   std::lock_guard lock(m_);
   return fault_examples_;
+}
+
+std::vector<ThreadedExecutor::TileFaults> ThreadedExecutor::faulted_tiles() const {
+  std::vector<TileFaults> out;
+  {
+    std::lock_guard lock(m_);
+    for (const auto& [k, t] : faulted_) out.push_back(t);
+  }
+  std::sort(out.begin(), out.end(), [](const TileFaults& a, const TileFaults& b) { return a.key < b.key; });
+  return out;
 }
 
 }  // namespace vtsim

@@ -96,6 +96,16 @@ class ThreadedExecutor final : public IExecutor {
   FaultLayer::Counts injected_faults() const { return faults_.injected(); }
   // The first error message of each fault kind seen (for the summary); empty if none.
   std::vector<std::string> fault_examples() const;
+  // A tile whose reads faulted since its last success: how many times in a row, and the last
+  // fault's kind and message. A tile that faulted more than the pipeline's max_retries times in a
+  // row is one it marked failed. Sorted by key (deterministic order for the summary).
+  struct TileFaults {
+    TileKey key;
+    std::uint32_t in_a_row = 0;
+    Fault fault = Fault::none;
+    std::string error;
+  };
+  std::vector<TileFaults> faulted_tiles() const;
 
  private:
   enum class JobState : std::uint8_t { io, io_cancelled, decode };
@@ -120,6 +130,7 @@ class ThreadedExecutor final : public IExecutor {
   std::unordered_map<RequestId, Job> jobs_;   // in the pools; guarded by m_
   std::deque<JobResult> done_;                // completed, in completion order; guarded by m_
   std::vector<std::string> fault_examples_;   // guarded by m_
+  std::unordered_map<TileKey, TileFaults, TileKeyHash> faulted_;  // guarded by m_; erased on a success
   std::unique_ptr<DecodePool> decode_;        // made before io_: reads hand over to it
   std::unique_ptr<IoPool> io_;
 };

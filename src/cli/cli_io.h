@@ -1,0 +1,61 @@
+#pragma once
+// The CLI's shared conventions (README.md "Conventions"): one warning channel that -q never
+// silences and --werror turns into exit 1; "-" for stdin or stdout wherever a file is read or
+// written; output paths checked before the work, not after it.
+#include <cstddef>
+#include <functional>
+#include <string>
+
+#include "core/error.h"
+
+namespace vtsim::cli {
+
+// Prints "vtsim: warning: MESSAGE" on stderr, whatever -q says, and counts it. Not thread-safe
+// (commands warn from their own thread).
+void warn(const std::string& message);
+// Warnings printed since the program started.
+std::size_t warnings_printed();
+
+// Throws InputError naming `flag` when `path` cannot be written: its directory is missing or not
+// writable, or it is a directory. "-" (stdout) and "" (not given) pass. Creates nothing.
+void check_output(const std::string& flag, const std::string& path);
+// Throws InputError naming `flag` when `path` cannot be opened for reading. "-" (stdin) passes.
+void check_input(const std::string& flag, const std::string& path);
+
+// Writes `text` to `path`, or to stdout when `path` is "-". Throws InputError naming the path.
+void write_output(const std::string& path, const std::string& text);
+// For writers that take a path (write(path) creates the file): "-" writes to a temporary file,
+// then copies it to stdout and removes it.
+void write_output_via(const std::string& path, const std::function<void(const std::string&)>& write);
+
+// stdin as a file for readers that take a path: for "-" reads all of stdin into a temporary file
+// (removed on destruction); any other path passes through. Not copyable.
+class InputFile {
+ public:
+  explicit InputFile(const std::string& path);
+  ~InputFile();
+  InputFile(const InputFile&) = delete;
+  InputFile& operator=(const InputFile&) = delete;
+  const std::string& path() const { return path_; }
+  // An InputError's text with the temporary file's name replaced by "-" (stdin).
+  std::string rename(const std::string& text) const;
+
+ private:
+  std::string path_, temp_;
+};
+
+// f(path) with `path` readable as a file, "-" meaning stdin: errors name "-", not a temporary
+// file. For every reader that takes a path (traces, access files, configs).
+template <class F>
+auto with_input(const std::string& path, F&& f) {
+  InputFile in(path);
+  try {
+    return f(in.path());
+  } catch (const InputError& e) {
+    if (path != "-") throw;
+    throw InputError(in.rename(e.where()), std::string(e.what()).substr(e.where().empty() ? 0 : e.where().size() + 2));
+  }
+}
+
+
+}  // namespace vtsim::cli
