@@ -236,14 +236,8 @@ void register_replay_commands(CLI::App& app) {
   c->add_option("--frames", a->frames, "write one CSV row per frame here (- for stdout)");
   c->add_option("--report", a->report, "write an HTML report with charts here (- for stdout)");
   c->add_flag("--json", a->json, "print the summary JSON instead of the human summary");
-  if (const std::string blind = blind_replay_warning(r.metrics, trace, cfg); !blind.empty()) warn(blind);
-  if (!a.summary.empty()) write_output(a.summary, r.summary.dump(2) + "\n");
-  if (!a.frames.empty()) write_output_via(a.frames, [&](const std::string& p) { r.metrics.write_frames_csv(p); });
-  if (!a.report.empty()) {
-    ReportConfig shown;
-    for (const auto& f : replay_config_table().fields()) shown.emplace_back(f.key, f.get(cfg));
-    write_output(a.report, html_report(r.summary, r.metrics, shown));
-  }
+  c->add_flag("--quiet,-q", a->quiet, "print no information (files are still written; warnings still are: --werror makes them fail the run)");
+  c->add_flag("--allow-repairs", a->allow_repairs, kAllowRepairsHelp);
   c->add_flag("--progress", a->progress, "show progress even when stderr is not a terminal");
   c->add_flag("--opt", a->opt, "also replay each cache level's recorded accesses offline: Belady's bound, the policy, LRU, "
                                  "the miss-ratio curve (= --set metrics.opt=true; docs/cache.md)");

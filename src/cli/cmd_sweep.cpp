@@ -48,7 +48,7 @@ void run_sweep_command(const SweepArgs& a) {
                o.shard.count > 1 ? fmt::format(", shard {}/{}", o.shard.index, o.shard.count) : std::string());
   const SweepRunStats st = run_sweep(spec, o);
   if (o.progress && tty) fmt::print(stderr, "\r{:70}\r", "");
-  for (const std::string& w : st.trace_warnings) warn(w);
+  for (const std::string& w : st.input_warnings) warn(w);
   if (a.quiet) {
     if (st.rows_failed > 0) throw Exit{kExitFailure};
     return;

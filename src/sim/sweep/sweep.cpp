@@ -297,6 +297,15 @@ class SceneCache {
     if (!slot) slot = make_scene_from_config(cfg);
     return *slot;
   }
+  // What the scenes' readers left out (IScene::load_warnings), in key order.
+  std::vector<std::string> load_warnings() {
+    std::lock_guard<std::mutex> lock(mu_);
+    std::vector<std::string> out;
+    for (const auto& [key, scene] : scenes_)
+      if (scene)  // null: the scene failed to build (that row's error)
+        for (std::string& w : scene->load_warnings()) out.push_back(std::move(w));
+    return out;
+  }
 
  private:
   std::mutex mu_;
@@ -429,7 +438,7 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
   for (const auto& f : fs::directory_iterator(parts))
     if (f.path().extension() == ".tmp") fs::remove(f.path(), ec);
   SweepRunStats st;
-  st.trace_warnings = std::move(trace_warnings);
+  st.input_warnings = std::move(trace_warnings);
   st.rows = e - b;
   std::vector<const Task*> todo;
   std::uint64_t total_frames = 0;
@@ -520,6 +529,7 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
   if (first_error) std::rethrow_exception(first_error);
 
   st.rows_failed = failed.load();
+  for (std::string& w : scenes.load_warnings()) st.input_warnings.push_back(std::move(w));
   st.views_rendered = todo.size();
   st.replayed_s = replayed_s.load();
   st.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();

@@ -51,7 +51,8 @@ struct SweepRunStats {
   std::size_t tasks = 0, views_rendered = 0;
   double wall_s = 0, cpu_s = 0;  // this process
   double replayed_s = 0;         // trace seconds replayed, summed over rows run now
-  std::vector<std::string> trace_warnings;  // repairs the trace readers made (load_sweep_trace)
+  std::vector<std::string> input_warnings;  // what the trace readers repaired (load_sweep_trace) and
+                                            // the scene readers left out (IScene::load_warnings)
 };
 
 // Runs a shard of the sweep into opts.out_dir (OUT/parts/, OUT/shard.json); an unsharded run
