@@ -1,4 +1,5 @@
 #include "sim/run/report_html.h"
+#include "sim/run/report_identity.h"
 
 #include "cache/policy/mrc.h"
 #include "sim/run/mrc_chart.h"
@@ -224,6 +225,7 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m) {
     mrc_section(pool["bounds"], "VT page pool: LRU miss-ratio curve of the recorded accesses",
                 acc > 0 ? pool["misses"].get<double>() / acc : 0.0);
   }
+  h += html_run_identity(s);
   h += "</body></html>\n";
   return h;
 }
