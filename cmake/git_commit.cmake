@@ -3,6 +3,7 @@
 # text changes, and the target lists it as a byproduct (Ninja: restat), so a new commit recompiles
 # this one file and relinks; nothing else rebuilds. No git or no repository: "unknown".
 #   cmake -DSRC=<source dir> -DOUT=<file.cpp> -P git_commit.cmake
+cmake_minimum_required(VERSION 3.20)  # script mode: the current policies (CMP0053)
 set(VTSIM_COMMIT "unknown")
 find_package(Git QUIET)
 if(GIT_FOUND)

@@ -17,6 +17,7 @@
 #include "sim/run/provenance.h"
 #include "sim/run/real_replay.h"
 #include "sim/run/replay.h"
+#include "sim/run/report_html.h"
 #include "sim/trace/trace_gen.h"
 #include "sim/trace/trace_import.h"
 #include "sim/trace/trace_resample.h"
@@ -162,6 +163,16 @@ TEST_CASE("summary: the schema, the build, every config key with its effective v
   CHECK(t["content_hash"] == fmt::format("fnv1a64:{:016x}", fnv1a64(test::slurp(path))));
   CHECK(t["poses"] == trace.poses.size());
   CHECK(t["poses_duration_s"] == trace.poses.back().t_s - trace.poses.front().t_s);
+
+  // The HTML report says it too: "hdd" and every key are in it.
+  {
+    const ReplayConfig cfg = load_replay_config("", {"scene.kind=town", "disk.preset=hdd", "view.render_threads=0"});
+    const ReplayResult r = run_replay(cfg, trace, *make_scene_from_config(cfg));
+    const std::string html = html_report(r.summary, r.metrics);
+    CHECK(test::contains(html, "<tr><th>disk.preset</th><td>hdd</td></tr>"));
+    CHECK(test::contains(html, "Effective config: " + std::to_string(replay_config_table().fields().size()) + " keys"));
+    CHECK(test::contains(html, fmt::format("fnv1a64:{:016x}", fnv1a64(test::slurp(path)))));
+  }
 
   // A generated trace has no file: no path, no hash; still its poses.
   const Trace gen = identity_still_trace();

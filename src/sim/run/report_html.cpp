@@ -1,4 +1,5 @@
 #include "sim/run/report_html.h"
+#include "sim/run/report_identity.h"
 
 #include "cache/policy/mrc.h"
 #include "sim/run/mrc_chart.h"
@@ -343,11 +344,12 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m, cons
     mrc_section(pool["bounds"], "VT page pool: LRU miss-ratio curve of the recorded accesses",
                 acc > 0 ? pool["misses"].get<double>() / acc : 0.0);
   }
-  if (!config.empty()) {
+  if (!config.empty() && !(s.is_object() && s.contains("config"))) {  // else html_run_identity shows it
     h += "<h2>Config</h2>\n<p>Every key of the run's effective config, defaults included (docs/config.md).</p>\n<div class=\"cfg\">\n";
     for (const auto& [k, v] : config) h += "<div>" + escape(k) + " = " + escape(v) + "</div>\n";
     h += "</div>\n";
   }
+  h += html_run_identity(s);
   h += "</body></html>\n";
   return h;
 }
