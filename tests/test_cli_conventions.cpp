@@ -228,3 +228,13 @@ TEST_CASE("cli: store gen and store verify --json; a truncated store fails calib
   CHECK(vtsim::test::contains(cal.err, "vtsim: error: " + cut + ": truncated: the file has"));
   CHECK(cal.out.empty());
 }
+
+TEST_CASE("cli: a scene's missing file is named by the flag (view --obj) or the config key (replay scene.file)") {
+  const auto view = conv_sh("$V view --scene mesh");
+  CHECK(view.code == 2);
+  CHECK(vtsim::test::contains(view.err, "vtsim: error: --obj: the mesh scene needs"));
+  const auto replay = conv_sh("$V replay --trace $SRC/traces/static.csv --set scene.kind=mesh");
+  CHECK(replay.code == 2);
+  CHECK(vtsim::test::contains(replay.err, "vtsim: error: "));
+  CHECK(vtsim::test::contains(replay.err, "scene.file"));
+}
