@@ -127,7 +127,7 @@ TEST_CASE("bench harness: add_measured() pairs externally timed repetitions, def
   CHECK(vb::Harness("test", 2, argv_q).options().reps == 7);
 }
 
-TEST_CASE("bench harness: quick mode holds no target a case did not declare valid there; --strict exits 1 on a miss") {
+TEST_CASE("bench harness: quick mode holds no target a case did not declare valid there, and --strict exits 1 on a miss") {
   std::string a0 = "bench_test", q = "--quick", s = "--strict";
   char* argv_q[] = {a0.data(), q.data(), s.data()};
   vb::Harness h("test", 3, argv_q, 3, 1);
