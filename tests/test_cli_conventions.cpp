@@ -213,7 +213,7 @@ TEST_CASE("cli: --json prints the results as JSON on stdout in every command tha
   }
 }
 
-TEST_CASE("cli: store gen and store verify --json; a truncated store fails calibrate before any measurement") {
+TEST_CASE("cli: store gen and store verify --json, and a truncated store fails calibrate before any measurement") {
   const std::string store = conv_tmp("conv.vts"), cut = conv_tmp("conv_cut.vts");
   const auto gen = conv_sh("$V store gen -o " + store + " --size 1024x1024 --json");
   REQUIRE(gen.code == 0);
