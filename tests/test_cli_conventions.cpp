@@ -212,3 +212,29 @@ TEST_CASE("cli: --json prints the results as JSON on stdout in every command tha
     CHECK((r.code == 2 || r.out.rfind("{", 0) == 0));
   }
 }
+
+TEST_CASE("cli: store gen and store verify --json, and a truncated store fails calibrate before any measurement") {
+  const std::string store = conv_tmp("conv.vts"), cut = conv_tmp("conv_cut.vts");
+  const auto gen = conv_sh("$V store gen -o " + store + " --size 1024x1024 --json");
+  REQUIRE(gen.code == 0);
+  CHECK(vtsim::test::contains(gen.out, "\"tiles\": "));
+  const auto ok = conv_sh("$V store verify " + store + " --buffered --json");
+  CHECK(ok.code == 0);
+  CHECK(vtsim::test::contains(ok.out, "\"bad\": 0"));
+  std::filesystem::copy_file(store, cut, std::filesystem::copy_options::overwrite_existing);
+  std::filesystem::resize_file(cut, std::filesystem::file_size(store) / 2);
+  const auto cal = conv_sh("$V calibrate --store " + cut + " --quick -q");
+  CHECK(cal.code == 2);
+  CHECK(vtsim::test::contains(cal.err, "vtsim: error: " + cut + ": truncated: the file has"));
+  CHECK(cal.out.empty());
+}
+
+TEST_CASE("cli: a scene's missing file is named by the flag (view --obj) or the config key (replay scene.file)") {
+  const auto view = conv_sh("$V view --scene mesh");
+  CHECK(view.code == 2);
+  CHECK(vtsim::test::contains(view.err, "vtsim: error: --obj: the mesh scene needs"));
+  const auto replay = conv_sh("$V replay --trace $SRC/traces/static.csv --set scene.kind=mesh");
+  CHECK(replay.code == 2);
+  CHECK(vtsim::test::contains(replay.err, "vtsim: error: "));
+  CHECK(vtsim::test::contains(replay.err, "scene.file"));
+}

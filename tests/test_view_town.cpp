@@ -97,7 +97,7 @@ TEST_CASE("town: renders ground / walls and roofs / bad parameters are rejected"
   CHECK_THROWS_AS(generate_town(bad_cfg), InputError);
   bad_cfg = cfg;
   bad_cfg.size_x_m = bad_cfg.size_y_m = 1300;  // the ground fits, the faces do not
-  CHECK_THROWS_WITH_AS(generate_town(bad_cfg), doctest::Contains("do not fit"), InputError);
+  CHECK_THROWS_WITH_AS(generate_town(bad_cfg), doctest::Contains("packs the town's faces into more than"), InputError);
 }
 
 namespace {

@@ -275,9 +275,10 @@ TEST_CASE("replay CLI: a camera that never sees a textured surface is warned abo
                               err);
   CHECK(r.code == 0);
   CHECK(r.err.find("the texture covers x 5000.0..13192.0 m, y 0.0..8192.0 m") != std::string::npos);
-  // -q prints nothing; a trace that sees the ground has no warning.
+  // -q hides the summary, never the warning (issue 26 §4); a trace that sees the ground has no warning.
   r = test::run_vtsim_capture("replay -q --set texture.origin_x_m=5000 --trace " + traces + "static.csv", err);
-  CHECK(r.err.empty());
+  CHECK(r.out.empty());
+  CHECK(r.err.find("vtsim: warning: no frame saw a textured surface") != std::string::npos);
   r = test::run_vtsim_capture("replay --set view.render_threads=0 --trace " + traces + "static.csv", err);
   CHECK(r.code == 0);
   CHECK(r.err.find("warning") == std::string::npos);

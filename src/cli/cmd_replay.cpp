@@ -191,13 +191,13 @@ void run_replay_command(const ReplayArgs& a) {
     if (const auto& failed = rc["failed_tiles"]; !failed.empty()) {
       std::string list;
       for (std::size_t i = 0; i < failed.size() && i < 3; ++i)
-        list += fmt::format("{}layer {} level {} ({}, {}): {}", i ? "; " : "", failed[i]["layer"].get<int>(),
+        list += fmt::format("{}layer {} level {} ({}, {}) {}", i ? ", " : "", failed[i]["layer"].get<int>(),
                             failed[i]["level"].get<int>(), failed[i]["x"].get<std::int64_t>(), failed[i]["y"].get<std::int64_t>(),
-                            failed[i]["reason"].get<std::string>());
+                            failed[i]["fault"].get<std::string>());
       const std::size_t n = failed.size() + rc["failed_tiles_not_listed"].get<std::size_t>();
-      warn(fmt::format("{} tile{} failed after io.max_retries retries: {}{} (all in the summary's real_clock.failed_tiles; "
+      warn(fmt::format("{} tile{} failed after io.max_retries retries: {}{} (each with its reason in the summary's real_clock.failed_tiles; "
                        "`vtsim store verify {}` checks every tile)",
-                       n, n == 1 ? "" : "s", list, n > 3 ? "; ..." : "", a.store));
+                       n, n == 1 ? "" : "s", list, n > 3 ? ", ..." : "", a.store));
     }
   } else {
     ReplayEnv env;

@@ -103,7 +103,13 @@ void run_interruptible(const std::string& out, F&& f) {
   }
 }
 
-void print_result(const std::string& out, const BuildResult& r) {
+void print_result(const std::string& out, const BuildResult& r, bool json = false) {
+  if (json) {
+    fmt::print("{}\n", nlohmann::json{{"path", out}, {"tiles", r.tiles}, {"file_bytes", r.file_bytes},
+                                      {"stored_bytes", r.stored_bytes}, {"decoded_bytes", r.decoded_bytes}}
+                           .dump(2));
+    return;
+  }
   fmt::print("wrote {}: {} tiles, {} ({} payload for {} decoded, ratio {:.2f})\n", out, r.tiles,
              human_bytes(static_cast<double>(r.file_bytes)), human_bytes(static_cast<double>(r.stored_bytes)),
              human_bytes(static_cast<double>(r.decoded_bytes)),
@@ -186,7 +192,8 @@ void print_info(const TileStore& s) {
 
 // Reads every record in file order (O_DIRECT when the filesystem allows), checks each checksum
 // and decode. Returns the number of bad tiles.
-std::uint64_t verify(const TileStore& s, bool want_direct, std::uint64_t max_report, const ProgressFn& progress) {
+std::uint64_t verify(const TileStore& s, bool want_direct, std::uint64_t max_report, const ProgressFn& progress,
+                     nlohmann::json* bad_json = nullptr) {
   DirectOpen f = open_for_read(s.path(), want_direct);
   if (!f.warning.empty()) warn(f.warning);
   const auto& g = s.geometry();
@@ -210,7 +217,10 @@ std::uint64_t verify(const TileStore& s, bool want_direct, std::uint64_t max_rep
       if (got < loc.stored_bytes) throw InputError(s.path() + ": " + store::describe(k), "short read");
       s.verify_and_decode(k, rec.data(), got, out.data(), out.size());
     } catch (const InputError& e) {
-      if (bad < max_report) fmt::print("BAD {}\n", e.what());
+      if (bad < max_report) {
+        if (bad_json) bad_json->push_back({{"layer", k.layer()}, {"level", k.level()}, {"x", k.x()}, {"y", k.y()}, {"reason", e.what()}});
+        else fmt::print("BAD {}\n", e.what());
+      }
       ++bad;
     }
     if (progress && (n % 256 == 0 || n + 1 == order.size())) progress(static_cast<double>(n + 1) / static_cast<double>(order.size()));
@@ -306,7 +316,7 @@ struct StoreBuildArgs {
   std::string out, codecs = "zstd", names, transfers = "srgb";
   std::uint32_t tile = 128, border = 4, levels = 0;
   unsigned threads = 0;
-  bool progress = false, accept_damaged = false;
+  bool progress = false, accept_damaged = false, json = false;
 };
 
 // The builder's options from the typed ones; throws InputError naming the option (--codec first,
@@ -344,6 +354,7 @@ void register_store_build(CLI::App* store) {
   c->add_option("--transfer", o->transfers, "srgb or linear per layer (mip filtering in linear light for srgb)")->capture_default_str();
   c->add_option("--threads", o->threads, "Encode threads (0 = all cores); the file does not depend on it");
   c->add_flag("--progress", o->progress, "Show progress even when stderr is not a terminal");
+  c->add_flag("--json", o->json, "Print the result (tiles, bytes) as JSON");
   c->add_flag("--accept-damaged", o->accept_damaged,
               "Build from images the reader reports damaged (truncated JPEG/TIFF), its filler included");
   c->callback([o] {
@@ -352,7 +363,7 @@ void register_store_build(CLI::App* store) {
     check_output("--output", o->out);
     run_interruptible(o->out, [&] {
       const BuildResult r = build_store(o->images, b, o->out, interruptible(progress_printer("store build", o->progress)));
-      print_result(o->out, r);
+      print_result(o->out, r, o->json);
     });
   });
 }
@@ -364,7 +375,7 @@ struct StoreGenArgs {
   std::uint64_t seed = 1;
   double feature = 4096;  // level-0 texels
   unsigned threads = 0;
-  bool progress = false;
+  bool progress = false, json = false;
 };
 
 // The generator's options from the typed ones; throws InputError naming the option (--size
@@ -396,13 +407,14 @@ void register_store_gen(CLI::App* store) {
   c->add_option("--feature", o->feature, "Wavelength of the largest terrain features, level-0 texels")->capture_default_str();
   c->add_option("--threads", o->threads, "Worker threads (0 = all cores); the file does not depend on it");
   c->add_flag("--progress", o->progress, "Show progress even when stderr is not a terminal");
+  c->add_flag("--json", o->json, "Print the result (tiles, bytes) as JSON");
   c->callback([o] {
     const GenOptions g = store_gen_options(*o);
     check_store_replayable(g.width, g.height, o->tile, o->border, o->levels);
     check_output("--output", o->out);
     run_interruptible(o->out, [&] {
       const BuildResult r = generate_store(g, o->out, interruptible(progress_printer("store gen", o->progress)));
-      print_result(o->out, r);
+      print_result(o->out, r, o->json);
     });
   });
 }
@@ -444,7 +456,7 @@ void register_store_verify(CLI::App* store) {
   auto* c = store->add_subcommand("verify", "Check every tile's checksum and that it decodes; list bad tiles (exit 1 if any)");
   struct Opts {
     std::string path;
-    bool buffered = false, progress = false;
+    bool buffered = false, progress = false, json = false;
     std::uint64_t max_report = 100;
   };
   auto o = std::make_shared<Opts>();
@@ -452,10 +464,18 @@ void register_store_verify(CLI::App* store) {
   c->add_flag("--buffered", o->buffered, "Read through the page cache instead of O_DIRECT");
   c->add_option("--max-report", o->max_report, "List at most this many bad tiles")->capture_default_str();
   c->add_flag("--progress", o->progress, "Show progress even when stderr is not a terminal");
+  c->add_flag("--json", o->json, "Print the result (tiles, bad tiles with their reasons) as JSON");
   c->callback([o] {
     const TileStore s = TileStore::open(o->path);
-    const std::uint64_t bad = verify(s, !o->buffered, o->max_report, progress_printer("store verify", o->progress));
+    nlohmann::json bad_tiles = nlohmann::json::array();
+    const std::uint64_t bad = verify(s, !o->buffered, o->max_report, progress_printer("store verify", o->progress),
+                                     o->json ? &bad_tiles : nullptr);
     const std::uint64_t n = s.index().size();
+    if (o->json) {
+      fmt::print("{}\n", nlohmann::json{{"path", o->path}, {"tiles", n}, {"bad", bad}, {"bad_tiles", bad_tiles}}.dump(2));
+      if (bad) throw Exit{kExitFailure};
+      return;
+    }
     if (bad) {
       fmt::print("{}: {} of {} tiles are bad\n", o->path, bad, n);
       throw Exit{kExitFailure};

@@ -99,7 +99,13 @@ void run_view(const ViewOptions& o) {
   glm::dvec3 pos = parse_pos(o.pos);
 
   const auto t_build = std::chrono::steady_clock::now();
-  const std::unique_ptr<IScene> scene = make_scene(cfg);
+  std::unique_ptr<IScene> scene;
+  try {
+    scene = make_scene(cfg);
+  } catch (const InputError& e) {  // the config key, as the user typed it here
+    if (e.where() != "scene.file") throw;
+    throw InputError(cfg.kind == "mesh" ? "--obj" : "--heightmap", std::string(e.what()).substr(e.where().size() + 2));
+  }
   for (const std::string& w : scene->load_warnings()) warn(w);
   const double build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_build).count();
   if (o.agl) {

@@ -56,7 +56,7 @@ std::unique_ptr<IScene> make_scene(const SceneConfig& cfg) {
   const SceneInfo& info = find_scene(cfg.kind);
   const TextureExtent ext = scene_texture(cfg);
   if (info.file_required && cfg.file.empty())
-    throw InputError("file", "the " + std::string(info.name) + " scene needs " + std::string(info.file));
+    throw InputError("scene.file", "the " + std::string(info.name) + " scene needs " + std::string(info.file));
   return info.make(cfg, ext);
 }
 
