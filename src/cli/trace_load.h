@@ -25,6 +25,7 @@ inline Trace load_cli_trace(const std::string& path, bool allow_repairs, TraceLo
   read.allow_repairs = allow_repairs;
   TraceLoadReport rep;
   Trace t = with_input(path, [&](const std::string& p) { return load_any_trace(p, read, &rep); });
+  if (path == "-") t.source_path = "-";  // stdin, not the temporary file it was read through
   print_repair_warnings(rep, path);
   if (report) *report = rep;
   return t;
