@@ -8,13 +8,17 @@
 #include <fstream>
 #include <string>
 
+#include <unistd.h>
+
 #include "test_util.h"
 
 namespace {
 
 // `sh -c SCRIPT` with $V the CLI and $SRC the source tree: stdout captured, stderr in r.err.
 vtsim::test::CliRun conv_sh(const std::string& script) {
-  const std::string err = (std::filesystem::temp_directory_path() / "vtsim_conv_err.txt").string();
+  // One file per process: ctest runs the test cases as parallel processes.
+  const std::string err =
+      (std::filesystem::temp_directory_path() / ("vtsim_conv_err_" + std::to_string(getpid()) + ".txt")).string();
   const std::string cmd = "V=" + std::string(VTSIM_CLI) + " SRC=" + std::string(VTSIM_SOURCE_DIR) + " sh -c '" + script + "' 2>" + err;
   vtsim::test::CliRun r;
   FILE* p = popen(cmd.c_str(), "r");
@@ -29,7 +33,7 @@ vtsim::test::CliRun conv_sh(const std::string& script) {
 }
 
 std::string conv_tmp(const std::string& name) {
-  const auto d = std::filesystem::temp_directory_path() / "vtsim_conv";
+  const auto d = std::filesystem::temp_directory_path() / ("vtsim_conv_" + std::to_string(getpid()));
   std::filesystem::create_directories(d);
   return (d / name).string();
 }
@@ -135,9 +139,9 @@ TEST_CASE("cli: the bash completion lists every subcommand and option, generated
   const auto vt = conv_sh("bash -c \". " + script + "; echo \\${_vtsim_subs[\\\"vtsim vt\\\"]}; echo \\${_vtsim_opts[\\\"vtsim vt compare\\\"]}\"");
   CHECK(vtsim::test::contains(vt.out, "compare"));
   CHECK(vtsim::test::contains(vt.out, "--policies"));
-  // Completing a word: `vtsim rep<TAB>` -> replay; `vtsim replay --sum<TAB>` -> --summary.
+  // Completing a word: `vtsim repl<TAB>` -> replay; `vtsim replay --sum<TAB>` -> --summary.
   const auto words = conv_sh("bash -c \". " + script +
-                             "; COMP_WORDS=(vtsim rep); COMP_CWORD=1; _vtsim; echo \\${COMPREPLY[@]}; "
+                             "; COMP_WORDS=(vtsim repl); COMP_CWORD=1; _vtsim; echo \\${COMPREPLY[@]}; "
                              "COMP_WORDS=(vtsim replay --sum); COMP_CWORD=2; _vtsim; echo \\${COMPREPLY[@]}\"");
   CHECK(words.out == "replay\n--summary\n");
 }

@@ -124,10 +124,13 @@ TEST_SUITE("report") {
     CHECK(report_test_contains(h, "budget (upload.tiles_per_frame)"));
     CHECK(report_test_contains(h, "disk.preset = &quot;hdd&quot;"));
     CHECK(report_test_contains(h, "out.id = 'vtsim-check'"));  // the check script is there
-    // Without a config argument, the summary's own "config" object is used.
+    // Without a config argument, the summary's own "config" object (as replays write it: flat keys)
+    // is used: the budget line and the run's identity section show it.
     nlohmann::json s2 = s;
-    s2["config"] = {{"upload", {{"tiles_per_frame", 8}}}};
-    CHECK(report_test_contains(vtsim::html_report(s2, m), "upload.tiles_per_frame = 8"));
+    s2["config"] = {{"upload.tiles_per_frame", 8}};
+    const std::string h2 = vtsim::html_report(s2, m);
+    CHECK(report_test_contains(h2, "<th>upload.tiles_per_frame</th><td>8</td>"));
+    CHECK(report_test_contains(h2, "budget (upload.tiles_per_frame)"));
   }
 
   TEST_CASE("vtsim report: runs side by side, bad inputs exit 2 naming the file or flag") {
