@@ -43,6 +43,22 @@ double rh_config_number(const ReportConfig& cfg, std::string_view key) {
   return std::nan("");
 }
 
+// "0.1.0 (commit 0b8eebf307ea)" from the summary's provenance (schema vtsim-summary/1), or the
+// top-level vtsim_version of older summaries.
+std::string rh_version(const nlohmann::json& s) {
+  const auto text = [](const nlohmann::json& o, const char* key) {
+    const auto it = o.find(key);
+    return it != o.end() && it->is_string() ? it->get_ref<const std::string&>() : std::string("?");
+  };
+  const auto p = s.find("provenance");
+  if (p != s.end() && p->is_object()) {
+    std::string v = text(*p, "vtsim_version");
+    v.append(" (commit ").append(text(*p, "vtsim_commit")).append(")");
+    return v;
+  }
+  return text(s, "vtsim_version");
+}
+
 std::string rh_config_value(const ReportConfig& cfg, std::string_view key) {
   for (const auto& [k, v] : cfg)
     if (k == key) return v;
@@ -186,7 +202,7 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m, cons
   h += fmt::format("<p>trace <code>{}</code>: {} frames, {:.1f} s at {:.4g} Hz; vtsim {}. Metrics are defined in docs/metrics.md, "
                    "the charts in docs/report.md.</p>\n",
                    escape(trace.value("name", "")), trace.value("frames", 0), num(s, "trace", "duration_s"), fps,
-                   escape(s.value("vtsim_version", "?")));
+                   escape(rh_version(s)));
   h += "<div class=\"top\"><table>\n";
   h += row("disk read", fmt::format("{:.3f} MB/s ({:.0f} bytes)", num(s, "bandwidth", "disk_read_MBps"), num(s, "bandwidth", "disk_read_bytes")));
   h += row("decoded / uploaded", fmt::format("{:.3f} / {:.3f} MB/s", num(s, "bandwidth", "decoded_MBps"), num(s, "bandwidth", "upload_MBps")));
@@ -205,9 +221,10 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m, cons
                                    num(s, "throttle", "max_clamp"), num(s, "throttle", "changes")));
   if (!config.empty()) {
     const std::string disk_preset = rh_config_value(config, "disk.preset");
-    h += row("storage", fmt::format("disk {}, RAM {} MiB, upload {} tiles / {} bytes per frame", disk_preset.empty() ? "?" : disk_preset,
+    const std::string byte_budget = rh_config_value(config, "upload.bytes_per_frame");
+    h += row("storage", fmt::format("disk {}, RAM {} MiB, upload {} tiles per frame, {}", disk_preset.empty() ? "?" : disk_preset,
                                     rh_config_value(config, "ram.capacity_MiB"), rh_config_value(config, "upload.tiles_per_frame"),
-                                    rh_config_value(config, "upload.bytes_per_frame")));
+                                    byte_budget == "-1" || byte_budget.empty() ? "no byte limit" : byte_budget + " bytes per frame"));
   }
   h += row("run", fmt::format("{:.2f} s wall, {:.0f}× real time", num(s, "run", "wall_s"), num(s, "run", "x_realtime")));
   h += "</table></div>\n";
