@@ -3,6 +3,7 @@
 // before the work; `vtsim help CMD`; bash completion generated from the commands; every error
 // "vtsim: error:" naming the flag typed; vt compare's standard traces found beside the executable.
 #include <doctest/doctest.h>
+#include <nlohmann/json.hpp>
 
 #include <filesystem>
 #include <fstream>
@@ -241,4 +242,23 @@ TEST_CASE("cli: a scene's missing file is named by the flag (view --obj) or the 
   CHECK(replay.code == 2);
   CHECK(vtsim::test::contains(replay.err, "vtsim: error: "));
   CHECK(vtsim::test::contains(replay.err, "scene.file"));
+}
+
+TEST_CASE("cli: --config - reads the config from stdin (errors name '-'), and view --json prints its results as JSON") {
+  const auto cfg = conv_sh("printf \"upload.tiles_per_frame = 4\\n\" | $V replay --trace $SRC/traces/static.csv --set run.fps=2 --config - --json");
+  REQUIRE(cfg.code == 0);
+  const nlohmann::json s = nlohmann::json::parse(cfg.out);
+  CHECK(s["config"]["upload.tiles_per_frame"] == 4);
+  const auto bad = conv_sh("printf \"upload.no_such_key = 4\\n\" | $V replay --trace $SRC/traces/static.csv --config -");
+  CHECK(bad.code == 2);
+  CHECK(vtsim::test::contains(bad.err, "vtsim: error: -:1"));
+  const auto both = conv_sh("$V replay --trace - --config - < $SRC/traces/static.csv");
+  CHECK(both.code == 2);
+  CHECK(vtsim::test::contains(both.err, "vtsim: error: --config: --config - and --trace - cannot both read stdin"));
+  const auto view = conv_sh("$V view --size 64x36 --json -o " + conv_tmp("view.png"));
+  REQUIRE(view.code == 0);
+  const nlohmann::json v = nlohmann::json::parse(view.out);
+  CHECK(v["buffer"]["size"][0] == 8);
+  CHECK(v["tiles"]["touched"].get<std::size_t>() > 0);
+  CHECK(v["levels"].size() > 0);
 }

@@ -499,3 +499,20 @@ TEST_CASE("compare: CLI exit codes 0 same, 1 regression, 2 bad input") {
   r = test::vtsim_run(dir, "compare " + base);
   CHECK(r.code == 2);
 }
+
+TEST_CASE("compare: a real-clock run's metrics are wall-clock measurements, compared within 25 percent, a simulated run's exactly") {
+  const auto doc = [](const char* clock, double p99, int tiles) {
+    return json{{"schema", "vtsim-summary/1"}, {"system", "clipmap"}, {"clock", clock}, {"trace", {{"name", "w"}}},
+                {"latency_ms", {{"p99", p99}, {"count", tiles}}}};
+  };
+  // +10 % latency and +10 % tiles: within the band when either run is real-clock ...
+  const CompareReport real = cmp(doc("real", 100.0, 1000), doc("real", 110.0, 1100));
+  CHECK_FALSE(real.failed(false));
+  CHECK(row(real, "latency_ms.p99").verdict == Verdict::within);
+  CHECK(row(real, "latency_ms.count").verdict == Verdict::within);
+  // ... beyond it (+40 %) a regression ...
+  CHECK(cmp(doc("real", 100.0, 1000), doc("real", 140.0, 1000)).failed(false));
+  // ... and in the simulated clock any change is one.
+  CHECK(cmp(doc("sim", 100.0, 1000), doc("sim", 110.0, 1000)).failed(false));
+  CHECK(row(cmp(doc("sim", 100.0, 1000), doc("sim", 100.0, 1001)), "latency_ms.count").verdict == Verdict::changed);
+}

@@ -160,7 +160,8 @@ void run_mrc(const MrcArgs& a) {
   AccessLog log;
   std::string source = a.accesses;
   if (!a.trace.empty()) {
-    const ReplayConfig cfg = load_replay_config(a.config, a.sets, a.system);
+    if (a.config == "-" && a.trace == "-") throw InputError("--config", "--config - and --trace - cannot both read stdin");
+    const ReplayConfig cfg = with_input(a.config, [&](const std::string& p) { return load_replay_config(p, a.sets, a.system); });
     const Trace trace = load_cli_trace(a.trace, a.allow_repairs);
     std::string level = a.level.empty() ? (cfg.run.system == "vt" ? "pool" : "ram") : a.level;
     if (level != "ram" && level != "pool") throw InputError("--level", fmt::format("'{}' is not ram or pool", level));
@@ -202,7 +203,7 @@ void register_mrc_commands(CLI::App& app) {
                                       "SHARDS sampling, with its knee (docs/cache.md)");
   c->add_option("--accesses", a->accesses, "access file: 'key [size]' per line, keys decimal or 0x-hex, '#' comments (- for stdin)");
   c->add_option("--trace,-t", a->trace, "or record a simulated replay of this trace (with --config, --set, --system)");
-  c->add_option("--config,-c", a->config, "replay: TOML config file (docs/config.md)");
+  c->add_option("--config,-c", a->config, "replay: TOML config file (docs/config.md; - for stdin)");
   c->add_option("--set", a->sets, "replay: override one config key (repeatable)");
   c->add_option("--system", a->system, "replay: " + streaming_systems().names(" | ") + " (overrides run.system)");
   c->add_option("--level", a->level, "replay: ram (bytes) | pool (VT pages); default pool for vt, ram otherwise");

@@ -147,7 +147,8 @@ std::string format_summary(const nlohmann::json& s) {
 void run_replay_command(const ReplayArgs& a) {
   std::vector<std::string> sets = a.sets;
   if (a.opt) sets.push_back("metrics.opt=true");
-  ReplayConfig cfg = load_replay_config(a.config, sets, a.system);
+  if (a.config == "-" && a.trace == "-") throw InputError("--config", "--config - and --trace - cannot both read stdin");
+  ReplayConfig cfg = with_input(a.config, [&](const std::string& p) { return load_replay_config(p, sets, a.system); });
   if (a.print_config) {
     fmt::print("{}", replay_config_table().dump(cfg));
     return;
@@ -224,7 +225,7 @@ void register_replay_commands(CLI::App& app) {
   auto a = std::make_shared<ReplayArgs>();
   auto* c = app.add_subcommand("replay", "Replay a camera trace through a streaming system; print and write metrics");
   c->add_option("--trace,-t", a->trace, "camera trace (native CSV, or TUM / EuRoC / KITTI, see docs/traces.md; - for stdin)");
-  c->add_option("--config,-c", a->config, "TOML config file (docs/config.md)");
+  c->add_option("--config,-c", a->config, "TOML config file (docs/config.md; - for stdin)");
   c->add_option("--set", a->sets, "override one config key: --set upload.tiles_per_frame=8 (repeatable)");
   c->add_option("--system", a->system, streaming_systems().names(" | ") + " (overrides run.system)");
   c->add_option("--clock", a->clock, "sim (device models, deterministic) | real (IO and decode threads on --store, wall-clock pacing)")

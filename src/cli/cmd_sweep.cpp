@@ -22,7 +22,7 @@ namespace {
 struct SweepArgs {
   std::string spec, out = "sweep-out", shard;
   int jobs = 0;
-  bool quiet = false, progress = false;
+  bool quiet = false, progress = false, json = false;
 };
 
 void run_sweep_command(const SweepArgs& a) {
@@ -49,7 +49,13 @@ void run_sweep_command(const SweepArgs& a) {
   const SweepRunStats st = run_sweep(spec, o);
   if (o.progress && tty) fmt::print(stderr, "\r{:70}\r", "");
   for (const std::string& w : st.input_warnings) warn(w);
-  if (a.quiet) {
+  if (a.json) {  // the run's own record: what sweep.json (or the shard's record) holds, and this run's counts
+    const nlohmann::json j = {{"rows", st.rows}, {"rows_run", st.rows - st.rows_skipped}, {"rows_skipped", st.rows_skipped},
+                              {"rows_failed", st.rows_failed}, {"tasks", st.tasks}, {"wall_s", st.wall_s}, {"cpu_s", st.cpu_s},
+                              {"out", a.out}, {"shard", {{"index", o.shard.index}, {"count", o.shard.count}}}};
+    fmt::print("{}\n", j.dump(2));
+  }
+  if (a.quiet || a.json) {
     if (st.rows_failed > 0) throw Exit{kExitFailure};
     return;
   }
@@ -74,7 +80,8 @@ void register_sweep_commands(CLI::App& app) {
   c->add_option("-o,--out", a->out, "output directory (rows.jsonl, rows.csv, report.html; restartable)")->capture_default_str();
   c->add_option("--jobs,-j", a->jobs, "threads (0: one per core)")->capture_default_str();
   c->add_option("--shard", a->shard, "run the slice I/N (0-based) of the work, or 'slurm' (from SLURM_ARRAY_TASK_*)");
-  c->add_flag("--quiet,-q", a->quiet, "print nothing (files are still written)");
+  c->add_flag("--quiet,-q", a->quiet, "print no information (files are still written; warnings still are)");
+  c->add_flag("--json", a->json, "print the run's counts as JSON on stdout instead of the text");
   c->add_flag("--progress", a->progress, "show progress even when stderr is not a terminal");
   c->footer("A killed sweep restarted with the same -o skips the tasks it finished. Exit 1 when a row failed.");
 
@@ -124,7 +131,7 @@ namespace {
 struct TuneArgs {
   std::string spec, out = "tune-out", store;
   int jobs = 0;
-  bool quiet = false;
+  bool quiet = false, json = false;
 };
 
 void run_tune_command(const TuneArgs& a) {
@@ -176,7 +183,8 @@ void run_tune_command(const TuneArgs& a) {
     f << out.dump(2) << "\n";
     if (!f.flush()) throw InputError(a.out + "/tune.json", "write failed");
   }
-  if (a.quiet) return;
+  if (a.json) fmt::print("{}\n", out.dump(2));  // what tune.json holds
+  if (a.quiet || a.json) return;
   fmt::print("{} configs meet every constraint at least cost (of {} in the grid); {} replayed ({:.0f}% of the grid), "
              "{} answered by monotonicity; {} monotonicity failures\n",
              r.front.size(), r.grid, r.replayed.size(), 100.0 * static_cast<double>(r.replayed.size()) / static_cast<double>(r.grid),
@@ -203,7 +211,8 @@ void register_tune_commands(CLI::App& app) {
   c->add_option("-o,--out", a->out, "output directory (tune.json)")->capture_default_str();
   c->add_option("--jobs,-j", a->jobs, "threads (0: one per core)")->capture_default_str();
   c->add_option("--store", a->store, "also replay the recommended config in the real clock on this tile store and report the gap");
-  c->add_flag("--quiet,-q", a->quiet, "print nothing (tune.json is still written)");
+  c->add_flag("--quiet,-q", a->quiet, "print no information (tune.json is still written; warnings still are)");
+  c->add_flag("--json", a->json, "print what tune.json holds on stdout instead of the text");
   c->callback([a] { run_tune_command(*a); });
 }
 

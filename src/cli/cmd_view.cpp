@@ -1,5 +1,6 @@
 // vtsim view: render one feedback frame of a scene and write it as a PNG (docs/view.md).
 #include <fmt/core.h>
+#include <nlohmann/json.hpp>
 
 #include <chrono>
 #include <cmath>
@@ -44,6 +45,7 @@ struct ViewOptions {
   int frame = -1;          // ... at this frame index
   double time_s = -1.0;    // ... or at this time (interpolated)
   bool size_given = false;
+  bool json = false;       // print the results as JSON on stdout instead of the text
 };
 
 glm::dvec3 parse_pos(const std::string& s) {
@@ -158,6 +160,31 @@ void run_view(const ViewOptions& o) {
 
   const double pixels = static_cast<double>(vb.width) * vb.height;
   const ViewCounters& c = vb.counters;
+  std::vector<std::uint64_t> per_level(static_cast<std::size_t>(levels), 0), tiles_per_level(static_cast<std::size_t>(levels), 0);
+  for (const ViewSample& s : vb.samples) ++per_level[static_cast<std::size_t>(desired_level(s.lod, levels))];
+  for (const TileUse& t : tiles) ++tiles_per_level[t.key.level()];
+  const double render_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
+  const double aggregate_ms = std::chrono::duration<double, std::milli>(t2 - t1).count();
+  if (o.json) {
+    nlohmann::json j;
+    j["scene"] = {{"kind", o.scene}, {"texture", {ext.width, ext.height}}, {"levels", levels}, {"build_ms", build_ms}};
+    j["camera"] = {{"pos_m", {pos.x, pos.y, pos.z}}, {"fwd", {cam.fwd.x, cam.fwd.y, cam.fwd.z}}, {"vfov_deg", cam.vfov_deg()},
+                   {"hfov_deg", cam.hfov_deg()}, {"image", {width, height}}};
+    if (!o.trace.empty()) j["camera"]["trace"] = {{"path", o.trace}, {"t_s", pose.t_s}};
+    j["buffer"] = {{"size", {vb.width, vb.height}}, {"divisor", vb.divisor}, {"samples", vb.samples.size()}, {"sky", c.sky},
+                   {"clipped", c.clipped}, {"backfacing", c.backfacing}, {"outside_texture", c.outside_texture},
+                   {"untextured", c.untextured}};
+    j["tiles"] = {{"tile_size", o.tile_size}, {"touched", tiles.size()}, {"level_seam", seam_tiles}};
+    nlohmann::json lv = nlohmann::json::array();
+    for (int l = 0; l < levels; ++l)
+      if (per_level[static_cast<std::size_t>(l)] > 0)
+        lv.push_back({{"level", l}, {"samples", per_level[static_cast<std::size_t>(l)]}, {"tiles", tiles_per_level[static_cast<std::size_t>(l)]}});
+    j["levels"] = lv;
+    j["time_ms"] = {{"render", render_ms}, {"aggregate", aggregate_ms}};
+    j["image"] = o.out;
+    fmt::print("{}\n", j.dump(2));
+    return;
+  }
   fmt::print("scene {}: texture {}x{} texels, {} levels (built in {:.1f} ms)\n", o.scene, ext.width, ext.height, levels,
              build_ms);
   if (o.trace.empty())
@@ -171,9 +198,6 @@ void run_view(const ViewOptions& o) {
              "outside texture {}, untextured {}\n",
              vb.width, vb.height, vb.divisor, vb.samples.size(), 100.0 * static_cast<double>(vb.samples.size()) / pixels,
              c.sky, c.clipped, c.backfacing, c.outside_texture, c.untextured);
-  std::vector<std::uint64_t> per_level(static_cast<std::size_t>(levels), 0), tiles_per_level(static_cast<std::size_t>(levels), 0);
-  for (const ViewSample& s : vb.samples) ++per_level[static_cast<std::size_t>(desired_level(s.lod, levels))];
-  for (const TileUse& t : tiles) ++tiles_per_level[t.key.level()];
   if (o.seams)
     fmt::print("touched tiles ({} texels): {} ({} sampled + {} level-seam tiles)\n", o.tile_size, tiles.size(),
                tiles.size() - seam_tiles, seam_tiles);
@@ -183,8 +207,7 @@ void run_view(const ViewOptions& o) {
     if (per_level[static_cast<std::size_t>(l)] > 0)
       fmt::print("  level {:2}: {:8} samples {:6} tiles\n", l, per_level[static_cast<std::size_t>(l)],
                  tiles_per_level[static_cast<std::size_t>(l)]);
-  fmt::print("render {:.3f} ms, aggregate {:.3f} ms\n", std::chrono::duration<double, std::milli>(t1 - t0).count(),
-             std::chrono::duration<double, std::milli>(t2 - t1).count());
+  fmt::print("render {:.3f} ms, aggregate {:.3f} ms\n", render_ms, aggregate_ms);
   fmt::print("wrote {} ({}x{}: colour = desired level, level 0 red, then orange, yellow, lime, green, cyan, "
              "blue, purple, magenta, pink, brown, white, repeating; black = no sample)\n",
              o.out, vb.width * o.zoom, vb.height * o.zoom);
@@ -231,6 +254,7 @@ void register_view_commands(CLI::App& app) {
   cmd->add_option("--tile-size", opt->tile_size, "tile payload size for the touched-tile count, texels")
       ->capture_default_str();
   cmd->add_option("-o,--out", opt->out, "output PNG (any format OpenImageIO writes)")->capture_default_str();
+  cmd->add_flag("--json", opt->json, "print the results as JSON on stdout instead of the text");
   cmd->add_flag("--seams", opt->seams, "also count level-seam tiles (add_level_seams)");
   cmd->add_option("--zoom", opt->zoom, "upscale the buffer image by this factor")->capture_default_str();
   cmd->callback([opt]() {

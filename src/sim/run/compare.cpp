@@ -71,7 +71,7 @@ constexpr std::optional<double> kExact = 0.0;
 
 }  // namespace
 
-std::vector<ToleranceRule> default_tolerances(DocKind kind, bool wall_clock) {
+std::vector<ToleranceRule> default_tolerances(DocKind kind, bool wall_clock, bool real_clock) {
   using B = Better;
   if (kind == DocKind::summary) {
     // Simulated metrics are bit-for-bit reproducible (docs/architecture.md: one pipeline, an
@@ -102,27 +102,31 @@ std::vector<ToleranceRule> default_tolerances(DocKind kind, bool wall_clock) {
                      rule("real_clock.*", 0.25, B::info)})
         r.push_back(std::move(x));
     }
+    // A real-clock run measured its latency, pop-in, bandwidth and even its counts (what arrived
+    // by which frame) in wall-clock time: two runs of one build differ, so its metrics compare in
+    // the same 25% band as the wall-clock sections; a simulated run's compare exactly.
+    const std::optional<double> m_tol = real_clock ? std::optional<double>(0.25) : kExact;
     std::vector<ToleranceRule> metrics = {
         // What a player sees: more latency, more blur, more pops are worse.
-        rule("latency_ms.*", kExact, B::lower),
-        rule("latency_ms.*count", kExact, B::both),
-        rule("latency_ms.tiles", kExact, B::both),
-        rule("latency_ms.from_ram_cache", kExact, B::both),
-        rule("popin.*", kExact, B::lower),
-        rule("popin.measured_frames", kExact, B::both),
-        rule("popin.time_to_sharp_s.events", kExact, B::both),
+        rule("latency_ms.*", m_tol, B::lower),
+        rule("latency_ms.*count", m_tol, B::both),
+        rule("latency_ms.tiles", m_tol, B::both),
+        rule("latency_ms.from_ram_cache", m_tol, B::both),
+        rule("popin.*", m_tol, B::lower),
+        rule("popin.measured_frames", m_tol, B::both),
+        rule("popin.time_to_sharp_s.events", m_tol, B::both),
         // What the hardware pays: reported both ways (more costs IO; less means less was loaded).
-        rule("bandwidth.*", kExact, B::both),
-        rule("bandwidth.wasted.*", kExact, B::lower),
-        rule("cache.*", kExact, B::both),
-        rule("cache.ram_hit_ratio", kExact, B::higher),
-        rule("cache.prefetch_hits", kExact, B::higher),
-        rule("cache.*evict*", kExact, B::lower),
-        rule("cache.*thrash", kExact, B::lower),
-        rule("throttle.frames_throttled", kExact, B::lower),
-        rule("throttle.requests_throttled", kExact, B::lower),
-        rule("throttle.max_clamp", kExact, B::lower),
-        rule("faults.*", kExact, B::lower),
+        rule("bandwidth.*", m_tol, B::both),
+        rule("bandwidth.wasted.*", m_tol, B::lower),
+        rule("cache.*", m_tol, B::both),
+        rule("cache.ram_hit_ratio", m_tol, B::higher),
+        rule("cache.prefetch_hits", m_tol, B::higher),
+        rule("cache.*evict*", m_tol, B::lower),
+        rule("cache.*thrash", m_tol, B::lower),
+        rule("throttle.frames_throttled", m_tol, B::lower),
+        rule("throttle.requests_throttled", m_tol, B::lower),
+        rule("throttle.max_clamp", m_tol, B::lower),
+        rule("faults.*", m_tol, B::lower),
     };
     r.insert(r.end(), metrics.begin(), metrics.end());
     return r;
@@ -387,8 +391,9 @@ long double as_ld(const json& j) {
 
 class Walker {
  public:
-  Walker(const CompareOptions& opt, DocKind kind, std::string base_path, std::string new_path, std::vector<MetricDiff>& rows)
-      : opt_(opt), defaults_(default_tolerances(kind, opt.wall_clock)), kind_(kind), base_path_(std::move(base_path)),
+  Walker(const CompareOptions& opt, DocKind kind, bool real_clock, std::string base_path, std::string new_path,
+         std::vector<MetricDiff>& rows)
+      : opt_(opt), defaults_(default_tolerances(kind, opt.wall_clock, real_clock)), kind_(kind), base_path_(std::move(base_path)),
         new_path_(std::move(new_path)), rows_(rows) {}
 
   void walk(const json& b, const json& n, const std::string& key, Better hint) {
@@ -642,8 +647,8 @@ std::vector<std::string> summary_notes(const json& base, const json& now, const 
   }
   const auto real = [](const json& d) { return d.contains("clock") && d["clock"] == "real"; };
   if (real(base) || real(now))
-    notes.push_back("a real-clock run: its latency, pop-in and bandwidth were measured in wall-clock time and move between "
-                    "runs; compare them with a --tolerances file (docs/compare.md)");
+    notes.push_back("a real-clock run: its latency, pop-in, bandwidth and counts were measured in wall-clock time and move "
+                    "between runs; compared within 25% (a --tolerances file sets other bands; docs/compare.md)");
   if (!opt.wall_clock && (base.contains("run") || base.contains("real_clock")))
     notes.push_back("wall-clock sections (run.*, real_clock.*) not compared; --wall-clock compares them within 25%");
   return notes;
@@ -660,7 +665,8 @@ CompareReport compare_documents(const json& base, const std::string& base_path, 
   const DocKind nk = detect_kind(now, new_path);
   if (nk != r.kind)
     throw InputError(new_path, fmt::format("is a {} JSON, but the base {} is a {} JSON", to_string(nk), base_path, to_string(r.kind)));
-  Walker w(opt, r.kind, base_path, new_path, r.rows);
+  const auto is_real = [](const json& d) { return d.is_object() && d.contains("clock") && d["clock"] == "real"; };
+  Walker w(opt, r.kind, is_real(base) || is_real(now), base_path, new_path, r.rows);
   if (r.kind == DocKind::bench) {
     if (base["benchmark"] != now["benchmark"])
       throw InputError(new_path, fmt::format("key 'benchmark': {} is not the base's benchmark {} ({})", now["benchmark"].dump(),

@@ -52,7 +52,9 @@ const char* to_string(DocKind k);
 // `wall_clock` (then relative 25% bands), the run's identity (config.*, the trace's path, hash and
 // poses) info; benchmarks: medians and ratios within 15%, the samples and spreads ignored;
 // provenance (version, commit, time, machine, trace name) ignored.
-std::vector<ToleranceRule> default_tolerances(DocKind kind, bool wall_clock = false);
+// `real_clock` (either run's clock is real): the metric sections too are wall-clock measurements
+// and compare within 25%.
+std::vector<ToleranceRule> default_tolerances(DocKind kind, bool wall_clock = false, bool real_clock = false);
 
 // Floats (a JSON number with a fraction or exponent on either side) pass when
 // |new − base| <= max(kFloatAbs, kFloatRel·|base|) unless a rule allows more; integers compare
