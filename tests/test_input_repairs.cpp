@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "core/image_io.h"
 #include "sim/run/replay_config.h"
+#include "sim/sweep/sweep.h"
 #include "sim/sweep/sweep_spec.h"
 #include "sim/trace/trace_import.h"
 #include "sim/trace/trace_io.h"
@@ -196,7 +197,7 @@ TEST_CASE("issue 26: replay prints a dropped duplicate time, and more than the p
   r = vtsim_run(dir, "replay -q --trace " + two);
   CHECK(r.code == 2);
   CHECK(contains(r.err, two + ": 2 of 32 poses dropped (2 with a repeated time): more than 1 pose and more than 1 %"));
-  CHECK(contains(r.err, "give --allow-repairs to keep the 30 poses left"));
+  CHECK(contains(r.err, "give --allow-repairs (a sweep spec: allow_repairs = true) to keep the 30 poses left"));
   r = vtsim_run(dir, "replay -q --allow-repairs --trace " + two);
   CHECK(r.code == 0);
   CHECK(contains(r.err, "vtsim: warning: " + two + ": 2 poses with a repeated time dropped (of 32 poses read)"));
@@ -218,6 +219,15 @@ TEST_CASE("issue 26: a sweep's trace repairs come back as warnings, and the poli
   const std::string two = dir.file("two_dups.csv");
   write_file(two, repairs_native(30, {5, 9}));
   CHECK(contains(input_error([&] { load_sweep_trace({two, false, 1}); }), "2 of 32 poses dropped"));
+  // The spec's allow_repairs = true keeps it, the repairs still reported.
+  w.clear();
+  CHECK(load_sweep_trace({two, false, 1}, &w, true).poses.size() == 30);
+  CHECK(w.size() == 1);
+  const std::string spec = dir.file("spec.toml");
+  write_file(spec, "traces = [\"two_dups.csv\"]\nallow_repairs = true\n[grid]\n\"upload.tiles_per_frame\" = [4]\n");
+  CHECK(load_sweep_traces(load_sweep_spec(spec)).front().poses.size() == 30);
+  write_file(spec, "traces = [\"two_dups.csv\"]\nallow_repairs = 1\n[grid]\n\"upload.tiles_per_frame\" = [4]\n");
+  CHECK(contains(input_error([&] { load_sweep_spec(spec); }), "key 'allow_repairs': expected true or false"));
 }
 
 TEST_CASE("repair policy: at most 1 pose or 1 % of the poses read may be dropped") {

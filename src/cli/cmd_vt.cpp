@@ -25,7 +25,7 @@ struct VtCompareArgs {
   std::string config;
   std::vector<std::string> sets;
   std::string markdown, json_file;
-  bool quiet = false, json = false;
+  bool quiet = false, json = false, allow_repairs = false;
 };
 
 std::vector<std::string> split(const std::string& s) {
@@ -100,7 +100,7 @@ void run_compare(const VtCompareArgs& a) {
   nlohmann::json rows = nlohmann::json::array();
   auto scene = make_scene_from_config(base);
   for (const auto& file : files) {
-    const Trace trace = load_cli_trace(file, false);
+    const Trace trace = load_cli_trace(file, a.allow_repairs);
     const std::string name = std::filesystem::path(file).stem().string();
     for (const auto& policy : policies) {
       std::vector<std::string> sets = a.sets;
@@ -199,6 +199,7 @@ void register_vt_commands(CLI::App& app) {
   c->add_option("--json-file", a->json_file, "write every run's figures as JSON here (- for stdout)");
   c->add_flag("--json", a->json, "print every run's figures as JSON instead of the table");
   c->add_flag("--quiet,-q", a->quiet, "no progress; with --markdown, nothing on stdout");
+  c->add_flag("--allow-repairs", a->allow_repairs, kAllowRepairsHelp);
   c->callback([a] { run_compare(*a); });
 }
 

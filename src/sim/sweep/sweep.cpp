@@ -271,7 +271,7 @@ std::vector<Trace> load_sweep_traces(const SweepSpec& spec, std::vector<std::str
   std::vector<Trace> traces;
   for (const SweepTraceSource& s : spec.traces) {
     try {
-      traces.push_back(load_sweep_trace(s, warnings));
+      traces.push_back(load_sweep_trace(s, warnings, spec.allow_repairs));
     } catch (const InputError& e) {
       throw InputError(at_line(spec.path, s.line), fmt::format("trace '{}': {}", s.text, e.what()));
     }

@@ -189,12 +189,15 @@ SweepSpec load_sweep_spec(const std::string& path) {
           throw InputError(tw, "unknown key 'tune." + tkey + "' (keys: constraints, costs)");
         }
       }
+    } else if (key == "allow_repairs") {
+      if (!node->as_boolean()) throw InputError(where, "key 'allow_repairs': expected true or false");
+      spec.allow_repairs = node->as_boolean()->get();
     } else if (key == "configs") {
       configs = node->as_array();
       if (!configs) throw InputError(where, "key 'configs': expected [[configs]] tables");
     } else {
       throw InputError(where, "unknown spec key '" + key +
-                                  "' (keys: name, config, set, traces, generate, metrics, [grid], [[configs]], [tune])");
+                                  "' (keys: name, config, set, traces, generate, allow_repairs, metrics, [grid], [[configs]], [tune])");
     }
   }
   if (spec.traces.empty()) throw InputError(path, "no traces: give traces = [\"file.csv\", \"dir/*.csv\"] or generate = [\"walk duration_s=60\"]");
@@ -324,10 +327,12 @@ TuneConstraint parse_tune_constraint(const std::string& text, const std::string&
                           "(e.g. \"popin.blurry_fraction_p99 <= 0.02\")");
 }
 
-Trace load_sweep_trace(const SweepTraceSource& src, std::vector<std::string>* warnings) {
+Trace load_sweep_trace(const SweepTraceSource& src, std::vector<std::string>* warnings, bool allow_repairs) {
   if (src.generated) return generate_trace(parse_gen_line(src.text, "generate"));
   TraceLoadReport rep;
-  Trace t = load_any_trace(src.text, {}, &rep);
+  TraceReadOptions read;
+  read.allow_repairs = allow_repairs;
+  Trace t = load_any_trace(src.text, read, &rep);
   if (warnings)
     for (std::string& w : repair_warnings(rep.repairs, rep.poses + rep.repairs.dropped(), src.text))
       warnings->push_back(std::move(w));

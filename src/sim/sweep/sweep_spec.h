@@ -76,6 +76,7 @@ struct SweepSpec {
   std::vector<std::string> axis_keys;     // every key a point sets, in first-seen order
   std::string base_dump;                  // the base config, every key (identity, not display)
   TuneSpec tune;
+  bool allow_repairs = false;             // keep traces whose repairs dropped beyond the policy (trace_io.h)
 };
 
 // "metric <= 0.02" / "metric >= 0.9"; InputError at `where` otherwise.
@@ -90,7 +91,7 @@ const std::vector<std::string>& default_sweep_metrics();
 // A trace of the spec, loaded (files) or generated. Throws InputError naming the source (also for
 // more dropped poses than the repair policy allows: trace_io.h, check_repairs). The repairs made
 // are appended to *warnings when given (repair_warnings: one line per kind, naming the file).
-Trace load_sweep_trace(const SweepTraceSource& src, std::vector<std::string>* warnings = nullptr);
+Trace load_sweep_trace(const SweepTraceSource& src, std::vector<std::string>* warnings = nullptr, bool allow_repairs = false);
 
 // The value at a metric's dotted path in a replay summary ("popin.time_to_sharp_s.mean"; array
 // elements by number: "bandwidth.per_level.0.disk_read_MBps"), or nullptr. The CSV, the report

@@ -177,7 +177,7 @@ void check_repairs(const TraceRepairs& repairs, std::int64_t poses_read, const s
     return;
   throw InputError(path, fmt::format("{} of {} poses dropped ({} with a repeated time): more than {} pose and "
                                      "more than {:g} %, so the times are probably misread (a wrong --format or time unit); "
-                                     "check them, or give --allow-repairs to keep the {} poses left",
+                                     "check them, or give --allow-repairs (a sweep spec: allow_repairs = true) to keep the {} poses left",
                                      dropped, poses_read, repairs.duplicate_times_dropped, kMaxDroppedPoses,
                                      kMaxDroppedFraction * 100, poses_read - dropped));
 }
