@@ -225,7 +225,7 @@ TEST_CASE("corrupt stores are rejected at open with the field named") {
   fix_header_checksum(b);
   expect(b, "layer 0 field 'name': byte 1 of the name is a control character");
   // A character cut short at the end, as builders before the check cut a default name at byte 31,
-  // is dropped: such stores still open.
+  // is dropped, with a warning naming the field: such stores still open, and nothing is lost silently.
   b = orig;
   {
     const std::uint8_t name[] = {'a', 'b', 0xE3, 0x81, 0};
@@ -235,6 +235,11 @@ TEST_CASE("corrupt stores are rejected at open with the field named") {
   test::write_bytes(bad, b);
   CHECK(open_error(bad).empty());
   CHECK(TileStore::open(bad).layer(0).name == "ab");
+  REQUIRE(TileStore::open(bad).header().warnings.size() == 1);
+  CHECK(TileStore::open(bad).header().warnings[0] ==
+        bad + ": layer 0 field 'name': 2 trailing byte(s) of a character cut by the builder dropped (read as 'ab')");
+  test::write_bytes(bad, orig);
+  CHECK(TileStore::open(bad).header().warnings.empty());
 
   b = orig;
   b.resize(b.size() + 4096, 0);  // trailing bytes

@@ -30,6 +30,7 @@ void run_calibrate(const CalibrateArgs& a) {
   check_output("--output", a.out);  // before the measurements, not after
   if (a.json && a.out == "-") throw InputError("--output", "--json already prints to stdout: give a file or drop --json");
   const TileStore store = TileStore::open(a.store);
+  for (const std::string& w : store.header().warnings) warn(w);
   CalibrateOptions o;
   o.io_threads = a.io_threads;
   o.decode_workers = a.decode_workers;

@@ -173,6 +173,7 @@ void run_replay_command(const ReplayArgs& a) {
   std::optional<TileStore> store;
   if (!a.store.empty()) {
     store.emplace(TileStore::open(a.store));
+    for (const std::string& w : store->header().warnings) warn(w);
     for (const std::string& note : bind_store_texture(cfg, *store))
       if (!a.quiet) fmt::print(stderr, "vtsim: {}\n", note);  // information: -q hides it
   }

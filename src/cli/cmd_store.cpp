@@ -427,6 +427,7 @@ void register_store_info(CLI::App* store) {
   c->add_flag("--json", *json, "Print JSON");
   c->callback([path, json] {
     const TileStore s = TileStore::open(*path);
+    for (const std::string& w : s.header().warnings) warn(w);
     if (*json) fmt::print("{}\n", info_json(s).dump(2));
     else print_info(s);
   });
@@ -445,6 +446,7 @@ void register_store_extract(CLI::App* store) {
   c->add_option("--level", o->level, "Mip level")->capture_default_str();
   c->callback([o] {
     const TileStore s = TileStore::open(o->path);
+    for (const std::string& w : s.header().warnings) warn(w);
     const Image8 img = extract_level(s, o->layer, o->level);
     write_image8(o->out, img);
     fmt::print("wrote {}: layer {} ('{}') level {}, {}x{}x{}\n", o->out, o->layer, s.layer(o->layer).name, o->level, img.width,
@@ -467,6 +469,7 @@ void register_store_verify(CLI::App* store) {
   c->add_flag("--json", o->json, "Print the result (tiles, bad tiles with their reasons) as JSON");
   c->callback([o] {
     const TileStore s = TileStore::open(o->path);
+    for (const std::string& w : s.header().warnings) warn(w);
     nlohmann::json bad_tiles = nlohmann::json::array();
     const std::uint64_t bad = verify(s, !o->buffered, o->max_report, progress_printer("store verify", o->progress),
                                      o->json ? &bad_tiles : nullptr);

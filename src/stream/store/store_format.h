@@ -184,6 +184,9 @@ struct StoreHeader {
   std::uint64_t index_checksum = 0;  // XXH64 of the index bytes
   std::uint64_t data_offset = 0;     // first byte a record may use; multiple of kAlign
   std::uint64_t file_bytes = 0;      // the whole file; multiple of kAlign
+  // What the reader repaired rather than refused (a layer name cut inside a UTF-8 character by an
+  // old builder: the partial bytes dropped), each naming the file and field. Not in the file.
+  std::vector<std::string> warnings;
 
   // Decoded bytes of one tile of a layer: (T + 2B)^2 * channels.
   std::uint32_t tile_bytes(std::uint32_t layer) const {

@@ -81,7 +81,11 @@ StoreHeader parse_store_header(const std::string& path, const std::uint8_t* b, s
     if (!nul) throw InputError(where + "'name'", "is not NUL-terminated within 32 bytes");
     L.name.assign(reinterpret_cast<const char*>(d + lay::name), static_cast<const std::uint8_t*>(nul) - (d + lay::name));
     // Builders before names were checked cut a default name at byte 31, maybe inside a character.
-    L.name.resize(utf8_without_cut_end(L.name));
+    if (const std::size_t kept = utf8_without_cut_end(L.name); kept != L.name.size()) {
+      h.warnings.push_back(where + "'name': " + dec(L.name.size() - kept) +
+                           " trailing byte(s) of a character cut by the builder dropped (read as '" + L.name.substr(0, kept) + "')");
+      L.name.resize(kept);
+    }
     if (const std::string why = layer_name_problem(L.name); !why.empty()) throw InputError(where + "'name'", why);
     L.channels = load_u32(d + lay::channels);
     if (L.channels < 1 || L.channels > kMaxChannels)
