@@ -18,6 +18,7 @@
 #include <tuple>
 
 #include "sim/run/report_html.h"
+#include "sim/run/svg_chart.h"
 #include "sim/sweep/sweep_spec.h"
 
 // Helpers live in a named namespace: unity builds put this file in one translation unit with
@@ -37,21 +38,8 @@ constexpr double kTitlePx = 13, kSmallPx = 11;
 
 std::string esc(std::string_view s) { return html_escape(s); }
 
-// A width estimate on the wide side (DejaVu Sans, the usual sans-serif on Linux, has 0.64 em
-// digits): layout decided on it leaves room rather than overlaps.
-double text_w(std::string_view s, double px) {
-  double em = 0;
-  for (char c : s) {
-    const auto u = static_cast<unsigned char>(c);
-    if ((u & 0xC0) == 0x80) continue;  // UTF-8 continuation byte
-    if (u >= 0x80) em += 1.0;          // anything beyond ASCII: as wide as CJK
-    else if (std::string_view(" .,:;'!|iljtf()[]").find(c) != std::string_view::npos) em += 0.4;
-    else if (c == 'm' || c == 'w' || c == 'M' || c == 'W' || c == '@' || c == '%' || c == '#') em += 1.0;
-    else if (std::isupper(u)) em += 0.78;
-    else em += 0.66;
-  }
-  return em * px;
-}
+// The replay report's width estimate (svg_chart.h: on the wide side, so layout leaves room).
+double text_w(std::string_view s, double px) { return chart_text_width(s, px); }
 
 // The text cut to fit max_w at px, ending in an ellipsis.
 std::string cut_to(std::string_view s, double px, double max_w) {
