@@ -20,6 +20,12 @@ std::unique_ptr<IScene> make_scene_from_config(const ReplayConfig& cfg) {
   sc.origin_y_m = cfg.texture.origin_y_m;
   sc.file = cfg.scene.file;
   sc.height_scale_m = cfg.scene.height_scale_m;
+  sc.mesh_loader = cfg.scene.mesh_loader;
+  sc.mesh_unit_m = cfg.scene.mesh_unit_m;
+  sc.mesh_up = cfg.scene.mesh_up;
+  sc.mesh_uv_set = static_cast<int>(cfg.scene.mesh_uv_set);
+  sc.mesh_no_uv = cfg.scene.mesh_no_uv;
+  sc.mesh_planar_m = cfg.scene.mesh_planar_m;
   auto scene = make_scene(sc);
   const TextureExtent e = scene->texture();
   if (e.width != cfg.texture.width || e.height != cfg.texture.height)

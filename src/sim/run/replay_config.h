@@ -57,6 +57,13 @@ struct SceneSettings {
   std::string kind = "plane";      // a name of scenes() (sim/view/scene.h)
   std::string file;                // the scene's input file (heightfield image, OBJ mesh)
   double height_scale_m = 200.0;   // heightfield: metres for a full-range sample
+  // mesh (SceneConfig's mesh_* fields, sim/view/mesh_import.h)
+  std::string mesh_loader = "auto";
+  double mesh_unit_m = 1.0;
+  std::string mesh_up = "auto";
+  std::int64_t mesh_uv_set = 0;
+  std::string mesh_no_uv = "untextured";
+  double mesh_planar_m = 1.0;
 };
 
 struct ViewConfig {

@@ -1,7 +1,6 @@
 // Wavefront OBJ reader for the mesh scene: geometry and texture coordinates only.
 #include <charconv>
 #include <cmath>
-#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -12,7 +11,6 @@
 #include "core/input_file.h"
 #include "sim/trace/trace_text.h"
 #include "sim/view/mesh.h"
-#include "sim/view/scene_mesh.h"
 
 namespace vtsim {
 
@@ -171,14 +169,6 @@ std::vector<std::string> obj_warnings(const ObjStats& stats, const std::string& 
                   std::to_string(stats.degenerate_skipped + stats.triangles) +
                   " triangles skipped: zero area (collinear or repeated corners)");
   return out;
-}
-
-// The table's "mesh" (scene.cpp): cfg.file's OBJ.
-std::unique_ptr<IScene> make_obj_scene(const SceneConfig& cfg, TextureExtent extent) {
-  ObjStats stats;
-  auto scene = std::make_unique<MeshScene>(load_obj(cfg.file, &stats), extent);
-  scene->set_load_warnings(obj_warnings(stats, cfg.file));
-  return scene;
 }
 
 }  // namespace vtsim

@@ -25,7 +25,7 @@ TextureExtent scene_texture(const SceneConfig& cfg) {
 
 std::unique_ptr<IScene> make_plane_scene(const SceneConfig& cfg, TextureExtent extent);
 std::unique_ptr<IScene> make_heightfield_scene(const SceneConfig& cfg, TextureExtent extent);
-std::unique_ptr<IScene> make_obj_scene(const SceneConfig& cfg, TextureExtent extent);
+std::unique_ptr<IScene> make_file_mesh_scene(const SceneConfig& cfg, TextureExtent extent);
 std::unique_ptr<IScene> make_town_scene(const SceneConfig& cfg, TextureExtent extent);
 
 const Registry<SceneInfo>& scenes() {
@@ -38,8 +38,8 @@ const Registry<SceneInfo>& scenes() {
            false, make_heightfield_scene},
           {"town", "a generated town: streets, buildings and walls, unique UVs, heavy occlusion (the VT case)", "", false,
            make_town_scene},
-          {"mesh", "a Wavefront OBJ whose UVs span the virtual texture (unique texturing, Yao 2011)", "an OBJ file", true,
-           make_obj_scene},
+          {"mesh", "a scene file: OBJ whose UVs span the virtual texture (unique texturing, Yao 2011), or glTF/GLB, FBX, Collada, Quake 3 .pk3 ... through assimp, one region of the texture per material", "a mesh file (OBJ, glTF, FBX, Collada, .pk3, ...)", true,
+           make_file_mesh_scene},
       });
   return table;
 }

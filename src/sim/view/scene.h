@@ -73,7 +73,15 @@ struct SceneConfig {
   double noise_amplitude_m = 150.0;  // generated relief, peak to mean: hills that occlude each other
   std::uint64_t seed = 1;          // generated heightfield and town
 
-  // mesh: `file` is a Wavefront OBJ; vt (u, v) in [0, 1) spans the whole virtual texture.
+  // mesh: `file` is a scene file (mesh_import.h, docs/view.md "Scenes"). An OBJ read by the
+  // hand-written reader: vt (u, v) in [0, 1) spans the whole virtual texture. Through assimp:
+  // each material gets a power-of-two square region, its UVs wrapped into it.
+  std::string mesh_loader = "auto";  // "auto" (obj for .obj, else assimp), "assimp", "obj"
+  double mesh_unit_m = 1.0;          // assimp: metres per file unit (Quake 3: 0.0254)
+  std::string mesh_up = "auto";      // assimp: file's up axis, "auto" (y: glTF/FBX/Collada; z: others), "y", "z"
+  int mesh_uv_set = 0;               // assimp: UV channel (Quake 3: 0 texture, 1 lightmap)
+  std::string mesh_no_uv = "untextured";  // assimp: parts without UVs: "untextured", "skip", "planar", "error"
+  double mesh_planar_m = 1.0;        // assimp, mesh_no_uv = "planar": metres per UV period
 
   // town (generated mesh): a grid of city blocks on ground z = 0 from the terrain origin.
   int town_blocks = 16;            // blocks per side
