@@ -119,7 +119,7 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
               },
               [](const C& c) { return "\"" + c.texture.layers.text + "\""; }})
         .add(cfg::choice<C>("scene.kind", at(&C::scene, &SceneSettings::kind), scenes(), "scene"))
-        .add(cfg::text<C>("scene.file", at(&C::scene, &SceneSettings::file), nullptr, "heightfield image or OBJ mesh (heightfield, mesh)"))
+        .add(cfg::text<C>("scene.file", at(&C::scene, &SceneSettings::file), nullptr, "heightfield image or mesh file (heightfield, mesh)"))
         .add(cfg::real<C>("scene.height_scale_m", at(&C::scene, &SceneSettings::height_scale_m), 0.0, 1e5, "heightfield: metres for full-range heights"))
         .add(cfg::text<C>("scene.mesh_loader", at(&C::scene, &SceneSettings::mesh_loader), one_of_mesh({"auto", "assimp", "obj"}),
                           "mesh: reader of scene.file: auto = the OBJ reader for .obj (vt spans the texture), assimp otherwise"))
