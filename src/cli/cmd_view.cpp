@@ -219,7 +219,7 @@ void register_view_commands(CLI::App& app) {
   auto opt = std::make_shared<ViewOptions>();
   auto* cmd = app.add_subcommand("view", "Render one feedback frame of a scene; write the desired mip level as a PNG");
   cmd->add_option("--scene", opt->scene, scenes().names(" | "))->capture_default_str();
-  cmd->add_option("--obj", opt->obj, "Wavefront OBJ file (scene mesh); vt in [0,1) spans the texture");
+  cmd->add_option("--obj", opt->obj, "mesh file (scene mesh): OBJ (vt in [0,1) spans the texture) or any format assimp reads (glTF, FBX, Collada, .pk3; docs/view.md \"Scenes\")");
   cmd->add_option("--heightmap", opt->heightmap, "heightmap image (scene heightfield); default: generated noise");
   cmd->add_option("--spacing", opt->spacing_m, "heightfield post spacing, m")->capture_default_str();
   cmd->add_option("--height-scale", opt->height_scale_m, "metres per heightmap value")->capture_default_str();
