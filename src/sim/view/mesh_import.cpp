@@ -161,6 +161,7 @@ Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int
   if (extent_w < 1 || extent_h < 1) throw InputError("texture", "extent must be at least 1×1");
   const bool y_up = mesh_up_axis(opt, path) == "y";
   const bool q3 = import_lower_ext(path) == "pk3" || import_lower_ext(path) == "bsp";
+  const bool no_uv_skip = opt.no_uv == "skip", no_uv_untextured = opt.no_uv == "untextured";
   {
     const RegularFile f = open_regular_file(path);
     if (f.size() > opt.max_bytes)
@@ -190,6 +191,13 @@ Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int
   std::vector<double> area_w(n_mat, 0.0), area_uv(n_mat, 0.0);  // m², UV periods²
   std::vector<std::pair<const aiNode*, glm::dmat4>> stack{{sc->mRootNode, world}};
   std::uint64_t instanced = 0;  // corners of instanced faces, a bound against instancing bombs
+  struct Found {
+    const aiMesh* mesh;
+    glm::dmat4 xf;
+    bool mirror;
+  };
+  std::vector<Found> found;
+  std::uint64_t n_vertices = 0;
   while (!stack.empty()) {
     const auto [node, parent] = stack.back();
     stack.pop_back();
@@ -202,8 +210,19 @@ Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int
       const aiMesh* am = sc->mMeshes[node->mMeshes[k]];
       if (!am || !am->mVertices) continue;
       instanced += am->mNumFaces;
-      if (instanced > opt.max_triangles || out.positions.size() + am->mNumVertices > 4 * opt.max_triangles + 64)
+      n_vertices += am->mNumVertices;
+      if (instanced > opt.max_triangles || n_vertices > 4 * opt.max_triangles + 64)
         throw InputError(path, "more than " + std::to_string(opt.max_triangles) + " triangles");
+      found.push_back(Found{am, xf, mirror});
+    }
+  }
+  out.positions.reserve(n_vertices);
+  pend.reserve(instanced);
+  for (const Found& fd : found) {
+    {
+      const aiMesh* am = fd.mesh;
+      const glm::dmat4& xf = fd.xf;
+      const bool mirror = fd.mirror;
       ++st.meshes;
       const auto inst_id = static_cast<std::uint32_t>(insts.size());
       const auto pos0 = static_cast<std::uint32_t>(out.positions.size());
@@ -263,17 +282,19 @@ Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int
             ++st.non_finite;
             continue;
           }
-          if (import_degenerate(p0, p1, p2)) {
+          const glm::dvec3 e1 = p1 - p0, e2 = p2 - p0;
+          const glm::dvec3 n = glm::cross(e1, e2);
+          const double n2 = glm::dot(n, n);
+          if (!(n2 > 1e-24 * glm::dot(e1, e1) * glm::dot(e2, e2)) || n2 == 0.0) {  // import_degenerate
             ++st.degenerate;
             continue;
           }
-          if (!has_uv && opt.no_uv == "skip") {
+          if (!has_uv && no_uv_skip) {
             ++st.no_uv_skipped;
             continue;
           }
           pend.push_back(ImportPending{{pos0 + v[0], pos0 + v[1], pos0 + v[2]}, {v[0], v[1], v[2]}, inst_id});
-          if (!has_uv && opt.no_uv == "untextured") continue;
-          const glm::dvec3 n = glm::cross(p1 - p0, p2 - p0);
+          if (!has_uv && no_uv_untextured) continue;
           glm::dvec2 uv[3];
           if (has_uv) {
             for (int c2 = 0; c2 < 3; ++c2) uv[c2] = glm::dvec2(tc[v[c2]].x, tc[v[c2]].y);
@@ -283,7 +304,7 @@ Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int
             for (int c2 = 0; c2 < 3; ++c2) uv[c2] = import_planar_uv(out.positions[pos0 + v[c2]], axis, opt.planar_m);
           }
           const glm::dvec2 d1 = uv[1] - uv[0], d2 = uv[2] - uv[0];
-          area_w[mat] += 0.5 * glm::length(n);
+          area_w[mat] += 0.5 * std::sqrt(n2);
           area_uv[mat] += 0.5 * std::fabs(d1.x * d2.y - d1.y * d2.x);
         }
       }
@@ -345,6 +366,7 @@ Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int
   // Pass 2: triangles with UVs wrapped into their material's region.
   const double W = static_cast<double>(extent_w), H = static_cast<double>(extent_h);
   out.tris.reserve(pend.size());
+  out.uvs.reserve(out.positions.size());
   // Per position: the UV index made for it with the last integer shift (most corners of a tiling
   // mesh reuse their first), so untouched vertices keep one shared UV.
   std::vector<std::int32_t> uv_cache(out.positions.size(), -1);
@@ -367,7 +389,7 @@ Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int
     const aiVector3D* tc = am->mTextureCoords[opt.uv_set];
     const std::uint32_t mat = am->mMaterialIndex < n_mat ? am->mMaterialIndex : 0;
     check_count();
-    if (!tc && opt.no_uv == "untextured") {
+    if (!tc && no_uv_untextured) {
       ++st.no_uv_untextured;
       out.tris.push_back(Mesh::Tri{{pt.p[0], pt.p[1], pt.p[2]}, {-1, -1, -1}});
       continue;
