@@ -1,5 +1,6 @@
 // Scene files through assimp (sim/view/mesh_import.h, scene.kind = mesh): the input is written
-// with the extension its first bytes suggest (glTF JSON, GLB, Collada/XML, PLY, a zip = Quake 3
+// with the extension its first bytes suggest (glTF JSON, GLB, Collada/XML, PLY (refused: not a
+// scene format import_mesh keeps; its reader hung on corrupted headers), a zip = Quake 3
 // .pk3, FBX, else OBJ) and imported with options drawn from its length (the UV policy and up
 // axis). An accepted mesh must build a MeshScene: whatever assimp returns, import_mesh validates
 // it into triangles MeshScene accepts (finite, non-degenerate, indices in range). Parsing is

@@ -9,7 +9,9 @@
 #include <utility>
 #include <vector>
 
+#include <assimp/BaseImporter.h>
 #include <assimp/Importer.hpp>
+#include <assimp/importerdesc.h>
 #include <fmt/format.h>
 #include <assimp/scene.h>
 #include <glm/geometric.hpp>
@@ -133,6 +135,23 @@ std::uint32_t import_compact_bits(std::uint64_t x) {  // even bits of x -> low 3
   return static_cast<std::uint32_t>(x);
 }
 
+// Leaves the importer only the readers of issue 28's formats: glTF 1/2 (.gltf/.glb), FBX, OBJ,
+// Collada and Quake 3 BSP (.pk3/.bsp). assimp's ~40 other readers are untested here, and one of
+// them, PLY, loops forever on a corrupted header (2 of 800 mutated inputs; assimp 5.2.5): a file
+// of another format is refused ("No suitable reader found") instead.
+void import_keep_scene_readers(Assimp::Importer& importer) {
+  static const char* const kKeep[] = {"gltf", "glb", "fbx", "obj", "dae", "pk3"};
+  std::vector<Assimp::BaseImporter*> drop;
+  for (std::size_t i = 0; i < importer.GetImporterCount(); ++i) {
+    const aiImporterDesc* d = importer.GetImporterInfo(i);
+    const std::string exts = d && d->mFileExtensions ? std::string(" ") + d->mFileExtensions + " " : "";
+    bool keep = false;
+    for (const char* k : kKeep) keep = keep || exts.find(std::string(" ") + k + " ") != std::string::npos;
+    if (!keep) drop.push_back(importer.GetImporter(i));
+  }
+  for (Assimp::BaseImporter* b : drop) importer.UnregisterLoader(b);
+}
+
 }  // namespace
 
 std::string mesh_up_axis(const MeshImportOptions& opt, const std::string& path) {
@@ -170,6 +189,7 @@ Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int
   }
 
   Assimp::Importer importer;
+  import_keep_scene_readers(importer);
   // No post-processing: assimp 5.2.5's Triangulate / JoinIdenticalVertices segfault on its own
   // Quake 3 output (faces with indices out of range) and ValidateDataStructure refuses the whole
   // map for 3 faces of 7,532. Fans, index checks and coordinate checks are done below instead.
