@@ -315,6 +315,12 @@ TEST_CASE("mesh import: Collada's up_axis and unit are applied by assimp, auto =
       "<library_visual_scenes><visual_scene id=\"s\"><node id=\"n\"><instance_geometry url=\"#g\"/></node>"
       "</visual_scene></library_visual_scenes>\n<scene><instance_visual_scene url=\"#s\"/></scene>\n</COLLADA>\n";
   const std::string path = mi_write("up.dae", dae);
+  // assimp 5.2.5 crashes on an array holding values with count 0: refused before assimp reads it.
+  std::string bad = dae;
+  bad.replace(bad.find("count=\"9\""), 9, "count=\"0\"");
+  mi_expect_error(mi_write("count0.dae", bad), MeshImportOptions{}, "count is 0 or not a number");
+  bad.replace(bad.find("count=\"0\""), 9, "count=\"x\"");
+  mi_expect_error(mi_write("countx.dae", bad), MeshImportOptions{}, "<float_array>");
   MeshImportStats st;
   const Mesh m = import_mesh(path, MeshImportOptions{}, 1 << 10, 1 << 10, &st);
   REQUIRE(m.tris.size() == 1);

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -152,6 +153,35 @@ void import_keep_scene_readers(Assimp::Importer& importer) {
   for (Assimp::BaseImporter* b : drop) importer.UnregisterLoader(b);
 }
 
+// assimp 5.2.5's Collada reader writes past an array whose count attribute is 0 or not a number
+// while the element holds values (<float_array count="0">1 2 3</float_array>: a segfault, found by
+// mutating tests/fuzz/corpus/mesh_import/z_up_centimetres.dae). Such a file is refused here first.
+void import_check_collada(const std::string& path) {
+  const std::string text = read_regular_file(path, std::uint64_t{2} << 30, "more than the limit for a scene file");
+  const auto is_alpha = [](char ch) { return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z'); };
+  for (std::size_t pos = text.find("_array"); pos != std::string::npos; pos = text.find("_array", pos + 1)) {
+    std::size_t b = pos;
+    while (b > 0 && is_alpha(text[b - 1])) --b;
+    if (b == 0 || text[b - 1] != '<') continue;  // not an element's start tag
+    const std::size_t gt = text.find('>', pos);
+    if (gt == std::string::npos) return;  // assimp refuses the broken XML itself
+    if (text[gt - 1] == '/') continue;    // empty element
+    const std::string_view tag(text.data() + b, gt - b);
+    std::size_t digits = 0;
+    bool positive = false;
+    if (const std::size_t c = tag.find("count="); c != std::string_view::npos && c + 7 <= tag.size()) {
+      for (std::size_t k = c + 7; k < tag.size() && tag[k] >= '0' && tag[k] <= '9'; ++k, ++digits)
+        positive = positive || tag[k] != '0';
+    }
+    if (digits > 0 && positive) continue;
+    const std::size_t end = text.find('<', gt);
+    const std::string_view body(text.data() + gt + 1, (end == std::string::npos ? text.size() : end) - gt - 1);
+    if (body.find_first_not_of(" \t\r\n") != std::string_view::npos)
+      throw InputError(path, "Collada: <" + std::string(tag.substr(0, tag.find(' '))) +
+                                 "> holds values but its count is 0 or not a number (assimp 5.2.5 crashes on it)");
+  }
+}
+
 }  // namespace
 
 std::string mesh_up_axis(const MeshImportOptions& opt, const std::string& path) {
@@ -188,6 +218,10 @@ Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int
                                  ": more than the limit for a scene file");
   }
 
+  // Collada, or any extension no kept reader claims (assimp then picks a reader by content).
+  if (const std::string e = import_lower_ext(path);
+      e != "gltf" && e != "glb" && e != "fbx" && e != "obj" && e != "pk3" && e != "bsp")
+    import_check_collada(path);
   Assimp::Importer importer;
   import_keep_scene_readers(importer);
   // No post-processing: assimp 5.2.5's Triangulate / JoinIdenticalVertices segfault on its own
