@@ -75,10 +75,11 @@ std::string mi_gltf(const std::vector<MiPrim>& prims, int materials, const std::
       lo[i % 3] = std::fmin(lo[i % 3], p.pos[i]);
       hi[i % 3] = std::fmax(hi[i % 3], p.pos[i]);
     }
-    const auto arr = [](const float* a) {
-      return "[" + std::to_string(a[0]) + "," + std::to_string(a[1]) + "," + std::to_string(a[2]) + "]";
+    const auto arr = [](const float* a) {  // appends: "[" + std::string&& trips GCC 12's -Wrestrict in unity builds
+      std::string out(1, '[');
+      for (int i = 0; i < 3; ++i) out.append(std::to_string(a[i])).append(i < 2 ? "," : "]");
+      return out;
     };
-    std::string attrs = "\"POSITION\":" + std::to_string(accessors.empty() ? 0 : 0);
     const auto add_acc = [&](int v, std::size_t count, const char* type, int comp, const std::string& extra) {
       const std::size_t id = std::count(accessors.begin(), accessors.end(), '{');
       accessors += std::string(accessors.empty() ? "" : ",") + "{\"bufferView\":" + std::to_string(v) +
@@ -87,7 +88,7 @@ std::string mi_gltf(const std::vector<MiPrim>& prims, int materials, const std::
       return id;
     };
     const std::size_t pa = add_acc(pv, p.pos.size() / 3, "VEC3", 5126, ",\"min\":" + arr(lo) + ",\"max\":" + arr(hi));
-    attrs = "\"POSITION\":" + std::to_string(pa);
+    std::string attrs = "\"POSITION\":" + std::to_string(pa);
     if (!p.uv.empty()) {
       const int uvv = add_view(p.uv.data(), p.uv.size() * 4);
       attrs += ",\"TEXCOORD_0\":" + std::to_string(add_acc(uvv, p.uv.size() / 2, "VEC2", 5126, ""));
