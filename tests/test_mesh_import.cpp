@@ -226,7 +226,7 @@ TEST_CASE("mesh import: materials get disjoint power-of-two regions sized by tex
   CHECK(warn[0].find("0.5") != std::string::npos);
 }
 
-TEST_CASE("mesh import: UVs outside [0, 1) are wrapped by cutting triangles at integer lines") {
+TEST_CASE("mesh import: UVs outside 0..1 are wrapped by cutting triangles at integer lines") {
   // Through assimp's OBJ reader: positions equal the UVs, so every output corner's region texel
   // can be checked against its own position.
   const std::string path = mi_write("wrap.obj",

@@ -244,7 +244,7 @@ Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int
   const std::uint32_t n_mat = std::max(1u, sc->mNumMaterials);
   std::vector<double> area_w(n_mat, 0.0), area_uv(n_mat, 0.0);  // m², UV periods²
   std::vector<std::pair<const aiNode*, glm::dmat4>> stack{{sc->mRootNode, world}};
-  std::uint64_t instanced = 0;  // corners of instanced faces, a bound against instancing bombs
+  std::uint64_t instanced = 0;  // faces instanced by the node tree: a bound against instancing bombs
   struct Found {
     const aiMesh* mesh;
     glm::dmat4 xf;
@@ -273,94 +273,92 @@ Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int
   out.positions.reserve(n_vertices);
   pend.reserve(instanced);
   for (const Found& fd : found) {
-    {
-      const aiMesh* am = fd.mesh;
-      const glm::dmat4& xf = fd.xf;
-      const bool mirror = fd.mirror;
-      ++st.meshes;
-      const auto inst_id = static_cast<std::uint32_t>(insts.size());
-      const auto pos0 = static_cast<std::uint32_t>(out.positions.size());
-      insts.push_back(ImportInst{am, pos0, mirror});
-      for (unsigned v = 0; v < am->mNumVertices; ++v) {
-        const aiVector3D& a = am->mVertices[v];
-        out.positions.push_back(glm::dvec3(xf * glm::dvec4(a.x, a.y, a.z, 1.0)));
+    const aiMesh* am = fd.mesh;
+    const glm::dmat4& xf = fd.xf;
+    const bool mirror = fd.mirror;
+    ++st.meshes;
+    const auto inst_id = static_cast<std::uint32_t>(insts.size());
+    const auto pos0 = static_cast<std::uint32_t>(out.positions.size());
+    insts.push_back(ImportInst{am, pos0, mirror});
+    for (unsigned v = 0; v < am->mNumVertices; ++v) {
+      const aiVector3D& a = am->mVertices[v];
+      out.positions.push_back(glm::dvec3(xf * glm::dvec4(a.x, a.y, a.z, 1.0)));
+    }
+    const aiVector3D* tc = am->mTextureCoords[opt.uv_set];
+    const bool has_uv = tc != nullptr;
+    if (!has_uv && opt.no_uv == "error")
+      throw InputError(path, "mesh \"" + std::string(am->mName.C_Str()) + "\" has no UV set " +
+                                 std::to_string(opt.uv_set) + " (mesh_no_uv = \"error\")");
+    const std::uint32_t mat = am->mMaterialIndex < n_mat ? am->mMaterialIndex : 0;
+    // assimp 5.2.5's Quake 3 importer writes each face's three corners as consecutive vertices
+    // but fills the faces' index arrays wrongly (oa_dm1: faces such as {2975341893, 22102, 0}
+    // or {0, 0, 0}; 3 out of range, most of the rest degenerate). Its meshes hold exactly
+    // 3 vertices per face, so the faces are rebuilt from the vertex triples.
+    const bool triples = q3 && am->mNumVertices == 3u * am->mNumFaces;
+    unsigned tri_idx[3] = {0, 0, 0};
+    if (triples) st.rebuilt_faces += am->mNumFaces;
+    for (unsigned f = 0; f < am->mNumFaces; ++f) {
+      // The face's corners (not an aiFace: its destructor frees the index array).
+      struct {
+        unsigned mNumIndices;
+        const unsigned* mIndices;
+      } face{am->mFaces ? am->mFaces[f].mNumIndices : 0u, am->mFaces ? am->mFaces[f].mIndices : nullptr};
+      if (triples) {
+        tri_idx[0] = 3 * f;
+        tri_idx[1] = 3 * f + 2;  // Quake 3 winds front faces clockwise
+        tri_idx[2] = 3 * f + 1;
+        face = {3u, tri_idx};
       }
-      const aiVector3D* tc = am->mTextureCoords[opt.uv_set];
-      const bool has_uv = tc != nullptr;
-      if (!has_uv && opt.no_uv == "error")
-        throw InputError(path, "mesh \"" + std::string(am->mName.C_Str()) + "\" has no UV set " +
-                                   std::to_string(opt.uv_set) + " (mesh_no_uv = \"error\")");
-      const std::uint32_t mat = am->mMaterialIndex < n_mat ? am->mMaterialIndex : 0;
-      // assimp 5.2.5's Quake 3 importer writes each face's three corners as consecutive vertices
-      // but fills the faces' index arrays wrongly (oa_dm1: faces such as {2975341893, 22102, 0}
-      // or {0, 0, 0}; 3 out of range, most of the rest degenerate). Its meshes hold exactly
-      // 3 vertices per face, so the faces are rebuilt from the vertex triples.
-      const bool triples = q3 && am->mNumVertices == 3u * am->mNumFaces;
-      unsigned tri_idx[3] = {0, 0, 0};
-      if (triples) st.rebuilt_faces += am->mNumFaces;
-      for (unsigned f = 0; f < am->mNumFaces; ++f) {
-        // The face's corners (not an aiFace: its destructor frees the index array).
-        struct {
-          unsigned mNumIndices;
-          const unsigned* mIndices;
-        } face{am->mFaces ? am->mFaces[f].mNumIndices : 0u, am->mFaces ? am->mFaces[f].mIndices : nullptr};
-        if (triples) {
-          tri_idx[0] = 3 * f;
-          tri_idx[1] = 3 * f + 2;  // Quake 3 winds front faces clockwise
-          tri_idx[2] = 3 * f + 1;
-          face = {3u, tri_idx};
-        }
-        if (face.mNumIndices < 3 || !face.mIndices) {
-          ++st.not_polygons;
-          continue;
-        }
-        bool ok = true;
-        for (unsigned c = 0; c < face.mNumIndices; ++c) ok = ok && face.mIndices[c] < am->mNumVertices;
-        if (!ok) {
-          st.read += face.mNumIndices - 2;
-          st.bad_index += face.mNumIndices - 2;
-          continue;
-        }
+      if (face.mNumIndices < 3 || !face.mIndices) {
+        ++st.not_polygons;
+        continue;
+      }
+      bool ok = true;
+      for (unsigned c = 0; c < face.mNumIndices; ++c) ok = ok && face.mIndices[c] < am->mNumVertices;
+      if (!ok) {
         st.read += face.mNumIndices - 2;
-        for (unsigned c = 1; c + 1 < face.mNumIndices; ++c) {
-          std::uint32_t v[3] = {face.mIndices[0], face.mIndices[c], face.mIndices[c + 1]};
-          if (mirror) std::swap(v[1], v[2]);
-          const glm::dvec3 p0 = out.positions[pos0 + v[0]], p1 = out.positions[pos0 + v[1]],
-                           p2 = out.positions[pos0 + v[2]];
-          bool fine = import_finite_pos(p0) && import_finite_pos(p1) && import_finite_pos(p2);
-          if (fine && has_uv)
-            for (const std::uint32_t i : v)
-              fine = fine && std::fabs(static_cast<double>(tc[i].x)) <= kImportMaxUv &&
-                     std::fabs(static_cast<double>(tc[i].y)) <= kImportMaxUv;
-          if (!fine) {
-            ++st.non_finite;
-            continue;
-          }
-          const glm::dvec3 e1 = p1 - p0, e2 = p2 - p0;
-          const glm::dvec3 n = glm::cross(e1, e2);
-          const double n2 = glm::dot(n, n);
-          if (!(n2 > 1e-24 * glm::dot(e1, e1) * glm::dot(e2, e2)) || n2 == 0.0) {  // import_degenerate
-            ++st.degenerate;
-            continue;
-          }
-          if (!has_uv && no_uv_skip) {
-            ++st.no_uv_skipped;
-            continue;
-          }
-          pend.push_back(ImportPending{{pos0 + v[0], pos0 + v[1], pos0 + v[2]}, {v[0], v[1], v[2]}, inst_id});
-          if (!has_uv && no_uv_untextured) continue;
-          glm::dvec2 uv[3];
-          if (has_uv) {
-            for (int c2 = 0; c2 < 3; ++c2) uv[c2] = glm::dvec2(tc[v[c2]].x, tc[v[c2]].y);
-          } else {
-            const glm::dvec3 an = glm::abs(n);
-            const int axis = an.x >= an.y && an.x >= an.z ? 0 : (an.y >= an.z ? 1 : 2);
-            for (int c2 = 0; c2 < 3; ++c2) uv[c2] = import_planar_uv(out.positions[pos0 + v[c2]], axis, opt.planar_m);
-          }
-          const glm::dvec2 d1 = uv[1] - uv[0], d2 = uv[2] - uv[0];
-          area_w[mat] += 0.5 * std::sqrt(n2);
-          area_uv[mat] += 0.5 * std::fabs(d1.x * d2.y - d1.y * d2.x);
+        st.bad_index += face.mNumIndices - 2;
+        continue;
+      }
+      st.read += face.mNumIndices - 2;
+      for (unsigned c = 1; c + 1 < face.mNumIndices; ++c) {
+        std::uint32_t v[3] = {face.mIndices[0], face.mIndices[c], face.mIndices[c + 1]};
+        if (mirror) std::swap(v[1], v[2]);
+        const glm::dvec3 p0 = out.positions[pos0 + v[0]], p1 = out.positions[pos0 + v[1]],
+                         p2 = out.positions[pos0 + v[2]];
+        bool fine = import_finite_pos(p0) && import_finite_pos(p1) && import_finite_pos(p2);
+        if (fine && has_uv)
+          for (const std::uint32_t i : v)
+            fine = fine && std::fabs(static_cast<double>(tc[i].x)) <= kImportMaxUv &&
+                   std::fabs(static_cast<double>(tc[i].y)) <= kImportMaxUv;
+        if (!fine) {
+          ++st.non_finite;
+          continue;
         }
+        const glm::dvec3 e1 = p1 - p0, e2 = p2 - p0;
+        const glm::dvec3 n = glm::cross(e1, e2);
+        const double n2 = glm::dot(n, n);
+        if (!(n2 > 1e-24 * glm::dot(e1, e1) * glm::dot(e2, e2)) || n2 == 0.0) {  // import_degenerate
+          ++st.degenerate;
+          continue;
+        }
+        if (!has_uv && no_uv_skip) {
+          ++st.no_uv_skipped;
+          continue;
+        }
+        pend.push_back(ImportPending{{pos0 + v[0], pos0 + v[1], pos0 + v[2]}, {v[0], v[1], v[2]}, inst_id});
+        if (!has_uv && no_uv_untextured) continue;
+        glm::dvec2 uv[3];
+        if (has_uv) {
+          for (int c2 = 0; c2 < 3; ++c2) uv[c2] = glm::dvec2(tc[v[c2]].x, tc[v[c2]].y);
+        } else {
+          const glm::dvec3 an = glm::abs(n);
+          const int axis = an.x >= an.y && an.x >= an.z ? 0 : (an.y >= an.z ? 1 : 2);
+          for (int c2 = 0; c2 < 3; ++c2) uv[c2] = import_planar_uv(out.positions[pos0 + v[c2]], axis, opt.planar_m);
+        }
+        const glm::dvec2 d1 = uv[1] - uv[0], d2 = uv[2] - uv[0];
+        area_w[mat] += 0.5 * std::sqrt(n2);
+        area_uv[mat] += 0.5 * std::fabs(d1.x * d2.y - d1.y * d2.x);
       }
     }
   }
