@@ -397,3 +397,27 @@ TEST_CASE("mesh scene: mesh_loader picks the reader, the scene renders an import
   REQUIRE(scene->load_warnings().size() == 1);
   CHECK(scene->load_warnings()[0].find("0.5 of the wished texel density") != std::string::npos);
 }
+
+TEST_CASE("mesh import: Quake 3 pk3 (assimp 5.2.5's faces rebuilt from vertex triples, clockwise fronts)") {
+  // tests/data/make_quad_q3_pk3.py: one 64 × 32-unit quad at z = 8, texture u 0..2 (tiling twice).
+  const std::string path = std::string(VTSIM_TEST_DATA) + "/quad_q3.pk3";
+  MeshImportOptions o;  // auto: z up for .pk3
+  o.unit_m = 0.0254;
+  o.texels_per_m = 64;
+  MeshImportStats st;
+  const Mesh m = import_mesh(path, o, 1 << 10, 1 << 10, &st);
+  CHECK(st.rebuilt_faces == 2);
+  CHECK(st.bad_index == 0);
+  CHECK(st.split_triangles == 2);  // both span u = 1
+  double area = 0.0;
+  for (const Mesh::Tri& t : m.tris) {
+    const glm::dvec3 a = m.positions[t.p[0]], b = m.positions[t.p[1]], c = m.positions[t.p[2]];
+    const glm::dvec3 n = glm::cross(b - a, c - a);
+    CHECK(n.z > 0.0);  // the front faces up, as the map's floor
+    CHECK(a.z == doctest::Approx(8 * 0.0254));
+    area += 0.5 * glm::length(n);
+    CHECK(t.t[0] >= 0);
+  }
+  CHECK(area == doctest::Approx(64 * 32 * 0.0254 * 0.0254));
+  CHECK(mesh_import_warnings(st, path).empty());
+}
