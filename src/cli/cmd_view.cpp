@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli/cli_io.h"
@@ -26,6 +27,7 @@ namespace {
 struct ViewOptions {
   std::string scene = "plane";
   std::string obj, heightmap;
+  SceneConfig mesh;  // its mesh_* fields: --mesh-loader, --mesh-unit, --mesh-up, --mesh-uv-set, --mesh-no-uv
   double spacing_m = 8.0, height_scale_m = 1.0, z0_m = 0.0;
   unsigned long long seed = 1;
   double terrain_size_m = 8192.0, texels_per_m = 128.0;
@@ -90,6 +92,12 @@ void run_view(const ViewOptions& o) {
   cfg.height_scale_m = o.height_scale_m;
   cfg.z0_m = o.z0_m;
   cfg.seed = o.seed;
+  cfg.mesh_loader = o.mesh.mesh_loader;
+  cfg.mesh_unit_m = o.mesh.mesh_unit_m;
+  cfg.mesh_up = o.mesh.mesh_up;
+  cfg.mesh_uv_set = o.mesh.mesh_uv_set;
+  cfg.mesh_no_uv = o.mesh.mesh_no_uv;
+  cfg.mesh_planar_m = o.mesh.mesh_planar_m;
   if (o.zoom < 1 || o.zoom > 64) throw InputError("--zoom", "must be in [1, 64]");
   // Checked whether or not the scene reads them (the generated heightfield has no height scale).
   if (!(o.spacing_m > 0.0) || !std::isfinite(o.spacing_m)) throw InputError("--spacing", "must be finite and > 0");
@@ -105,6 +113,11 @@ void run_view(const ViewOptions& o) {
   try {
     scene = make_scene(cfg);
   } catch (const InputError& e) {  // the config key, as the user typed it here
+    static const std::pair<const char*, const char*> kMeshFlags[] = {
+        {"mesh_loader", "--mesh-loader"}, {"mesh_unit_m", "--mesh-unit"},  {"mesh_up", "--mesh-up"},
+        {"mesh_uv_set", "--mesh-uv-set"}, {"mesh_no_uv", "--mesh-no-uv"}, {"mesh_planar_m", "--mesh-planar"}};
+    for (const auto& [field, flag] : kMeshFlags)
+      if (e.where() == field) throw InputError(flag, std::string(e.what()).substr(e.where().size() + 2));
     if (e.where() != "scene.file") throw;
     throw InputError(cfg.kind == "mesh" ? "--obj" : "--heightmap", std::string(e.what()).substr(e.where().size() + 2));
   }
@@ -220,6 +233,12 @@ void register_view_commands(CLI::App& app) {
   auto* cmd = app.add_subcommand("view", "Render one feedback frame of a scene; write the desired mip level as a PNG");
   cmd->add_option("--scene", opt->scene, scenes().names(" | "))->capture_default_str();
   cmd->add_option("--obj", opt->obj, "mesh file (scene mesh): OBJ (vt in [0,1) spans the texture) or any format assimp reads (glTF, FBX, Collada, .pk3; docs/view.md \"Scenes\")");
+  cmd->add_option("--mesh-loader", opt->mesh.mesh_loader, "mesh: auto | assimp | obj (scene.mesh_loader)")->capture_default_str();
+  cmd->add_option("--mesh-unit", opt->mesh.mesh_unit_m, "mesh (assimp): metres per file unit; Quake 3: 0.0254")->capture_default_str();
+  cmd->add_option("--mesh-up", opt->mesh.mesh_up, "mesh (assimp): the file's up axis, auto | y | z")->capture_default_str();
+  cmd->add_option("--mesh-uv-set", opt->mesh.mesh_uv_set, "mesh (assimp): UV channel")->capture_default_str();
+  cmd->add_option("--mesh-no-uv", opt->mesh.mesh_no_uv, "mesh (assimp): untextured | skip | planar | error")->capture_default_str();
+  cmd->add_option("--mesh-planar", opt->mesh.mesh_planar_m, "mesh (assimp), --mesh-no-uv planar: metres per UV period")->capture_default_str();
   cmd->add_option("--heightmap", opt->heightmap, "heightmap image (scene heightfield); default: generated noise");
   cmd->add_option("--spacing", opt->spacing_m, "heightfield post spacing, m")->capture_default_str();
   cmd->add_option("--height-scale", opt->height_scale_m, "metres per heightmap value")->capture_default_str();
