@@ -56,7 +56,9 @@ std::string mi_base64(const std::string& in) {
 
 // A .gltf with one embedded buffer: one mesh per primitive, one node per mesh carrying `node_trs`
 // (JSON members such as "translation":[...], or empty), `materials` materials.
-std::string mi_gltf(const std::vector<MiPrim>& prims, int materials, const std::string& node_trs = "") {
+// With glb_bin: the buffer goes there (a GLB's BIN chunk), not into a data URI.
+std::string mi_gltf(const std::vector<MiPrim>& prims, int materials, const std::string& node_trs = "",
+                    std::string* glb_bin = nullptr) {
   std::string bin, views, accessors, meshes, nodes, scene_nodes;
   int view = 0;
   const auto add_view = [&](const void* data, std::size_t bytes) {
@@ -100,12 +102,14 @@ std::string mi_gltf(const std::vector<MiPrim>& prims, int materials, const std::
     nodes += std::string(k ? "," : "") + "{\"mesh\":" + std::to_string(k) + (node_trs.empty() ? "" : "," + node_trs) + "}";
     scene_nodes += std::string(k ? "," : "") + std::to_string(k);
   }
+  if (glb_bin) *glb_bin = bin;
   std::string mats;
   for (int m = 0; m < materials; ++m) mats += std::string(m ? "," : "") + "{\"name\":\"m" + std::to_string(m) + "\"}";
   return "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[" + scene_nodes + "]}],\"nodes\":[" +
          nodes + "],\"meshes\":[" + meshes + "],\"materials\":[" + mats + "],\"buffers\":[{\"byteLength\":" +
-         std::to_string(bin.size()) + ",\"uri\":\"data:application/octet-stream;base64," + mi_base64(bin) +
-         "\"}],\"bufferViews\":[" + views + "],\"accessors\":[" + accessors + "]}";
+         std::to_string(bin.size()) +
+         (glb_bin ? std::string() : ",\"uri\":\"data:application/octet-stream;base64," + mi_base64(bin) + "\"") +
+         "}],\"bufferViews\":[" + views + "],\"accessors\":[" + accessors + "]}";
 }
 
 std::string mi_write(const std::string& name, const std::string& text) {
@@ -420,4 +424,36 @@ TEST_CASE("mesh import: Quake 3 pk3 (assimp 5.2.5's faces rebuilt from vertex tr
   }
   CHECK(area == doctest::Approx(64 * 32 * 0.0254 * 0.0254));
   CHECK(mesh_import_warnings(st, path).empty());
+}
+
+TEST_CASE("mesh import: GLB (binary glTF) reads like the same .gltf") {
+  const std::vector<MiPrim> prims = {mi_quad(0, 0, 2, 0), mi_quad(5, 0, 1, 1)};
+  const std::string text = mi_gltf(prims, 2, "\"translation\":[1,2,3]");
+  std::string bin;
+  std::string json = mi_gltf(prims, 2, "\"translation\":[1,2,3]", &bin);
+  while (json.size() % 4) json += ' ';  // chunks are 4-byte aligned (glTF 2.0 §4.4)
+  while (bin.size() % 4) bin += '\0';
+  std::string glb = "glTF";
+  const auto u32 = [&glb](std::uint32_t v) {
+    for (int k = 0; k < 4; ++k) glb += static_cast<char>((v >> (8 * k)) & 0xff);
+  };
+  u32(2);
+  u32(static_cast<std::uint32_t>(12 + 8 + json.size() + 8 + bin.size()));
+  u32(static_cast<std::uint32_t>(json.size()));
+  glb += "JSON";
+  glb += json;
+  u32(static_cast<std::uint32_t>(bin.size()));
+  glb += std::string("BIN\0", 4);
+  glb += bin;
+  const MeshImportOptions o = mi_z_up();
+  const Mesh a = import_mesh(mi_write("same.gltf", text), o, 1 << 10, 1 << 10);
+  const Mesh b = import_mesh(mi_write("same.glb", glb), o, 1 << 10, 1 << 10);
+  REQUIRE(a.tris.size() == 4);
+  REQUIRE(b.tris.size() == a.tris.size());
+  for (std::size_t k = 0; k < a.tris.size(); ++k)
+    for (int c = 0; c < 3; ++c) {
+      CHECK(a.positions[a.tris[k].p[c]] == b.positions[b.tris[k].p[c]]);
+      CHECK(a.uvs[static_cast<std::size_t>(a.tris[k].t[c])] == b.uvs[static_cast<std::size_t>(b.tris[k].t[c])]);
+    }
+  CHECK(a.positions[a.tris[0].p[0]] == glm::dvec3(1, 2, 3));  // the node's translation, z up as asked
 }
