@@ -376,6 +376,12 @@ TEST_CASE("mesh import: bad files are InputErrors naming the file") {
   MeshImportStats st3;
   import_mesh(mi_write("huge.gltf", mi_gltf({huge}, 1)), o, 1 << 10, 1 << 10, &st3);
   CHECK(st3.non_finite == 1);  // vertex 1 is in the first triangle only
+  MeshImportOptions lim = o;
+  lim.max_triangles = 1;
+  mi_expect_error(mi_write("limit.gltf", good), lim, "more than 1 triangles");
+  lim.max_triangles = 2;
+  lim.max_bytes = 10;
+  mi_expect_error(mi_write("limit.gltf", good), lim, "larger than 10");
 }
 
 TEST_CASE("mesh scene: mesh_loader picks the reader, the scene renders an imported glTF") {
