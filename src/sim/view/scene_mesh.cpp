@@ -827,6 +827,13 @@ bool MeshScene::skips_back_faces(const Camera& cam, const ViewParams& p) const {
 
 MeshScene::RenderStats MeshScene::last_render_stats() { return scratch().stats; }
 
+std::size_t MeshScene::memory_bytes() const {
+  std::size_t n = sizeof(*this) + tris_.capacity() * sizeof(Tri) + chunks_.capacity() * sizeof(Chunk) +
+                  solids_.capacity() * sizeof(Mesh::Box) + load_warnings_.capacity() * sizeof(std::string);
+  for (const std::string& w : load_warnings_) n += w.capacity();
+  return n;
+}
+
 void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) const {
   detail::begin_frame(cam, p, out);
   render_impl(cam, p, &out, nullptr);

@@ -44,6 +44,8 @@ class MeshScene final : public IScene {
                      std::vector<ViewSample>& out) const override;
 
   std::size_t triangle_count() const { return tris_.size(); }
+  // Bytes this scene holds (the object and its vectors' capacities; not the per-thread scratch).
+  std::size_t memory_bytes() const;
   std::vector<std::string> load_warnings() const override { return load_warnings_; }
   void set_load_warnings(std::vector<std::string> w) { load_warnings_ = std::move(w); }
   // What this thread's last render or render_spans of a mesh did: where the culling stopped each
@@ -53,6 +55,7 @@ class MeshScene final : public IScene {
     std::uint32_t chunks = 0;               // in the mesh
     std::uint32_t chunks_in_frustum = 0;
     std::uint32_t chunks_occluded = 0;      // in the frustum, skipped by the occlusion test
+    std::uint32_t nodes_visited = 0;        // BVH nodes taken from the traversal's queue
     std::uint32_t triangles_visited = 0;    // reached by the warm start or a drawn chunk
     std::uint32_t back_faces_skipped = 0;   // of those, back faces skipped (skips_back_faces)
     std::uint32_t triangles_occluded = 0;   // skipped by the per-triangle occlusion test
@@ -67,6 +70,7 @@ class MeshScene final : public IScene {
       chunks = chunks > o.chunks ? chunks : o.chunks;
       chunks_in_frustum += o.chunks_in_frustum;
       chunks_occluded += o.chunks_occluded;
+      nodes_visited += o.nodes_visited;
       triangles_visited += o.triangles_visited;
       back_faces_skipped += o.back_faces_skipped;
       triangles_occluded += o.triangles_occluded;
