@@ -14,13 +14,20 @@
 
 namespace vtsim {
 
-// Render cost O(visible chunks' triangles + covered samples); chunks of 16 spatially sorted
-// triangles are frustum-culled by their bounding boxes and, drawn nearest first, occlusion-culled
-// against the depth drawn so far, and so is each triangle of a drawn chunk (a hierarchical depth
-// buffer of 8×8-sample tiles answers most tests without reading samples). Drawing starts with
-// the triangles that owned samples in this thread's previous render (a warm start: at 60 Hz they
-// fill nearly the same depth), which never changes the result, only how much is culled. The depth buffer is per-thread scratch
-// (thread_local, reused, so no allocation after warm-up): render is thread-safe.
+// Render cost O(visible chunks' triangles + covered samples + log n): chunks of 16 spatially
+// sorted triangles are the leaves of a binary bounding-volume hierarchy (the chunk range halved in
+// Morton order, as an LBVH: Lauterbach et al. 2009), traversed nearest first from a priority queue;
+// a node outside the frustum, or whose box lies behind the depth drawn so far, is skipped with
+// everything under it (hierarchical occlusion culling: Greene, Kass & Miller 1993, against a
+// hierarchical depth buffer of 8×8-sample tiles that answers most tests without reading samples),
+// and so is each triangle of a drawn chunk. A frame touches the nodes on the paths to the chunks
+// it draws and their occluded or off-frustum siblings: O(drawn chunks · log n) in the worst case,
+// O(drawn chunks + log n) when what is drawn is one compact region, independent of the hidden rest.
+// Drawing starts with the triangles that owned samples in this thread's previous render (a warm
+// start: at 60 Hz they fill nearly the same depth), which never changes the result, only how much
+// is culled. The scratch (depth buffer, warm start, per-frame shading) is per thread and sized by
+// the buffer, not the mesh (thread_local, reused, so no allocation after warm-up): render is
+// thread-safe. Memory: memory_bytes(); construction O(n log n) (the Morton sort).
 // Back faces (seen from behind, per triangle: the camera is behind its plane) are rasterised as
 // occluders and never sampled: a camera inside a closed wall sees nothing, as on a solid. When the
 // mesh promises solids (Mesh::solids) and none comes within the near plane's reach of the camera,
@@ -53,8 +60,8 @@ class MeshScene final : public IScene {
   // frame; docs/vt.md "Speed"). Counted per chunk, triangle and row, never per sample.
   struct RenderStats {
     std::uint32_t chunks = 0;               // in the mesh
-    std::uint32_t chunks_in_frustum = 0;
-    std::uint32_t chunks_occluded = 0;      // in the frustum, skipped by the occlusion test
+    std::uint32_t chunks_in_frustum = 0;    // reached: in the frustum, under no culled node
+    std::uint32_t chunks_occluded = 0;      // of those, skipped by their own occlusion test
     std::uint32_t nodes_visited = 0;        // BVH nodes taken from the traversal's queue
     std::uint32_t triangles_visited = 0;    // reached by the warm start or a drawn chunk
     std::uint32_t back_faces_skipped = 0;   // of those, back faces skipped (skips_back_faces)
@@ -106,6 +113,12 @@ class MeshScene final : public IScene {
     glm::dvec3 lo, hi;    // bounding box, world metres
     std::uint32_t first = 0, count = 0;
   };
+  // A node of a bounding-volume hierarchy in preorder: its left child is the next node, `right`
+  // the other one's index; a leaf (right == 0: the root is nobody's child) holds item `item`.
+  struct Node {
+    glm::dvec3 lo, hi;    // bounding box, world metres
+    std::uint32_t right = 0, item = 0;
+  };
   // render (view: the begun per-sample buffer) and render_spans (spans: its fields set but the
   // spans'): the depth pass into this thread's scratch, then resolve.
   void render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* view, SpanBuffer* spans) const;
@@ -116,7 +129,10 @@ class MeshScene final : public IScene {
   std::vector<Tri> tris_;
   std::vector<std::string> load_warnings_;
   std::vector<Chunk> chunks_;
-  std::vector<Mesh::Box> solids_;
+  std::vector<Node> chunk_tree_;    // over chunks_
+  std::vector<Mesh::Box> solids_;   // the bounded ones, in Morton order of their centres
+  std::vector<Node> solid_tree_;    // over solids_ (skips_back_faces: O(log solids) near the camera)
+  std::vector<Mesh::Box> open_solids_;  // solids with an infinite bound, tested one by one
   bool occlusion_culling_ = true;
 };
 
