@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <memory>
 #include <string>
@@ -19,6 +20,7 @@
 
 #include "core/camera.h"
 #include "core/view.h"
+#include "core/view_spans.h"
 #include "sim/view/mesh.h"
 #include "sim/view/scene.h"
 #include "sim/view/scene_mesh.h"
@@ -149,8 +151,18 @@ int main(int argc, char** argv) {
   for (const Built& b : built) {
     // Stats of the walk's frames, one pass (medians over frames).
     std::vector<double> vis, infr, drawn, occl, nodes;
+    std::uint64_t sum = 0xcbf29ce484222325ULL;  // FNV-1a of the spans: the output, to compare builds by
+    const auto mix = [&](std::uint64_t x) {
+      for (int i = 0; i < 8; ++i) sum = (sum ^ ((x >> (8 * i)) & 0xff)) * 0x100000001b3ULL;
+    };
     for (const Camera& cam : cams) {
       b.scene->render_spans(cam, vp, sb);
+      for (const ViewSpan& sp : sb.spans) {
+        mix(static_cast<std::uint64_t>(sp.u_lo) ^ (static_cast<std::uint64_t>(sp.v_hi) << 32));
+        mix(static_cast<std::uint64_t>(sp.u_hi) ^ (static_cast<std::uint64_t>(sp.v_lo) << 32));
+        mix(sp.pixel ^ (static_cast<std::uint64_t>(sp.count) << 32));
+        mix(sp.first ^ (static_cast<std::uint64_t>(static_cast<std::uint32_t>(sp.level)) << 32));
+      }
       const MeshScene::RenderStats st = MeshScene::last_render_stats();
       vis.push_back(st.visible_triangles);
       infr.push_back(st.chunks_in_frustum);
@@ -164,13 +176,13 @@ int main(int argc, char** argv) {
     };
     const double tris = static_cast<double>(b.scene->triangle_count());
     const double bpt = static_cast<double>(b.scene->memory_bytes()) / tris;
-    fmt::print("{:>5} {:>10} {:>8} {:>9} {:>8} {:>8} {:>9} {:>8.1f}\n", b.name, b.scene->triangle_count(), med(vis),
-               med(infr), med(drawn), med(occl), med(nodes), bpt);
+    fmt::print("{:>5} {:>10} {:>8} {:>9} {:>8} {:>8} {:>9} {:>8.1f}  spans {:016x}\n", b.name, b.scene->triangle_count(),
+               med(vis), med(infr), med(drawn), med(occl), med(nodes), bpt, sum);
     bench::Case cs{.name = fmt::format("render_div8_{}_{}", view.name, b.name), .metric = bench::Metric::kNsPerOp,
                    .work = frames - 1.0};
     cs.params = {{"view", view.name}, {"triangles", b.scene->triangle_count()}, {"visible_triangles", med(vis)},
                 {"chunks_in_frustum", med(infr)}, {"chunks_drawn", med(drawn)}, {"nodes_visited", med(nodes)},
-                {"bytes_per_triangle", bpt}};
+                {"bytes_per_triangle", bpt}, {"spans_fnv1a", fmt::format("{:016x}", sum)}};
     // Issue 28: within 2× the 10^4 scene's time where the visible set stays put.
     if (b.name == "1e7" && std::string(view.name) == "block") cs.target_ratio = 0.5;
     const bench::Result* r = h.compare(cs, side(b.name, b.scene.get()), side(kRefSize, ref));

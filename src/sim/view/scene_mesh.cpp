@@ -4,6 +4,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <numeric>
 #include <string>
 #include <utility>
@@ -59,7 +60,15 @@ void mesh_bvh_build(std::vector<Node>& nodes, std::uint32_t a, std::uint32_t b, 
   const std::size_t me = nodes.size();
   nodes.emplace_back();
   if (b - a == 1) {
-    box(a, nodes[me].lo, nodes[me].hi);
+    glm::dvec3 lo, hi;
+    box(a, lo, hi);
+    for (int c = 0; c < 3; ++c) {  // to float, outward
+      float l = static_cast<float>(lo[c]), h = static_cast<float>(hi[c]);
+      if (static_cast<double>(l) > lo[c]) l = std::nextafter(l, -INFINITY);
+      if (static_cast<double>(h) < hi[c]) h = std::nextafter(h, INFINITY);
+      nodes[me].lo[c] = l;
+      nodes[me].hi[c] = h;
+    }
     nodes[me].item = a;
     return;
   }
@@ -873,23 +882,17 @@ MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
   std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return code[a] < code[b]; });
   tris_.reserve(tris.size());
   for (std::uint32_t k : order) tris_.push_back(tris[k]);
-  for (std::uint32_t first = 0; first < tris_.size(); first += kChunkSize) {
-    Chunk ch;
-    ch.first = first;
-    ch.count = std::min<std::uint32_t>(kChunkSize, static_cast<std::uint32_t>(tris_.size()) - first);
-    ch.lo = ch.hi = tris_[first].p[0];
-    for (std::uint32_t k = first; k < first + ch.count; ++k)
+  const auto chunks = static_cast<std::uint32_t>((tris_.size() + kChunkSize - 1) / kChunkSize);
+  chunk_tree_.reserve(2 * static_cast<std::size_t>(chunks) - 1);
+  mesh_bvh_build(chunk_tree_, 0, chunks, [&](std::uint32_t i, glm::dvec3& blo, glm::dvec3& bhi) {
+    const std::uint32_t first = i * kChunkSize, end = std::min<std::uint32_t>(first + kChunkSize, static_cast<std::uint32_t>(tris_.size()));
+    blo = bhi = tris_[first].p[0];
+    for (std::uint32_t k = first; k < end; ++k)
       for (const auto& p : tris_[k].p) {
-        ch.lo = glm::min(ch.lo, p);
-        ch.hi = glm::max(ch.hi, p);
+        blo = glm::min(blo, p);
+        bhi = glm::max(bhi, p);
       }
-    chunks_.push_back(ch);
-  }
-  mesh_bvh_build(chunk_tree_, 0, static_cast<std::uint32_t>(chunks_.size()),
-                 [&](std::uint32_t i, glm::dvec3& blo, glm::dvec3& bhi) {
-                   blo = chunks_[i].lo;
-                   bhi = chunks_[i].hi;
-                 });
+  });
   // Solids: the unbounded ones (the half-space under a ground) apart, the others in Morton order
   // of their centres under a BVH of their own.
   std::vector<Mesh::Box> bounded;
@@ -910,6 +913,7 @@ MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
       sorder[k] = {morton_code(0.5 * (bounded[k].lo + bounded[k].hi), slo, sext), static_cast<std::uint32_t>(k)};
     std::sort(sorder.begin(), sorder.end());
     solids_.reserve(bounded.size());
+    solid_tree_.reserve(2 * bounded.size() - 1);
     for (const auto& [c, k] : sorder) solids_.push_back(bounded[k]);
     mesh_bvh_build(solid_tree_, 0, static_cast<std::uint32_t>(solids_.size()),
                    [&](std::uint32_t i, glm::dvec3& blo, glm::dvec3& bhi) {
@@ -946,8 +950,11 @@ bool MeshScene::skips_back_faces(const Camera& cam, const ViewParams& p) const {
     const Node& nd = solid_tree_[stack.back()];
     const std::uint32_t ni = stack.back();
     stack.pop_back();
-    if (beyond(nd.lo, nd.hi)) continue;
-    if (nd.right == 0) return false;  // a solid within reach
+    if (beyond(glm::dvec3(nd.lo), glm::dvec3(nd.hi))) continue;
+    if (nd.right == 0) {  // a leaf: its solid's own bounds decide
+      if (!beyond(solids_[nd.item].lo, solids_[nd.item].hi)) return false;
+      continue;
+    }
     stack.push_back(ni + 1);
     stack.push_back(nd.right);
   }
@@ -957,7 +964,7 @@ bool MeshScene::skips_back_faces(const Camera& cam, const ViewParams& p) const {
 MeshScene::RenderStats MeshScene::last_render_stats() { return scratch().stats; }
 
 std::size_t MeshScene::memory_bytes() const {
-  std::size_t n = sizeof(*this) + tris_.capacity() * sizeof(Tri) + chunks_.capacity() * sizeof(Chunk) +
+  std::size_t n = sizeof(*this) + tris_.capacity() * sizeof(Tri) +
                   (chunk_tree_.capacity() + solid_tree_.capacity()) * sizeof(Node) +
                   (solids_.capacity() + open_solids_.capacity()) * sizeof(Mesh::Box) +
                   load_warnings_.capacity() * sizeof(std::string);
@@ -997,14 +1004,17 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
   const int bw = spans ? spans->width : view->width, bh = spans ? spans->height : view->height;
   Scratch& s = scratch();
   s.begin(cam, p.divisor, bw, bh, tris_.size());
-  s.stats.chunks = static_cast<std::uint32_t>(chunks_.size());
+  s.stats.chunks = static_cast<std::uint32_t>((tris_.size() + kChunkSize - 1) / kChunkSize);
+  const auto chunk_end = [&](std::uint32_t first) {
+    return std::min<std::uint32_t>(first + kChunkSize, static_cast<std::uint32_t>(tris_.size()));
+  };
   const DepthPass dp(cam, p, s, occlusion_culling_, skips_back_faces(cam, p));
   if (!occlusion_culling_) {
     // The reference: every chunk in the frustum, in index order, every triangle.
-    for (const Chunk& ch : chunks_) {
-      if (!dp.in_frustum(ch.lo, ch.hi)) continue;
+    for (const Node& nd : chunk_tree_) {  // preorder: the leaves in chunk order
+      if (nd.right != 0 || !dp.in_frustum(glm::dvec3(nd.lo), glm::dvec3(nd.hi))) continue;
       ++s.stats.chunks_in_frustum;
-      for (std::uint32_t k = ch.first; k < ch.first + ch.count; ++k) dp.draw(tris_[k].p, tris_[k].n, k);
+      for (std::uint32_t k = nd.item * kChunkSize; k < chunk_end(nd.item * kChunkSize); ++k) dp.draw(tris_[k].p, tris_[k].n, k);
     }
     resolve(cam, p, view, spans);
     return;
@@ -1027,8 +1037,11 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
   const auto later = [](const std::pair<double, std::uint32_t>& x, const std::pair<double, std::uint32_t>& y) { return x > y; };
   const auto push = [&](std::uint32_t ni) {
     const Node& nd = chunk_tree_[ni];
-    if (!dp.in_frustum(nd.lo, nd.hi)) return;
-    queue.emplace_back(dp.least_depth(nd.lo, nd.hi), ni);
+    const glm::dvec3 lo(nd.lo), hi(nd.hi);
+    if (!dp.in_frustum(lo, hi)) return;
+    double z = dp.least_depth(lo, hi);
+    if (std::isnan(z)) z = -std::numeric_limits<double>::infinity();  // NaN (a box beyond float's range): first, never culled
+    queue.emplace_back(z, ni);
     std::push_heap(queue.begin(), queue.end(), later);
   };
   push(0);
@@ -1040,7 +1053,7 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
     const Node& nd = chunk_tree_[ni];
     const bool leaf = nd.right == 0;
     if (leaf) ++s.stats.chunks_in_frustum;
-    if (zmin > p.near_m && dp.occluded(nd.lo, nd.hi, zmin)) {
+    if (zmin > p.near_m && dp.occluded(glm::dvec3(nd.lo), glm::dvec3(nd.hi), zmin)) {
       if (leaf) ++s.stats.chunks_occluded;
       continue;
     }
@@ -1050,9 +1063,9 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
       continue;
     }
     // The chunk's triangles but those the warm start drew (hint is sorted).
-    const Chunk& ch = chunks_[nd.item];
-    auto h = std::lower_bound(hint.begin(), hint.end(), ch.first);
-    for (std::uint32_t k = ch.first; k < ch.first + ch.count; ++k) {
+    const std::uint32_t first = nd.item * kChunkSize, end = chunk_end(first);
+    auto h = std::lower_bound(hint.begin(), hint.end(), first);
+    for (std::uint32_t k = first; k < end; ++k) {
       if (h != hint.end() && *h == k) {
         ++h;
         continue;

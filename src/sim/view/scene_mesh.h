@@ -9,6 +9,8 @@
 #include <utility>
 #include <vector>
 
+#include <glm/vec3.hpp>
+
 #include "sim/view/mesh.h"
 #include "sim/view/scene.h"
 
@@ -109,14 +111,13 @@ class MeshScene final : public IScene {
     double tu0 = 0.0, tv0 = 0.0;  // texel coordinates at p[0]
     bool textured = false;
   };
-  struct Chunk {
-    glm::dvec3 lo, hi;    // bounding box, world metres
-    std::uint32_t first = 0, count = 0;
-  };
   // A node of a bounding-volume hierarchy in preorder: its left child is the next node, `right`
-  // the other one's index; a leaf (right == 0: the root is nobody's child) holds item `item`.
+  // the other one's index; a leaf (right == 0: the root is nobody's child) holds item `item`
+  // (chunk `item`: triangles [16·item, min(16·item + 16, n)); or solids_[item]). The box is in
+  // float rounded outward: culling with a larger box only culls less (the buffer is the same),
+  // and 32 bytes a node halve the walk's cache misses.
   struct Node {
-    glm::dvec3 lo, hi;    // bounding box, world metres
+    glm::vec3 lo, hi;     // bounding box, world metres
     std::uint32_t right = 0, item = 0;
   };
   // render (view: the begun per-sample buffer) and render_spans (spans: its fields set but the
@@ -128,8 +129,7 @@ class MeshScene final : public IScene {
   TextureExtent extent_;
   std::vector<Tri> tris_;
   std::vector<std::string> load_warnings_;
-  std::vector<Chunk> chunks_;
-  std::vector<Node> chunk_tree_;    // over chunks_
+  std::vector<Node> chunk_tree_;    // over the chunks of 16 triangles
   std::vector<Mesh::Box> solids_;   // the bounded ones, in Morton order of their centres
   std::vector<Node> solid_tree_;    // over solids_ (skips_back_faces: O(log solids) near the camera)
   std::vector<Mesh::Box> open_solids_;  // solids with an infinite bound, tested one by one
