@@ -1,6 +1,7 @@
 #include "sim/view/scene_mesh.h"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -350,6 +351,58 @@ VTSIM_CLONES_AVX2 void span_run(const ShadeRow& k, const double* px, const doubl
   else span_run_t<false>(k, px, iz, n, pix0, o);
 }
 
+// For each element of v, the least index of an element with the same bits (exact duplicates
+// only: +0 and −0 stay apart, so sharing changes no arithmetic). O(n log n).
+template <class V>
+std::vector<std::uint32_t> mesh_same_bits(const std::vector<V>& v) {
+  constexpr int kLen = V::length();
+  const auto less = [&](std::uint32_t a, std::uint32_t b) {
+    for (int c = 0; c < kLen; ++c) {
+      const auto x = std::bit_cast<std::uint64_t>(v[a][c]), y = std::bit_cast<std::uint64_t>(v[b][c]);
+      if (x != y) return x < y;
+    }
+    return a < b;
+  };
+  std::vector<std::uint32_t> idx(v.size());
+  std::iota(idx.begin(), idx.end(), 0u);
+  std::sort(idx.begin(), idx.end(), less);
+  std::vector<std::uint32_t> same(v.size());
+  for (std::size_t i = 0; i < idx.size(); ++i) {
+    const bool dup = i > 0 && std::bit_cast<std::array<std::uint64_t, kLen>>(v[idx[i]]) ==
+                                  std::bit_cast<std::array<std::uint64_t, kLen>>(v[idx[i - 1]]);
+    same[idx[i]] = dup ? same[idx[i - 1]] : idx[i];
+  }
+  return same;
+}
+
+// A triangle as the depth pass and the resolve use it: corners, the front side
+// n = (p1 − p0) × (p2 − p0), and (textured) the gradients of the level-0 texel coordinates
+// (texels per metre) and their values at p0. Computed when a triangle is drawn or shaded from the
+// shared corners and texture coordinates, with the arithmetic the constructor once stored.
+struct TriGeom {
+  glm::dvec3 p[3];
+  glm::dvec3 n;
+  glm::dvec3 gu{}, gv{};
+  double tu0 = 0.0, tv0 = 0.0;
+};
+void tri_corners(const glm::dvec3& p0, const glm::dvec3& p1, const glm::dvec3& p2, TriGeom& g) {
+  g.p[0] = p0;
+  g.p[1] = p1;
+  g.p[2] = p2;
+  g.n = glm::cross(p1 - p0, p2 - p0);
+}
+void tri_texel_map(const glm::dvec2& uv0, const glm::dvec2& uv1, const glm::dvec2& uv2, double W, double H, TriGeom& g) {
+  // Gradient g of an affine attribute on the triangle's plane from g·e1 = Δ1, g·e2 = Δ2,
+  // g·n = 0: g = (Δ1·(e2 × n) + Δ2·(n × e1)) / |n|².
+  const glm::dvec3 e1 = g.p[1] - g.p[0], e2 = g.p[2] - g.p[0];
+  const double a2 = glm::dot(g.n, g.n);
+  const glm::dvec3 a = glm::cross(e2, g.n) / a2, b = glm::cross(g.n, e1) / a2;
+  g.gu = ((uv1.x - uv0.x) * W) * a + ((uv2.x - uv0.x) * W) * b;
+  g.gv = ((uv1.y - uv0.y) * H) * a + ((uv2.y - uv0.y) * H) * b;
+  g.tu0 = uv0.x * W;
+  g.tv0 = uv0.y * H;
+}
+
 // A triangle's resolve coefficients for one frame: functions affine in the full-resolution pixel
 // (px, py) stored as (constant, ∂/∂px, ∂/∂py).
 struct Shade {
@@ -360,8 +413,18 @@ struct Shade {
 };
 
 // The coefficients of triangle t for camera `cam` (its ray d = D0 + px·ddx + py·ddy).
+// Triangle t of a scene (corners pos, texture coordinates uvs, texture extent W × H texels).
 template <class Tri>
-void shade_of(const Tri& t, const Camera& cam, Shade& h) {
+TriGeom tri_geom(const Tri& t, const std::vector<glm::dvec3>& pos, const std::vector<glm::dvec2>& uvs, double W, double H) {
+  TriGeom g;
+  tri_corners(pos[t.p[0]], pos[t.p[1]], pos[t.p[2]], g);
+  if (t.t[0] >= 0)
+    tri_texel_map(uvs[static_cast<std::size_t>(t.t[0])], uvs[static_cast<std::size_t>(t.t[1])],
+                  uvs[static_cast<std::size_t>(t.t[2])], W, H, g);
+  return g;
+}
+
+void shade_of(const TriGeom& t, const Camera& cam, Shade& h) {
   const glm::dvec3 o = cam.pos_m, ddx = -cam.left, ddy = -cam.up;
   const glm::dvec3 D0 = cam.ray_dir(0.0, 0.0);
   const glm::dvec3 op = o - t.p[0];
@@ -825,41 +888,26 @@ MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
     throw InputError("texture", "extent must be at most 2^52 texels a side");
   if (mesh.tris.empty()) throw InputError("mesh", "no triangles");
   if (mesh.tris.size() >= kBackBit) throw InputError("mesh", "more than 2^31 − 1 triangles");
-  const double W = static_cast<double>(extent.width), H = static_cast<double>(extent.height);
-  std::vector<Tri> tris;
-  tris.reserve(mesh.tris.size());
   for (std::size_t k = 0; k < mesh.tris.size(); ++k) {
     const Mesh::Tri& mt = mesh.tris[k];
     const std::string where = "mesh triangle " + std::to_string(k);
-    Tri t;
+    glm::dvec3 p[3];
     for (int c = 0; c < 3; ++c) {
       if (mt.p[c] >= mesh.positions.size()) throw InputError(where, "vertex index out of range");
-      t.p[c] = mesh.positions[mt.p[c]];
-      if (!std::isfinite(t.p[c].x) || !std::isfinite(t.p[c].y) || !std::isfinite(t.p[c].z))
+      p[c] = mesh.positions[mt.p[c]];
+      if (!std::isfinite(p[c].x) || !std::isfinite(p[c].y) || !std::isfinite(p[c].z))
         throw InputError(where, "vertex is not finite");
     }
-    const glm::dvec3 e1 = t.p[1] - t.p[0], e2 = t.p[2] - t.p[0];
-    t.n = glm::cross(e1, e2);
-    const double a2 = glm::dot(t.n, t.n);
+    const glm::dvec3 n = glm::cross(p[1] - p[0], p[2] - p[0]);
+    const double a2 = glm::dot(n, n);
     if (!(a2 > 0.0) || !std::isfinite(a2)) throw InputError(where, "zero-area or non-finite triangle");
-    t.textured = mt.t[0] >= 0;
-    if (t.textured) {
-      glm::dvec2 uv[3];
+    if (mt.t[0] >= 0)
       for (int c = 0; c < 3; ++c) {
         if (mt.t[c] < 0 || static_cast<std::size_t>(mt.t[c]) >= mesh.uvs.size())
           throw InputError(where, "texture coordinate index out of range");
-        uv[c] = mesh.uvs[static_cast<std::size_t>(mt.t[c])];
-        if (!std::isfinite(uv[c].x) || !std::isfinite(uv[c].y)) throw InputError(where, "uv is not finite");
+        const glm::dvec2 uv = mesh.uvs[static_cast<std::size_t>(mt.t[c])];
+        if (!std::isfinite(uv.x) || !std::isfinite(uv.y)) throw InputError(where, "uv is not finite");
       }
-      // Gradient g of an affine attribute on the triangle's plane from g·e1 = Δ1, g·e2 = Δ2,
-      // g·n = 0: g = (Δ1·(e2 × n) + Δ2·(n × e1)) / |n|².
-      const glm::dvec3 a = glm::cross(e2, t.n) / a2, b = glm::cross(t.n, e1) / a2;
-      t.gu = ((uv[1].x - uv[0].x) * W) * a + ((uv[2].x - uv[0].x) * W) * b;
-      t.gv = ((uv[1].y - uv[0].y) * H) * a + ((uv[2].y - uv[0].y) * H) * b;
-      t.tu0 = uv[0].x * W;
-      t.tv0 = uv[0].y * H;
-    }
-    tris.push_back(t);
   }
   for (std::size_t k = 0; k < mesh.solids.size(); ++k) {
     const Mesh::Box& b = mesh.solids[k];
@@ -867,30 +915,57 @@ MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
       throw InputError("mesh solid " + std::to_string(k), "bounds are NaN or lo > hi");
   }
   // Spatial order (Morton code of the centroid in the mesh's box) so that chunks are compact.
-  glm::dvec3 lo = tris[0].p[0], hi = lo;
-  for (const Tri& t : tris)
-    for (const auto& p : t.p) {
-      lo = glm::min(lo, p);
-      hi = glm::max(hi, p);
+  const std::size_t nt = mesh.tris.size();
+  const auto corner = [&](std::size_t k, int c) -> const glm::dvec3& { return mesh.positions[mesh.tris[k].p[c]]; };
+  glm::dvec3 lo = corner(0, 0), hi = lo;
+  for (std::size_t k = 0; k < nt; ++k)
+    for (int c = 0; c < 3; ++c) {
+      lo = glm::min(lo, corner(k, c));
+      hi = glm::max(hi, corner(k, c));
     }
   const glm::dvec3 ext = glm::max(hi - lo, glm::dvec3(1e-300));
-  std::vector<std::uint32_t> code(tris.size());
-  for (std::size_t k = 0; k < tris.size(); ++k)
-    code[k] = morton_code((tris[k].p[0] + tris[k].p[1] + tris[k].p[2]) / 3.0, lo, ext);
-  std::vector<std::uint32_t> order(tris.size());
+  std::vector<std::uint32_t> code(nt);
+  for (std::size_t k = 0; k < nt; ++k) code[k] = morton_code((corner(k, 0) + corner(k, 1) + corner(k, 2)) / 3.0, lo, ext);
+  std::vector<std::uint32_t> order(nt);
   std::iota(order.begin(), order.end(), 0u);
   std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return code[a] < code[b]; });
-  tris_.reserve(tris.size());
-  for (std::uint32_t k : order) tris_.push_back(tris[k]);
+  code = {};
+  // Shared corners and texture coordinates: one copy of each bit pattern, numbered in the order
+  // the sorted triangles first use them (a chunk's corners lie together).
+  const std::vector<std::uint32_t> pos_same = mesh_same_bits(mesh.positions), uv_same = mesh_same_bits(mesh.uvs);
+  std::vector<std::uint32_t> pos_new(mesh.positions.size(), kNoTri), uv_new(mesh.uvs.size(), kNoTri);
+  tris_.reserve(nt);
+  for (const std::uint32_t k : order) {
+    const Mesh::Tri& mt = mesh.tris[k];
+    Tri t;
+    for (int c = 0; c < 3; ++c) {
+      const std::uint32_t q = pos_same[mt.p[c]];
+      if (pos_new[q] == kNoTri) {
+        pos_new[q] = static_cast<std::uint32_t>(positions_.size());
+        positions_.push_back(mesh.positions[q]);
+      }
+      t.p[c] = pos_new[q];
+      if (mt.t[0] < 0) continue;
+      const std::uint32_t u = uv_same[static_cast<std::size_t>(mt.t[c])];
+      if (uv_new[u] == kNoTri) {
+        uv_new[u] = static_cast<std::uint32_t>(uvs_.size());
+        uvs_.push_back(mesh.uvs[u]);
+      }
+      t.t[c] = static_cast<std::int32_t>(uv_new[u]);
+    }
+    tris_.push_back(t);
+  }
+  positions_.shrink_to_fit();
+  uvs_.shrink_to_fit();
   const auto chunks = static_cast<std::uint32_t>((tris_.size() + kChunkSize - 1) / kChunkSize);
   chunk_tree_.reserve(2 * static_cast<std::size_t>(chunks) - 1);
   mesh_bvh_build(chunk_tree_, 0, chunks, [&](std::uint32_t i, glm::dvec3& blo, glm::dvec3& bhi) {
     const std::uint32_t first = i * kChunkSize, end = std::min<std::uint32_t>(first + kChunkSize, static_cast<std::uint32_t>(tris_.size()));
-    blo = bhi = tris_[first].p[0];
+    blo = bhi = positions_[tris_[first].p[0]];
     for (std::uint32_t k = first; k < end; ++k)
-      for (const auto& p : tris_[k].p) {
-        blo = glm::min(blo, p);
-        bhi = glm::max(bhi, p);
+      for (const std::uint32_t q : tris_[k].p) {
+        blo = glm::min(blo, positions_[q]);
+        bhi = glm::max(bhi, positions_[q]);
       }
   });
   // Solids: the unbounded ones (the half-space under a ground) apart, the others in Morton order
@@ -964,7 +1039,8 @@ bool MeshScene::skips_back_faces(const Camera& cam, const ViewParams& p) const {
 MeshScene::RenderStats MeshScene::last_render_stats() { return scratch().stats; }
 
 std::size_t MeshScene::memory_bytes() const {
-  std::size_t n = sizeof(*this) + tris_.capacity() * sizeof(Tri) +
+  std::size_t n = sizeof(*this) + tris_.capacity() * sizeof(Tri) + positions_.capacity() * sizeof(glm::dvec3) +
+                  uvs_.capacity() * sizeof(glm::dvec2) +
                   (chunk_tree_.capacity() + solid_tree_.capacity()) * sizeof(Node) +
                   (solids_.capacity() + open_solids_.capacity()) * sizeof(Mesh::Box) +
                   load_warnings_.capacity() * sizeof(std::string);
@@ -1009,12 +1085,17 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
     return std::min<std::uint32_t>(first + kChunkSize, static_cast<std::uint32_t>(tris_.size()));
   };
   const DepthPass dp(cam, p, s, occlusion_culling_, skips_back_faces(cam, p));
+  const auto draw = [&](std::uint32_t k) {
+    TriGeom g;
+    tri_corners(positions_[tris_[k].p[0]], positions_[tris_[k].p[1]], positions_[tris_[k].p[2]], g);
+    dp.draw(g.p, g.n, k);
+  };
   if (!occlusion_culling_) {
     // The reference: every chunk in the frustum, in index order, every triangle.
     for (const Node& nd : chunk_tree_) {  // preorder: the leaves in chunk order
       if (nd.right != 0 || !dp.in_frustum(glm::dvec3(nd.lo), glm::dvec3(nd.hi))) continue;
       ++s.stats.chunks_in_frustum;
-      for (std::uint32_t k = nd.item * kChunkSize; k < chunk_end(nd.item * kChunkSize); ++k) dp.draw(tris_[k].p, tris_[k].n, k);
+      for (std::uint32_t k = nd.item * kChunkSize; k < chunk_end(nd.item * kChunkSize); ++k) draw(k);
     }
     resolve(cam, p, view, spans);
     return;
@@ -1025,7 +1106,7 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
   // to final before the hierarchy is walked and most of it fails the occlusion test at once.
   std::vector<std::uint32_t>& hint = s.hint;
   std::sort(hint.begin(), hint.end());
-  for (const std::uint32_t k : hint) dp.draw(tris_[k].p, tris_[k].n, k);
+  for (const std::uint32_t k : hint) draw(k);
   // The BVH nearest first: a min-queue of nodes by the least view depth of their boxes, a node
   // taken out tested against the depth drawn so far (a box wholly beyond near and behind it
   // hides everything under it). A child's box lies within its parent's, so its least depth is no
@@ -1070,7 +1151,7 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
         ++h;
         continue;
       }
-      dp.draw(tris_[k].p, tris_[k].n, k);
+      draw(k);
     }
   }
   resolve(cam, p, view, spans);
@@ -1090,6 +1171,7 @@ void MeshScene::resolve(const Camera& cam, const ViewParams& p, ViewBuffer* view
   const LodRule rule = detail::lod_rule(p);
   const int bw = s.bw, bh = s.bh;
   const double far_iz = 1.0 / p.far_m;
+  const double W = static_cast<double>(extent_.width), H = static_cast<double>(extent_.height);
   s.clear_slots();  // `hint` becomes this frame's visible triangles, for the next frame's warm start
   ViewCounters c;
   [[maybe_unused]] MeshSpanOut so{to_spans ? &spans->spans : nullptr, c,
@@ -1103,7 +1185,7 @@ void MeshScene::resolve(const Camera& cam, const ViewParams& p, ViewBuffer* view
     for (int x = 0; x < bw;) {
       const std::size_t idx = row + static_cast<std::size_t>(x);
       const std::uint32_t id = s.id[idx];
-      if (id == kNoTri || (id & kBackBit) || !tris_[id].textured) {
+      if (id == kNoTri || (id & kBackBit) || tris_[id].t[0] < 0) {
         if (id == kNoTri) {
           if (s.near_cut[idx]) ++c.clipped;
           else ++c.sky;
@@ -1121,7 +1203,7 @@ void MeshScene::resolve(const Camera& cam, const ViewParams& p, ViewBuffer* view
       Shade& h = s.shade[slot];
       if (!s.shaded[slot]) {
         s.shaded[slot] = 1;
-        shade_of(tris_[id], cam, h);
+        shade_of(tri_geom(tris_[id], positions_, uvs_, W, H), cam, h);
       }
       // The run of this row's samples the same front face owns, four lanes at a time.
       int xe = x + 1;
@@ -1172,10 +1254,10 @@ void MeshScene::render_pixels(const SpanBuffer& sb, std::uint32_t pixel, std::ui
     const std::uint32_t id = sb.surface[pixel + a];
     std::uint32_t e = a + 1;
     while (e < count && sb.surface[pixel + e] == id) ++e;
-    if (id == kNoTri || (id & kBackBit) || id >= tris_.size() || !tris_[id].textured)
+    if (id == kNoTri || (id & kBackBit) || id >= tris_.size() || tris_[id].t[0] < 0)
       throw std::logic_error("render_pixels: a pixel of the span is not a sample");
     Shade h;
-    shade_of(tris_[id], cam, h);
+    shade_of(tri_geom(tris_[id], positions_, uvs_, static_cast<double>(extent_.width), static_cast<double>(extent_.height)), cam, h);
     const ShadeRow k = shade_row(h, py, rule, far_iz, extent_);
     for (std::uint32_t b = a; b < e; b += kShadeBatch) {
       const int n = static_cast<int>(std::min<std::uint32_t>(kShadeBatch, e - b));

@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
 #include "sim/view/mesh.h"
@@ -104,12 +105,11 @@ class MeshScene final : public IScene {
   bool skips_back_faces(const Camera& cam, const ViewParams& params) const;
 
  private:
+  // 24 bytes: the corners and texture coordinates are shared (positions_, uvs_); the normal and
+  // the texel map are computed when the triangle is drawn or shaded (scene_mesh.cpp, TriGeom).
   struct Tri {
-    glm::dvec3 p[3];      // corners, world metres
-    glm::dvec3 n;         // (p1 − p0) × (p2 − p0): the front side
-    glm::dvec3 gu, gv;    // gradients of the level-0 texel coordinates, texels per metre
-    double tu0 = 0.0, tv0 = 0.0;  // texel coordinates at p[0]
-    bool textured = false;
+    std::uint32_t p[3] = {0, 0, 0};  // corners: indices into positions_
+    std::int32_t t[3] = {-1, -1, -1};  // texture coordinates: indices into uvs_; −1: untextured
   };
   // A node of a bounding-volume hierarchy in preorder: its left child is the next node, `right`
   // the other one's index; a leaf (right == 0: the root is nobody's child) holds item `item`
@@ -127,7 +127,9 @@ class MeshScene final : public IScene {
   void resolve(const Camera& cam, const ViewParams& p, ViewBuffer* view, SpanBuffer* spans) const;
 
   TextureExtent extent_;
-  std::vector<Tri> tris_;
+  std::vector<Tri> tris_;           // in Morton order of their centroids
+  std::vector<glm::dvec3> positions_;  // world metres, each bit pattern once
+  std::vector<glm::dvec2> uvs_;     // texture coordinates, each bit pattern once
   std::vector<std::string> load_warnings_;
   std::vector<Node> chunk_tree_;    // over the chunks of 16 triangles
   std::vector<Mesh::Box> solids_;   // the bounded ones, in Morton order of their centres
