@@ -390,5 +390,8 @@ TEST_CASE("town: the BVH walk renders an instanced town exactly as drawing every
   CHECK(w.nodes_visited > 0);
   CHECK(w.chunks_in_frustum * 4 < all.chunks_in_frustum);
   CHECK(w.nodes_visited * 4 < 2 * w.chunks);
+  // 24-byte triangles over shared corners and texture coordinates, 32-byte BVH nodes: the
+  // town's layout stays under 96 bytes a triangle (89 untiled; docs/view.md).
+  CHECK(culled.memory_bytes() <= 96 * culled.triangle_count());
   MESSAGE("chunks ", w.chunks, " reached ", w.chunks_in_frustum, " of ", all.chunks_in_frustum, " in the frustum; nodes ", w.nodes_visited);
 }

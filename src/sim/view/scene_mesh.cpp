@@ -473,7 +473,7 @@ struct Scratch {
   // in the order met, the next render's warm start sorts them (drawn chunks skip them by binary
   // search). A hash table (open addressing, linear probing; kNoTri = empty) maps each to its slot
   // in `hint` and `shade`, its resolve coefficients, computed once a frame where `shaded`: all
-  // sized by the buffer (a triangle owns at least one sample), not the mesh.
+  // sized by the buffer (a triangle owns at least one sample) or the mesh, whichever is smaller.
   std::vector<std::uint32_t> hint;
   std::size_t hint_tris = 0;         // triangle count of the mesh the hint is of
   std::vector<Shade> shade;          // per slot
@@ -508,9 +508,10 @@ struct Scratch {
       hint_tris = tris;
       hint.clear();
     }
-    // Table size: a power of two >= 2 · samples (at most half full: short probes).
+    // Table size: a power of two >= 2 · min(samples, triangles), the most a render can see (at
+    // most half full: short probes).
     std::size_t cap = 64;
-    while (cap < 2 * npix) cap *= 2;
+    while (cap < 2 * std::min(npix, tris)) cap *= 2;
     if (slot_key.size() < cap) {
       slot_key.assign(cap, kNoTri);
       slot_val.resize(cap);
