@@ -51,13 +51,15 @@ std::uint32_t morton_code(const glm::dvec3& c, const glm::dvec3& lo, const glm::
          (spread_bits10(static_cast<std::uint32_t>(q.z)) << 2);
 }
 
-// Appends the BVH over items [a, b) (box(i) gives item i's lo and hi, the items in Morton order)
-// to `nodes` in preorder: each node halves its range, so the tree is balanced (depth
-// ceil(log2 n)) and, Morton order keeping neighbours together, its boxes compact — an LBVH
-// (Lauterbach et al. 2009) without the SAH's build cost, which a per-frame traversal that stops at
-// occluded nodes would gain little from. O(n) nodes (2n − 1), O(n log n) time.
+// Appends the BVH over items [a, b) (box(i) gives item i's lo and hi; code[i] its Morton code,
+// nondecreasing) to `nodes` in preorder — an LBVH (Lauterbach et al. 2009): a node splits its
+// range where the highest bit in which its first and last codes differ turns to 1 (Karras 2012's
+// split), so each child covers one cell of the Morton grid and the boxes stay compact (halving
+// the range instead joins the ends of two distant cells); items of one code are halved. Depth at
+// most 30 + log2 n. No SAH: its build cost would buy little for a walk that stops at occluded
+// nodes. O(n) nodes (2n − 1), O(n log n) time.
 template <class Node, class BoxOf>
-void mesh_bvh_build(std::vector<Node>& nodes, std::uint32_t a, std::uint32_t b, const BoxOf& box) {
+void mesh_bvh_build(std::vector<Node>& nodes, const std::uint32_t* code, std::uint32_t a, std::uint32_t b, const BoxOf& box) {
   const std::size_t me = nodes.size();
   nodes.emplace_back();
   if (b - a == 1) {
@@ -73,10 +75,14 @@ void mesh_bvh_build(std::vector<Node>& nodes, std::uint32_t a, std::uint32_t b, 
     nodes[me].item = a;
     return;
   }
-  const std::uint32_t mid = a + (b - a) / 2;
-  mesh_bvh_build(nodes, a, mid, box);
+  std::uint32_t mid = a + (b - a) / 2;
+  if (code[a] != code[b - 1]) {
+    const std::uint32_t bit = std::bit_floor(code[a] ^ code[b - 1]);
+    mid = static_cast<std::uint32_t>(std::partition_point(code + a, code + b, [&](std::uint32_t c) { return (c & bit) == 0; }) - code);
+  }
+  mesh_bvh_build(nodes, code, a, mid, box);
   nodes[me].right = static_cast<std::uint32_t>(nodes.size());
-  mesh_bvh_build(nodes, mid, b, box);
+  mesh_bvh_build(nodes, code, mid, b, box);
   const Node& l = nodes[me + 1];
   const Node& r = nodes[nodes[me].right];
   nodes[me].lo = glm::min(l.lo, r.lo);
@@ -930,6 +936,8 @@ MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
   std::vector<std::uint32_t> order(nt);
   std::iota(order.begin(), order.end(), 0u);
   std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return code[a] < code[b]; });
+  std::vector<std::uint32_t> chunk_code((nt + kChunkSize - 1) / kChunkSize);  // of each chunk's first triangle
+  for (std::size_t c = 0; c < chunk_code.size(); ++c) chunk_code[c] = code[order[c * kChunkSize]];
   code = {};
   // Shared corners and texture coordinates: one copy of each bit pattern, numbered in the order
   // the sorted triangles first use them (a chunk's corners lie together).
@@ -960,7 +968,7 @@ MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
   uvs_.shrink_to_fit();
   const auto chunks = static_cast<std::uint32_t>((tris_.size() + kChunkSize - 1) / kChunkSize);
   chunk_tree_.reserve(2 * static_cast<std::size_t>(chunks) - 1);
-  mesh_bvh_build(chunk_tree_, 0, chunks, [&](std::uint32_t i, glm::dvec3& blo, glm::dvec3& bhi) {
+  mesh_bvh_build(chunk_tree_, chunk_code.data(), 0, chunks, [&](std::uint32_t i, glm::dvec3& blo, glm::dvec3& bhi) {
     const std::uint32_t first = i * kChunkSize, end = std::min<std::uint32_t>(first + kChunkSize, static_cast<std::uint32_t>(tris_.size()));
     blo = bhi = positions_[tris_[first].p[0]];
     for (std::uint32_t k = first; k < end; ++k)
@@ -990,8 +998,12 @@ MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
     std::sort(sorder.begin(), sorder.end());
     solids_.reserve(bounded.size());
     solid_tree_.reserve(2 * bounded.size() - 1);
-    for (const auto& [c, k] : sorder) solids_.push_back(bounded[k]);
-    mesh_bvh_build(solid_tree_, 0, static_cast<std::uint32_t>(solids_.size()),
+    std::vector<std::uint32_t> solid_code;
+    for (const auto& [c, k] : sorder) {
+      solids_.push_back(bounded[k]);
+      solid_code.push_back(c);
+    }
+    mesh_bvh_build(solid_tree_, solid_code.data(), 0, static_cast<std::uint32_t>(solids_.size()),
                    [&](std::uint32_t i, glm::dvec3& blo, glm::dvec3& bhi) {
                      blo = solids_[i].lo;
                      bhi = solids_[i].hi;
