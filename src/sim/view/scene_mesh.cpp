@@ -1,9 +1,15 @@
 #include "sim/view/scene_mesh.h"
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <numeric>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <glm/geometric.hpp>
 
@@ -19,7 +25,7 @@ namespace {
 constexpr std::uint32_t kNoTri = 0xffffffffu;
 constexpr std::uint32_t kBackBit = 0x80000000u;
 // Triangles per culling box: the town replay ran fastest at 16 (8 the same, 64 15 % slower).
-// Chunk tests are linear in the chunk count: a very large mesh would want a hierarchy.
+// The chunks are the leaves of the BVH (MeshScene::Node).
 constexpr std::uint32_t kChunkSize = 16;
 // The part of a triangle between view depth near/1024 and near is rasterised only to tell
 // "clipped" from "sky" in the counters; nearer than that it is ignored (projection blows up).
@@ -36,6 +42,51 @@ std::uint32_t spread_bits10(std::uint32_t x) {  // 10 bits -> every third bit (M
   x = (x | (x << 4)) & 0x030c30c3u;
   x = (x | (x << 2)) & 0x09249249u;
   return x;
+}
+
+// Morton code of point c in box [lo, lo + ext], 10 bits an axis.
+std::uint32_t morton_code(const glm::dvec3& c, const glm::dvec3& lo, const glm::dvec3& ext) {
+  const glm::dvec3 q = glm::clamp((c - lo) / ext, 0.0, 1.0) * 1023.0;
+  return spread_bits10(static_cast<std::uint32_t>(q.x)) | (spread_bits10(static_cast<std::uint32_t>(q.y)) << 1) |
+         (spread_bits10(static_cast<std::uint32_t>(q.z)) << 2);
+}
+
+// Appends the BVH over items [a, b) (box(i) gives item i's lo and hi; code[i] its Morton code,
+// nondecreasing) to `nodes` in preorder — an LBVH (Lauterbach et al. 2009): a node splits its
+// range where the highest bit in which its first and last codes differ turns to 1 (Karras 2012's
+// split), so each child covers one cell of the Morton grid and the boxes stay compact (halving
+// the range instead joins the ends of two distant cells); items of one code are halved. Depth at
+// most 30 + log2 n. No SAH: its build cost would buy little for a walk that stops at occluded
+// nodes. O(n) nodes (2n − 1), O(n log n) time.
+template <class Node, class BoxOf>
+void mesh_bvh_build(std::vector<Node>& nodes, const std::uint32_t* code, std::uint32_t a, std::uint32_t b, const BoxOf& box) {
+  const std::size_t me = nodes.size();
+  nodes.emplace_back();
+  if (b - a == 1) {
+    glm::dvec3 lo, hi;
+    box(a, lo, hi);
+    for (int c = 0; c < 3; ++c) {  // to float, outward
+      float l = static_cast<float>(lo[c]), h = static_cast<float>(hi[c]);
+      if (static_cast<double>(l) > lo[c]) l = std::nextafter(l, -INFINITY);
+      if (static_cast<double>(h) < hi[c]) h = std::nextafter(h, INFINITY);
+      nodes[me].lo[c] = l;
+      nodes[me].hi[c] = h;
+    }
+    nodes[me].item = a;
+    return;
+  }
+  std::uint32_t mid = a + (b - a) / 2;
+  if (code[a] != code[b - 1]) {
+    const std::uint32_t bit = std::bit_floor(code[a] ^ code[b - 1]);
+    mid = static_cast<std::uint32_t>(std::partition_point(code + a, code + b, [&](std::uint32_t c) { return (c & bit) == 0; }) - code);
+  }
+  mesh_bvh_build(nodes, code, a, mid, box);
+  nodes[me].right = static_cast<std::uint32_t>(nodes.size());
+  mesh_bvh_build(nodes, code, mid, b, box);
+  const Node& l = nodes[me + 1];
+  const Node& r = nodes[nodes[me].right];
+  nodes[me].lo = glm::min(l.lo, r.lo);
+  nodes[me].hi = glm::max(l.hi, r.hi);
 }
 
 // Camera-space vertex: x right, y up, z view depth.
@@ -306,6 +357,58 @@ VTSIM_CLONES_AVX2 void span_run(const ShadeRow& k, const double* px, const doubl
   else span_run_t<false>(k, px, iz, n, pix0, o);
 }
 
+// For each element of v, the least index of an element with the same bits (exact duplicates
+// only: +0 and −0 stay apart, so sharing changes no arithmetic). O(n log n).
+template <class V>
+std::vector<std::uint32_t> mesh_same_bits(const std::vector<V>& v) {
+  constexpr int kLen = V::length();
+  const auto less = [&](std::uint32_t a, std::uint32_t b) {
+    for (int c = 0; c < kLen; ++c) {
+      const auto x = std::bit_cast<std::uint64_t>(v[a][c]), y = std::bit_cast<std::uint64_t>(v[b][c]);
+      if (x != y) return x < y;
+    }
+    return a < b;
+  };
+  std::vector<std::uint32_t> idx(v.size());
+  std::iota(idx.begin(), idx.end(), 0u);
+  std::sort(idx.begin(), idx.end(), less);
+  std::vector<std::uint32_t> same(v.size());
+  for (std::size_t i = 0; i < idx.size(); ++i) {
+    const bool dup = i > 0 && std::bit_cast<std::array<std::uint64_t, kLen>>(v[idx[i]]) ==
+                                  std::bit_cast<std::array<std::uint64_t, kLen>>(v[idx[i - 1]]);
+    same[idx[i]] = dup ? same[idx[i - 1]] : idx[i];
+  }
+  return same;
+}
+
+// A triangle as the depth pass and the resolve use it: corners, the front side
+// n = (p1 − p0) × (p2 − p0), and (textured) the gradients of the level-0 texel coordinates
+// (texels per metre) and their values at p0. Computed when a triangle is drawn or shaded from the
+// shared corners and texture coordinates, with the arithmetic the constructor once stored.
+struct TriGeom {
+  glm::dvec3 p[3];
+  glm::dvec3 n;
+  glm::dvec3 gu{}, gv{};
+  double tu0 = 0.0, tv0 = 0.0;
+};
+void tri_corners(const glm::dvec3& p0, const glm::dvec3& p1, const glm::dvec3& p2, TriGeom& g) {
+  g.p[0] = p0;
+  g.p[1] = p1;
+  g.p[2] = p2;
+  g.n = glm::cross(p1 - p0, p2 - p0);
+}
+void tri_texel_map(const glm::dvec2& uv0, const glm::dvec2& uv1, const glm::dvec2& uv2, double W, double H, TriGeom& g) {
+  // Gradient g of an affine attribute on the triangle's plane from g·e1 = Δ1, g·e2 = Δ2,
+  // g·n = 0: g = (Δ1·(e2 × n) + Δ2·(n × e1)) / |n|².
+  const glm::dvec3 e1 = g.p[1] - g.p[0], e2 = g.p[2] - g.p[0];
+  const double a2 = glm::dot(g.n, g.n);
+  const glm::dvec3 a = glm::cross(e2, g.n) / a2, b = glm::cross(g.n, e1) / a2;
+  g.gu = ((uv1.x - uv0.x) * W) * a + ((uv2.x - uv0.x) * W) * b;
+  g.gv = ((uv1.y - uv0.y) * H) * a + ((uv2.y - uv0.y) * H) * b;
+  g.tu0 = uv0.x * W;
+  g.tv0 = uv0.y * H;
+}
+
 // A triangle's resolve coefficients for one frame: functions affine in the full-resolution pixel
 // (px, py) stored as (constant, ∂/∂px, ∂/∂py).
 struct Shade {
@@ -316,8 +419,18 @@ struct Shade {
 };
 
 // The coefficients of triangle t for camera `cam` (its ray d = D0 + px·ddx + py·ddy).
+// Triangle t of a scene (corners pos, texture coordinates uvs, texture extent W × H texels).
 template <class Tri>
-void shade_of(const Tri& t, const Camera& cam, Shade& h) {
+TriGeom tri_geom(const Tri& t, const std::vector<glm::dvec3>& pos, const std::vector<glm::dvec2>& uvs, double W, double H) {
+  TriGeom g;
+  tri_corners(pos[t.p[0]], pos[t.p[1]], pos[t.p[2]], g);
+  if (t.t[0] >= 0)
+    tri_texel_map(uvs[static_cast<std::size_t>(t.t[0])], uvs[static_cast<std::size_t>(t.t[1])],
+                  uvs[static_cast<std::size_t>(t.t[2])], W, H, g);
+  return g;
+}
+
+void shade_of(const TriGeom& t, const Camera& cam, Shade& h) {
   const glm::dvec3 o = cam.pos_m, ddx = -cam.left, ddy = -cam.up;
   const glm::dvec3 D0 = cam.ray_dir(0.0, 0.0);
   const glm::dvec3 op = o - t.p[0];
@@ -362,17 +475,24 @@ struct Scratch {
   std::vector<double> tile_min;      // least invz of the tile's samples, valid unless stale
   std::vector<std::uint8_t> tile_stale;
   int bw = 0, bh = 0, tw = 0;        // buffer size, samples; tiles per row
-  std::vector<Shade> shade;          // per triangle, valid where shade_stamp == frame
-  std::vector<std::uint64_t> shade_stamp;
-  std::vector<std::uint64_t> drawn_stamp;  // == frame: drawn by the warm start this frame
-  std::vector<std::uint64_t> hint_stamp;   // == frame: already in `hint`
-  std::vector<std::uint32_t> hint;   // triangles owning a sample in the last render (< size)
-  std::uint64_t frame = 0;           // renders by this thread: stamps never repeat
+  // The triangles owning a sample in the last render (< hint_tris): the resolve appends them
+  // in the order met, the next render's warm start sorts them (drawn chunks skip them by binary
+  // search). A hash table (open addressing, linear probing; kNoTri = empty) maps each to its slot
+  // in `hint` and `shade`, its resolve coefficients, computed once a frame where `shaded`: all
+  // sized by the buffer (a triangle owns at least one sample) or the mesh, whichever is smaller.
+  std::vector<std::uint32_t> hint;
+  std::size_t hint_tris = 0;         // triangle count of the mesh the hint is of
+  std::vector<Shade> shade;          // per slot
+  std::vector<std::uint8_t> shaded;  // per slot
+  std::vector<std::uint32_t> slot_key, slot_val;  // the table: triangle -> slot
+  std::vector<std::uint32_t> slot_used;           // its filled positions, to empty it
+  int slot_shift = 32;               // 32 − log2(table size)
+  std::uint64_t frame = 0;           // renders by this thread
   MeshScene::RenderStats stats;      // of the render under way, then the last one
 
   // Starts a render of a mesh of `tris` triangles into a buf_w × buf_h buffer at divisor `div`:
-  // nothing drawn, stats zeroed, the sample positions of this camera, the per-triangle stamps
-  // sized (a new size drops the warm start). Returns the render's stamp (== frame).
+  // nothing drawn, stats zeroed, the sample positions of this camera, the slot table sized (a mesh
+  // of another size drops the warm start). Returns the render's number.
   std::uint64_t begin(const Camera& cam, int div, int buf_w, int buf_h, std::size_t tris) {
     const std::size_t npix = static_cast<std::size_t>(buf_w) * static_cast<std::size_t>(buf_h);
     stats = MeshScene::RenderStats{};
@@ -390,14 +510,50 @@ struct Scratch {
     for (int x = 0; x < bw; ++x) sx[static_cast<std::size_t>(x)] = sample_pos(x, div, cam.width);
     for (int x = bw; x < bw + 4; ++x) sx[static_cast<std::size_t>(x)] = sx[static_cast<std::size_t>(bw - 1)];
     for (int y = 0; y < bh; ++y) sy[static_cast<std::size_t>(y)] = sample_pos(y, div, cam.height);
-    if (drawn_stamp.size() != tris) {
-      drawn_stamp.assign(tris, 0);
-      hint_stamp.assign(tris, 0);
-      shade_stamp.assign(tris, 0);
-      shade.resize(tris);
+    if (hint_tris != tris) {
+      hint_tris = tris;
       hint.clear();
     }
+    // Table size: a power of two >= 2 · min(samples, triangles), the most a render can see (at
+    // most half full: short probes).
+    std::size_t cap = 64;
+    while (cap < 2 * std::min(npix, tris)) cap *= 2;
+    if (slot_key.size() < cap) {
+      slot_key.assign(cap, kNoTri);
+      slot_val.resize(cap);
+      slot_used.clear();
+      slot_shift = 32 - std::countr_zero(cap);
+    }
     return ++frame;
+  }
+
+  // Empties the table and the slots (the resolve of a new frame).
+  void clear_slots() {
+    for (const std::uint32_t i : slot_used) slot_key[i] = kNoTri;
+    slot_used.clear();
+    hint.clear();
+    shade.clear();
+    shaded.clear();
+  }
+
+  // The slot of triangle k, made on first sight (appending k to `hint`).
+  std::uint32_t slot_of(std::uint32_t k) {
+    // Fibonacci hashing (Knuth, TAOCP vol. 3, 6.4): the high bits of k · 2^32/φ.
+    const std::uint32_t mask = static_cast<std::uint32_t>(slot_key.size() - 1);
+    std::uint32_t i = (k * 0x9e3779b9u) >> slot_shift;
+    while (true) {
+      if (slot_key[i] == k) return slot_val[i];
+      if (slot_key[i] == kNoTri) break;
+      i = (i + 1) & mask;
+    }
+    const auto slot = static_cast<std::uint32_t>(hint.size());
+    slot_key[i] = k;
+    slot_val[i] = slot;
+    slot_used.push_back(i);
+    hint.push_back(k);
+    shade.emplace_back();
+    shaded.push_back(0);
+    return slot;
   }
 
   double tile_least(int tx, int ty) {
@@ -623,7 +779,7 @@ struct DepthPass {
 
   // Whether box [lo, hi], at least view depth zmin > 0, lies behind what is drawn at every sample
   // its projection can cover (also when it covers none): then none of its triangles can win a
-  // sample. kOccludeMargin covers the rasteriser's rounding of 1/z against the box's exact bound.
+  // sample. O(log buffer side + tiles its projection spans). kOccludeMargin covers the rasteriser's rounding of 1/z against the box's exact bound.
   bool occluded(const glm::dvec3& lo, const glm::dvec3& hi, double zmin) const {
     double X0 = INFINITY, X1 = -INFINITY, Y0 = INFINITY, Y1 = -INFINITY;
     for (int c = 0; c < 8; ++c) {
@@ -635,6 +791,14 @@ struct DepthPass {
       Y0 = std::min(Y0, Y);
       Y1 = std::max(Y1, Y);
     }
+    // A box whose projection holds no sample position (a far one between the samples) cannot
+    // cover any either; the 2^-20 relative margin covers the rounding of the projections.
+    const auto none_within = [](const double* pos, int n, double a, double b, double m) {
+      const double* it = std::lower_bound(pos, pos + n, a - m);
+      return it == pos + n || *it > b + m;
+    };
+    const double mx = (std::fabs(X0) + std::fabs(X1) + f) * 0x1p-20, my = (std::fabs(Y0) + std::fabs(Y1) + f) * 0x1p-20;
+    if (none_within(s.sx.data(), bw, X0, X1, mx) || none_within(s.sy.data(), bh, Y0, Y1, my)) return true;
     int x0, x1, y0, y1;
     sample_range(X0, X1, div, bw, x0, x1);
     sample_range(Y0, Y1, div, bh, y0, y1);
@@ -731,101 +895,171 @@ MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
     throw InputError("texture", "extent must be at most 2^52 texels a side");
   if (mesh.tris.empty()) throw InputError("mesh", "no triangles");
   if (mesh.tris.size() >= kBackBit) throw InputError("mesh", "more than 2^31 − 1 triangles");
-  const double W = static_cast<double>(extent.width), H = static_cast<double>(extent.height);
-  std::vector<Tri> tris;
-  tris.reserve(mesh.tris.size());
   for (std::size_t k = 0; k < mesh.tris.size(); ++k) {
     const Mesh::Tri& mt = mesh.tris[k];
     const std::string where = "mesh triangle " + std::to_string(k);
-    Tri t;
+    glm::dvec3 p[3];
     for (int c = 0; c < 3; ++c) {
       if (mt.p[c] >= mesh.positions.size()) throw InputError(where, "vertex index out of range");
-      t.p[c] = mesh.positions[mt.p[c]];
-      if (!std::isfinite(t.p[c].x) || !std::isfinite(t.p[c].y) || !std::isfinite(t.p[c].z))
+      p[c] = mesh.positions[mt.p[c]];
+      if (!std::isfinite(p[c].x) || !std::isfinite(p[c].y) || !std::isfinite(p[c].z))
         throw InputError(where, "vertex is not finite");
     }
-    const glm::dvec3 e1 = t.p[1] - t.p[0], e2 = t.p[2] - t.p[0];
-    t.n = glm::cross(e1, e2);
-    const double a2 = glm::dot(t.n, t.n);
+    const glm::dvec3 n = glm::cross(p[1] - p[0], p[2] - p[0]);
+    const double a2 = glm::dot(n, n);
     if (!(a2 > 0.0) || !std::isfinite(a2)) throw InputError(where, "zero-area or non-finite triangle");
-    t.textured = mt.t[0] >= 0;
-    if (t.textured) {
-      glm::dvec2 uv[3];
+    if (mt.t[0] >= 0)
       for (int c = 0; c < 3; ++c) {
         if (mt.t[c] < 0 || static_cast<std::size_t>(mt.t[c]) >= mesh.uvs.size())
           throw InputError(where, "texture coordinate index out of range");
-        uv[c] = mesh.uvs[static_cast<std::size_t>(mt.t[c])];
-        if (!std::isfinite(uv[c].x) || !std::isfinite(uv[c].y)) throw InputError(where, "uv is not finite");
+        const glm::dvec2 uv = mesh.uvs[static_cast<std::size_t>(mt.t[c])];
+        if (!std::isfinite(uv.x) || !std::isfinite(uv.y)) throw InputError(where, "uv is not finite");
       }
-      // Gradient g of an affine attribute on the triangle's plane from g·e1 = Δ1, g·e2 = Δ2,
-      // g·n = 0: g = (Δ1·(e2 × n) + Δ2·(n × e1)) / |n|².
-      const glm::dvec3 a = glm::cross(e2, t.n) / a2, b = glm::cross(t.n, e1) / a2;
-      t.gu = ((uv[1].x - uv[0].x) * W) * a + ((uv[2].x - uv[0].x) * W) * b;
-      t.gv = ((uv[1].y - uv[0].y) * H) * a + ((uv[2].y - uv[0].y) * H) * b;
-      t.tu0 = uv[0].x * W;
-      t.tv0 = uv[0].y * H;
-    }
-    tris.push_back(t);
   }
   for (std::size_t k = 0; k < mesh.solids.size(); ++k) {
     const Mesh::Box& b = mesh.solids[k];
     if (!(b.lo.x <= b.hi.x && b.lo.y <= b.hi.y && b.lo.z <= b.hi.z))
       throw InputError("mesh solid " + std::to_string(k), "bounds are NaN or lo > hi");
   }
-  solids_ = mesh.solids;
   // Spatial order (Morton code of the centroid in the mesh's box) so that chunks are compact.
-  glm::dvec3 lo = tris[0].p[0], hi = lo;
-  for (const Tri& t : tris)
-    for (const auto& p : t.p) {
-      lo = glm::min(lo, p);
-      hi = glm::max(hi, p);
+  const std::size_t nt = mesh.tris.size();
+  const auto corner = [&](std::size_t k, int c) -> const glm::dvec3& { return mesh.positions[mesh.tris[k].p[c]]; };
+  glm::dvec3 lo = corner(0, 0), hi = lo;
+  for (std::size_t k = 0; k < nt; ++k)
+    for (int c = 0; c < 3; ++c) {
+      lo = glm::min(lo, corner(k, c));
+      hi = glm::max(hi, corner(k, c));
     }
   const glm::dvec3 ext = glm::max(hi - lo, glm::dvec3(1e-300));
-  std::vector<std::uint32_t> code(tris.size());
-  for (std::size_t k = 0; k < tris.size(); ++k) {
-    const glm::dvec3 cen = (tris[k].p[0] + tris[k].p[1] + tris[k].p[2]) / 3.0;
-    const glm::dvec3 q = glm::clamp((cen - lo) / ext, 0.0, 1.0) * 1023.0;
-    code[k] = spread_bits10(static_cast<std::uint32_t>(q.x)) | (spread_bits10(static_cast<std::uint32_t>(q.y)) << 1) |
-              (spread_bits10(static_cast<std::uint32_t>(q.z)) << 2);
-  }
-  std::vector<std::uint32_t> order(tris.size());
+  std::vector<std::uint32_t> code(nt);
+  for (std::size_t k = 0; k < nt; ++k) code[k] = morton_code((corner(k, 0) + corner(k, 1) + corner(k, 2)) / 3.0, lo, ext);
+  std::vector<std::uint32_t> order(nt);
   std::iota(order.begin(), order.end(), 0u);
   std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return code[a] < code[b]; });
-  tris_.reserve(tris.size());
-  for (std::uint32_t k : order) tris_.push_back(tris[k]);
-  for (std::uint32_t first = 0; first < tris_.size(); first += kChunkSize) {
-    Chunk ch;
-    ch.first = first;
-    ch.count = std::min<std::uint32_t>(kChunkSize, static_cast<std::uint32_t>(tris_.size()) - first);
-    ch.lo = ch.hi = tris_[first].p[0];
-    for (std::uint32_t k = first; k < first + ch.count; ++k)
-      for (const auto& p : tris_[k].p) {
-        ch.lo = glm::min(ch.lo, p);
-        ch.hi = glm::max(ch.hi, p);
+  std::vector<std::uint32_t> chunk_code((nt + kChunkSize - 1) / kChunkSize);  // of each chunk's first triangle
+  for (std::size_t c = 0; c < chunk_code.size(); ++c) chunk_code[c] = code[order[c * kChunkSize]];
+  code = {};
+  // Shared corners and texture coordinates: one copy of each bit pattern, numbered in the order
+  // the sorted triangles first use them (a chunk's corners lie together).
+  const std::vector<std::uint32_t> pos_same = mesh_same_bits(mesh.positions), uv_same = mesh_same_bits(mesh.uvs);
+  std::vector<std::uint32_t> pos_new(mesh.positions.size(), kNoTri), uv_new(mesh.uvs.size(), kNoTri);
+  tris_.reserve(nt);
+  for (const std::uint32_t k : order) {
+    const Mesh::Tri& mt = mesh.tris[k];
+    Tri t;
+    for (int c = 0; c < 3; ++c) {
+      const std::uint32_t q = pos_same[mt.p[c]];
+      if (pos_new[q] == kNoTri) {
+        pos_new[q] = static_cast<std::uint32_t>(positions_.size());
+        positions_.push_back(mesh.positions[q]);
       }
-    chunks_.push_back(ch);
+      t.p[c] = pos_new[q];
+      if (mt.t[0] < 0) continue;
+      const std::uint32_t u = uv_same[static_cast<std::size_t>(mt.t[c])];
+      if (uv_new[u] == kNoTri) {
+        uv_new[u] = static_cast<std::uint32_t>(uvs_.size());
+        uvs_.push_back(mesh.uvs[u]);
+      }
+      t.t[c] = static_cast<std::int32_t>(uv_new[u]);
+    }
+    tris_.push_back(t);
+  }
+  positions_.shrink_to_fit();
+  uvs_.shrink_to_fit();
+  const auto chunks = static_cast<std::uint32_t>((tris_.size() + kChunkSize - 1) / kChunkSize);
+  chunk_tree_.reserve(2 * static_cast<std::size_t>(chunks) - 1);
+  mesh_bvh_build(chunk_tree_, chunk_code.data(), 0, chunks, [&](std::uint32_t i, glm::dvec3& blo, glm::dvec3& bhi) {
+    const std::uint32_t first = i * kChunkSize, end = std::min<std::uint32_t>(first + kChunkSize, static_cast<std::uint32_t>(tris_.size()));
+    blo = bhi = positions_[tris_[first].p[0]];
+    for (std::uint32_t k = first; k < end; ++k)
+      for (const std::uint32_t q : tris_[k].p) {
+        blo = glm::min(blo, positions_[q]);
+        bhi = glm::max(bhi, positions_[q]);
+      }
+  });
+  // Solids: the unbounded ones (the half-space under a ground) apart, the others in Morton order
+  // of their centres under a BVH of their own.
+  std::vector<Mesh::Box> bounded;
+  for (const Mesh::Box& b : mesh.solids) {
+    const bool finite = std::isfinite(b.lo.x) && std::isfinite(b.lo.y) && std::isfinite(b.lo.z) && std::isfinite(b.hi.x) &&
+                        std::isfinite(b.hi.y) && std::isfinite(b.hi.z);
+    (finite ? bounded : open_solids_).push_back(b);
+  }
+  if (!bounded.empty()) {
+    glm::dvec3 slo = bounded[0].lo, shi = bounded[0].hi;
+    for (const Mesh::Box& b : bounded) {
+      slo = glm::min(slo, b.lo);
+      shi = glm::max(shi, b.hi);
+    }
+    const glm::dvec3 sext = glm::max(shi - slo, glm::dvec3(1e-300));
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> sorder(bounded.size());
+    for (std::size_t k = 0; k < bounded.size(); ++k)
+      sorder[k] = {morton_code(0.5 * (bounded[k].lo + bounded[k].hi), slo, sext), static_cast<std::uint32_t>(k)};
+    std::sort(sorder.begin(), sorder.end());
+    solids_.reserve(bounded.size());
+    solid_tree_.reserve(2 * bounded.size() - 1);
+    std::vector<std::uint32_t> solid_code;
+    for (const auto& [c, k] : sorder) {
+      solids_.push_back(bounded[k]);
+      solid_code.push_back(c);
+    }
+    mesh_bvh_build(solid_tree_, solid_code.data(), 0, static_cast<std::uint32_t>(solids_.size()),
+                   [&](std::uint32_t i, glm::dvec3& blo, glm::dvec3& bhi) {
+                     blo = solids_[i].lo;
+                     bhi = solids_[i].hi;
+                   });
   }
 }
 
 // Along any ray from outside the solids a front face comes first (Mesh::solids), so back faces can
 // be skipped when the part of every pixel's ray that is cut away (up to the near plane) lies
 // outside the solids too: no solid comes within the distance of the near plane's farthest corner.
-// The 2^-20 covers the rounding of that distance. O(solids), ~2 µs for the town's 1,537.
+// The 2^-20 covers the rounding of that distance. O(unbounded solids + log bounded ones) for a
+// camera among solids that do not overlap much: their BVH is walked only where a node's box comes
+// within reach (a node's distance is at most its solids').
 bool MeshScene::skips_back_faces(const Camera& cam, const ViewParams& p) const {
-  if (!occlusion_culling_ || solids_.empty()) return false;
+  if (!occlusion_culling_ || (solids_.empty() && open_solids_.empty())) return false;
   const double ax = std::max(cam.cx, cam.width - cam.cx) / cam.focal_px;
   const double ay = std::max(cam.cy, cam.height - cam.cy) / cam.focal_px;
   const double reach = p.near_m * std::sqrt(1.0 + ax * ax + ay * ay) * (1.0 + 0x1p-20);
   const double r2 = reach * reach;
-  for (const Mesh::Box& b : solids_) {
-    // Distance to the box; 0 inside it, also for infinite bounds (the camera is finite).
-    const glm::dvec3 d = glm::max(glm::max(b.lo - cam.pos_m, cam.pos_m - b.hi), glm::dvec3(0.0));
-    if (!(glm::dot(d, d) > r2)) return false;
+  // Whether box [lo, hi] stays beyond reach; its distance is 0 inside it, also for infinite
+  // bounds (the camera is finite).
+  const auto beyond = [&](const glm::dvec3& lo, const glm::dvec3& hi) {
+    const glm::dvec3 d = glm::max(glm::max(lo - cam.pos_m, cam.pos_m - hi), glm::dvec3(0.0));
+    return glm::dot(d, d) > r2;
+  };
+  for (const Mesh::Box& b : open_solids_)
+    if (!beyond(b.lo, b.hi)) return false;
+  if (solid_tree_.empty()) return true;
+  thread_local std::vector<std::uint32_t> stack;
+  stack.assign(1, 0);
+  while (!stack.empty()) {
+    const Node& nd = solid_tree_[stack.back()];
+    const std::uint32_t ni = stack.back();
+    stack.pop_back();
+    if (beyond(glm::dvec3(nd.lo), glm::dvec3(nd.hi))) continue;
+    if (nd.right == 0) {  // a leaf: its solid's own bounds decide
+      if (!beyond(solids_[nd.item].lo, solids_[nd.item].hi)) return false;
+      continue;
+    }
+    stack.push_back(ni + 1);
+    stack.push_back(nd.right);
   }
   return true;
 }
 
 MeshScene::RenderStats MeshScene::last_render_stats() { return scratch().stats; }
+
+std::size_t MeshScene::memory_bytes() const {
+  std::size_t n = sizeof(*this) + tris_.capacity() * sizeof(Tri) + positions_.capacity() * sizeof(glm::dvec3) +
+                  uvs_.capacity() * sizeof(glm::dvec2) +
+                  (chunk_tree_.capacity() + solid_tree_.capacity()) * sizeof(Node) +
+                  (solids_.capacity() + open_solids_.capacity()) * sizeof(Mesh::Box) +
+                  load_warnings_.capacity() * sizeof(std::string);
+  for (const std::string& w : load_warnings_) n += w.capacity();
+  return n;
+}
 
 void MeshScene::render(const Camera& cam, const ViewParams& p, ViewBuffer& out) const {
   detail::begin_frame(cam, p, out);
@@ -858,39 +1092,80 @@ void MeshScene::render_spans(const Camera& cam, const ViewParams& p, SpanBuffer&
 void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* view, SpanBuffer* spans) const {
   const int bw = spans ? spans->width : view->width, bh = spans ? spans->height : view->height;
   Scratch& s = scratch();
-  const std::uint64_t stamp = s.begin(cam, p.divisor, bw, bh, tris_.size());
-  s.stats.chunks = static_cast<std::uint32_t>(chunks_.size());
+  s.begin(cam, p.divisor, bw, bh, tris_.size());
+  s.stats.chunks = static_cast<std::uint32_t>((tris_.size() + kChunkSize - 1) / kChunkSize);
+  const auto chunk_end = [&](std::uint32_t first) {
+    return std::min<std::uint32_t>(first + kChunkSize, static_cast<std::uint32_t>(tris_.size()));
+  };
   const DepthPass dp(cam, p, s, occlusion_culling_, skips_back_faces(cam, p));
-  // Chunks in the frustum, nearest first by the least view depth of their box. Drawn front to
-  // back, a chunk whose box lies wholly beyond near and behind what is already drawn is skipped
-  // (occlusion culling). `order` is not a Scratch member: a member added there moved the stats,
-  // and raster_poly's register allocation changed with their offsets (+20 % of its profile).
-  thread_local std::vector<std::pair<double, std::uint32_t>> order;
-  order.clear();
-  for (std::uint32_t ci = 0; ci < chunks_.size(); ++ci) {
-    const Chunk& ch = chunks_[ci];
-    if (!dp.in_frustum(ch.lo, ch.hi)) continue;
-    ++s.stats.chunks_in_frustum;
-    order.emplace_back(dp.least_depth(ch.lo, ch.hi), ci);
+  const auto draw = [&](std::uint32_t k) {
+    TriGeom g;
+    tri_corners(positions_[tris_[k].p[0]], positions_[tris_[k].p[1]], positions_[tris_[k].p[2]], g);
+    dp.draw(g.p, g.n, k);
+  };
+  if (!occlusion_culling_) {
+    // The reference: every chunk in the frustum, in index order, every triangle.
+    for (const Node& nd : chunk_tree_) {  // preorder: the leaves in chunk order
+      if (nd.right != 0 || !dp.in_frustum(glm::dvec3(nd.lo), glm::dvec3(nd.hi))) continue;
+      ++s.stats.chunks_in_frustum;
+      for (std::uint32_t k = nd.item * kChunkSize; k < chunk_end(nd.item * kChunkSize); ++k) draw(k);
+    }
+    resolve(cam, p, view, spans);
+    return;
   }
-  if (occlusion_culling_) std::sort(order.begin(), order.end());
   // Warm start: last frame's visible triangles first (this thread's previous render of a scene
   // of this size — a hint only: any triangle may be drawn in any order, the tie rule makes the
   // buffer the same). At 60 Hz they cover nearly the same samples again, so the depth is close
-  // to final before the chunks start and most chunks fail the occlusion test at once.
-  if (occlusion_culling_)
-    for (const std::uint32_t k : s.hint) {
-      s.drawn_stamp[k] = stamp;
-      dp.draw(tris_[k].p, tris_[k].n, k);
-    }
-  for (const auto& [zmin, ci] : order) {
-    const Chunk& ch = chunks_[ci];
-    if (occlusion_culling_ && zmin > p.near_m && dp.occluded(ch.lo, ch.hi, zmin)) {
-      ++s.stats.chunks_occluded;
+  // to final before the hierarchy is walked and most of it fails the occlusion test at once.
+  std::vector<std::uint32_t>& hint = s.hint;
+  std::sort(hint.begin(), hint.end());
+  for (const std::uint32_t k : hint) draw(k);
+  // The BVH nearest first: a min-queue of nodes by the least view depth of their boxes, a node
+  // taken out tested against the depth drawn so far (a box wholly beyond near and behind it
+  // hides everything under it). A child's box lies within its parent's, so its least depth is no
+  // less: chunks come out in the order of their least depth, as a sort of all of them would give.
+  // `queue` is not a Scratch member: a member added there moved the stats, and raster_poly's
+  // register allocation changed with their offsets (+20 % of its profile).
+  thread_local std::vector<std::pair<double, std::uint32_t>> queue;
+  queue.clear();
+  const auto later = [](const std::pair<double, std::uint32_t>& x, const std::pair<double, std::uint32_t>& y) { return x > y; };
+  const auto push = [&](std::uint32_t ni) {
+    const Node& nd = chunk_tree_[ni];
+    const glm::dvec3 lo(nd.lo), hi(nd.hi);
+    if (!dp.in_frustum(lo, hi)) return;
+    double z = dp.least_depth(lo, hi);
+    if (std::isnan(z)) z = -std::numeric_limits<double>::infinity();  // NaN (a box beyond float's range): first, never culled
+    queue.emplace_back(z, ni);
+    std::push_heap(queue.begin(), queue.end(), later);
+  };
+  push(0);
+  while (!queue.empty()) {
+    std::pop_heap(queue.begin(), queue.end(), later);
+    const auto [zmin, ni] = queue.back();
+    queue.pop_back();
+    ++s.stats.nodes_visited;
+    const Node& nd = chunk_tree_[ni];
+    const bool leaf = nd.right == 0;
+    if (leaf) ++s.stats.chunks_in_frustum;
+    if (zmin > p.near_m && dp.occluded(glm::dvec3(nd.lo), glm::dvec3(nd.hi), zmin)) {
+      if (leaf) ++s.stats.chunks_occluded;
       continue;
     }
-    for (std::uint32_t k = ch.first; k < ch.first + ch.count; ++k)
-      if (s.drawn_stamp[k] != stamp) dp.draw(tris_[k].p, tris_[k].n, k);
+    if (!leaf) {
+      push(ni + 1);
+      push(nd.right);
+      continue;
+    }
+    // The chunk's triangles but those the warm start drew (hint is sorted).
+    const std::uint32_t first = nd.item * kChunkSize, end = chunk_end(first);
+    auto h = std::lower_bound(hint.begin(), hint.end(), first);
+    for (std::uint32_t k = first; k < end; ++k) {
+      if (h != hint.end() && *h == k) {
+        ++h;
+        continue;
+      }
+      draw(k);
+    }
   }
   resolve(cam, p, view, spans);
 }
@@ -908,15 +1183,9 @@ void MeshScene::resolve(const Camera& cam, const ViewParams& p, ViewBuffer* view
   const bool to_spans = spans != nullptr;
   const LodRule rule = detail::lod_rule(p);
   const int bw = s.bw, bh = s.bh;
-  const std::uint64_t stamp = s.frame;
   const double far_iz = 1.0 / p.far_m;
-  s.hint.clear();  // this frame's visible triangles, for the next frame's warm start
-  const auto seen = [&](std::uint32_t k) {
-    if (s.hint_stamp[k] != stamp) {
-      s.hint_stamp[k] = stamp;
-      s.hint.push_back(k);
-    }
-  };
+  const double W = static_cast<double>(extent_.width), H = static_cast<double>(extent_.height);
+  s.clear_slots();  // `hint` becomes this frame's visible triangles, for the next frame's warm start
   ViewCounters c;
   [[maybe_unused]] MeshSpanOut so{to_spans ? &spans->spans : nullptr, c,
                                   to_spans ? &detail::level_cuts(rule.bias, spans->levels) : nullptr, to_spans ? spans->levels : 1,
@@ -929,12 +1198,12 @@ void MeshScene::resolve(const Camera& cam, const ViewParams& p, ViewBuffer* view
     for (int x = 0; x < bw;) {
       const std::size_t idx = row + static_cast<std::size_t>(x);
       const std::uint32_t id = s.id[idx];
-      if (id == kNoTri || (id & kBackBit) || !tris_[id].textured) {
+      if (id == kNoTri || (id & kBackBit) || tris_[id].t[0] < 0) {
         if (id == kNoTri) {
           if (s.near_cut[idx]) ++c.clipped;
           else ++c.sky;
         } else {
-          seen(id & ~kBackBit);
+          s.slot_of(id & ~kBackBit);
           if (s.invz[idx] < far_iz) ++c.clipped;
           else if (id & kBackBit) ++c.backfacing;
           else ++c.untextured;
@@ -943,11 +1212,11 @@ void MeshScene::resolve(const Camera& cam, const ViewParams& p, ViewBuffer* view
         ++x;
         continue;
       }
-      seen(id);
-      Shade& h = s.shade[id];
-      if (s.shade_stamp[id] != stamp) {
-        s.shade_stamp[id] = stamp;
-        shade_of(tris_[id], cam, h);
+      const std::uint32_t slot = s.slot_of(id);
+      Shade& h = s.shade[slot];
+      if (!s.shaded[slot]) {
+        s.shaded[slot] = 1;
+        shade_of(tri_geom(tris_[id], positions_, uvs_, W, H), cam, h);
       }
       // The run of this row's samples the same front face owns, four lanes at a time.
       int xe = x + 1;
@@ -998,10 +1267,10 @@ void MeshScene::render_pixels(const SpanBuffer& sb, std::uint32_t pixel, std::ui
     const std::uint32_t id = sb.surface[pixel + a];
     std::uint32_t e = a + 1;
     while (e < count && sb.surface[pixel + e] == id) ++e;
-    if (id == kNoTri || (id & kBackBit) || id >= tris_.size() || !tris_[id].textured)
+    if (id == kNoTri || (id & kBackBit) || id >= tris_.size() || tris_[id].t[0] < 0)
       throw std::logic_error("render_pixels: a pixel of the span is not a sample");
     Shade h;
-    shade_of(tris_[id], cam, h);
+    shade_of(tri_geom(tris_[id], positions_, uvs_, static_cast<double>(extent_.width), static_cast<double>(extent_.height)), cam, h);
     const ShadeRow k = shade_row(h, py, rule, far_iz, extent_);
     for (std::uint32_t b = a; b < e; b += kShadeBatch) {
       const int n = static_cast<int>(std::min<std::uint32_t>(kShadeBatch, e - b));

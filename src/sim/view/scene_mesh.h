@@ -9,18 +9,28 @@
 #include <utility>
 #include <vector>
 
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
 #include "sim/view/mesh.h"
 #include "sim/view/scene.h"
 
 namespace vtsim {
 
-// Render cost O(visible chunks' triangles + covered samples); chunks of 16 spatially sorted
-// triangles are frustum-culled by their bounding boxes and, drawn nearest first, occlusion-culled
-// against the depth drawn so far, and so is each triangle of a drawn chunk (a hierarchical depth
-// buffer of 8×8-sample tiles answers most tests without reading samples). Drawing starts with
-// the triangles that owned samples in this thread's previous render (a warm start: at 60 Hz they
-// fill nearly the same depth), which never changes the result, only how much is culled. The depth buffer is per-thread scratch
-// (thread_local, reused, so no allocation after warm-up): render is thread-safe.
+// Render cost O(visible chunks' triangles + covered samples + log n): chunks of 16 spatially
+// sorted triangles are the leaves of a binary bounding-volume hierarchy (the chunk range halved in
+// Morton order, as an LBVH: Lauterbach et al. 2009), traversed nearest first from a priority queue;
+// a node outside the frustum, or whose box lies behind the depth drawn so far, is skipped with
+// everything under it (hierarchical occlusion culling: Greene, Kass & Miller 1993, against a
+// hierarchical depth buffer of 8×8-sample tiles that answers most tests without reading samples),
+// and so is each triangle of a drawn chunk. A frame touches the nodes on the paths to the chunks
+// it draws and their occluded or off-frustum siblings: O(drawn chunks · log n) in the worst case,
+// O(drawn chunks + log n) when what is drawn is one compact region, independent of the hidden rest.
+// Drawing starts with the triangles that owned samples in this thread's previous render (a warm
+// start: at 60 Hz they fill nearly the same depth), which never changes the result, only how much
+// is culled. The scratch (depth buffer, warm start, per-frame shading) is per thread and sized by
+// the buffer, not the mesh (thread_local, reused, so no allocation after warm-up): render is
+// thread-safe. Memory: memory_bytes(); construction O(n log n) (the Morton sort).
 // Back faces (seen from behind, per triangle: the camera is behind its plane) are rasterised as
 // occluders and never sampled: a camera inside a closed wall sees nothing, as on a solid. When the
 // mesh promises solids (Mesh::solids) and none comes within the near plane's reach of the camera,
@@ -44,6 +54,8 @@ class MeshScene final : public IScene {
                      std::vector<ViewSample>& out) const override;
 
   std::size_t triangle_count() const { return tris_.size(); }
+  // Bytes this scene holds (the object and its vectors' capacities; not the per-thread scratch).
+  std::size_t memory_bytes() const;
   std::vector<std::string> load_warnings() const override { return load_warnings_; }
   void set_load_warnings(std::vector<std::string> w) { load_warnings_ = std::move(w); }
   // What this thread's last render or render_spans of a mesh did: where the culling stopped each
@@ -51,8 +63,9 @@ class MeshScene final : public IScene {
   // frame; docs/vt.md "Speed"). Counted per chunk, triangle and row, never per sample.
   struct RenderStats {
     std::uint32_t chunks = 0;               // in the mesh
-    std::uint32_t chunks_in_frustum = 0;
-    std::uint32_t chunks_occluded = 0;      // in the frustum, skipped by the occlusion test
+    std::uint32_t chunks_in_frustum = 0;    // reached: in the frustum, under no culled node
+    std::uint32_t chunks_occluded = 0;      // of those, skipped by their own occlusion test
+    std::uint32_t nodes_visited = 0;        // BVH nodes taken from the traversal's queue
     std::uint32_t triangles_visited = 0;    // reached by the warm start or a drawn chunk
     std::uint32_t back_faces_skipped = 0;   // of those, back faces skipped (skips_back_faces)
     std::uint32_t triangles_occluded = 0;   // skipped by the per-triangle occlusion test
@@ -67,6 +80,7 @@ class MeshScene final : public IScene {
       chunks = chunks > o.chunks ? chunks : o.chunks;
       chunks_in_frustum += o.chunks_in_frustum;
       chunks_occluded += o.chunks_occluded;
+      nodes_visited += o.nodes_visited;
       triangles_visited += o.triangles_visited;
       back_faces_skipped += o.back_faces_skipped;
       triangles_occluded += o.triangles_occluded;
@@ -91,16 +105,20 @@ class MeshScene final : public IScene {
   bool skips_back_faces(const Camera& cam, const ViewParams& params) const;
 
  private:
+  // 24 bytes: the corners and texture coordinates are shared (positions_, uvs_); the normal and
+  // the texel map are computed when the triangle is drawn or shaded (scene_mesh.cpp, TriGeom).
   struct Tri {
-    glm::dvec3 p[3];      // corners, world metres
-    glm::dvec3 n;         // (p1 − p0) × (p2 − p0): the front side
-    glm::dvec3 gu, gv;    // gradients of the level-0 texel coordinates, texels per metre
-    double tu0 = 0.0, tv0 = 0.0;  // texel coordinates at p[0]
-    bool textured = false;
+    std::uint32_t p[3] = {0, 0, 0};  // corners: indices into positions_
+    std::int32_t t[3] = {-1, -1, -1};  // texture coordinates: indices into uvs_; −1: untextured
   };
-  struct Chunk {
-    glm::dvec3 lo, hi;    // bounding box, world metres
-    std::uint32_t first = 0, count = 0;
+  // A node of a bounding-volume hierarchy in preorder: its left child is the next node, `right`
+  // the other one's index; a leaf (right == 0: the root is nobody's child) holds item `item`
+  // (chunk `item`: triangles [16·item, min(16·item + 16, n)); or solids_[item]). The box is in
+  // float rounded outward: culling with a larger box only culls less (the buffer is the same),
+  // and 32 bytes a node halve the walk's cache misses.
+  struct Node {
+    glm::vec3 lo, hi;     // bounding box, world metres
+    std::uint32_t right = 0, item = 0;
   };
   // render (view: the begun per-sample buffer) and render_spans (spans: its fields set but the
   // spans'): the depth pass into this thread's scratch, then resolve.
@@ -109,10 +127,14 @@ class MeshScene final : public IScene {
   void resolve(const Camera& cam, const ViewParams& p, ViewBuffer* view, SpanBuffer* spans) const;
 
   TextureExtent extent_;
-  std::vector<Tri> tris_;
+  std::vector<Tri> tris_;           // in Morton order of their centroids
+  std::vector<glm::dvec3> positions_;  // world metres, each bit pattern once
+  std::vector<glm::dvec2> uvs_;     // texture coordinates, each bit pattern once
   std::vector<std::string> load_warnings_;
-  std::vector<Chunk> chunks_;
-  std::vector<Mesh::Box> solids_;
+  std::vector<Node> chunk_tree_;    // over the chunks of 16 triangles
+  std::vector<Mesh::Box> solids_;   // the bounded ones, in Morton order of their centres
+  std::vector<Node> solid_tree_;    // over solids_ (skips_back_faces: O(log solids) near the camera)
+  std::vector<Mesh::Box> open_solids_;  // solids with an infinite bound, tested one by one
   bool occlusion_culling_ = true;
 };
 
