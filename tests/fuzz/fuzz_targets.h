@@ -60,5 +60,6 @@ void store_replay(const std::uint8_t* data, std::size_t size);
 void image(const std::uint8_t* data, std::size_t size);
 void sweep_spec(const std::uint8_t* data, std::size_t size);
 void access_file(const std::uint8_t* data, std::size_t size);
+void q3_entities(const std::uint8_t* data, std::size_t size);
 
 }  // namespace vtsim::fuzz
