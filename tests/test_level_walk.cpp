@@ -140,6 +140,17 @@ TEST_CASE("level walk: a path walked in order, and a blocked leg or too few wayp
   refused({{1, 4, 1.6}, {1, 1, 0.6}, {30, 30, 0.6}}, tour, "no two of the 3 waypoints");
   tour.speed_mps = -1;
   refused(test::two_room_waypoints(), tour, "speed_mps = -1");
+  tour = LevelWalkParams{};
+  tour.via_grid_m = 0.1;
+  refused(test::two_room_waypoints(), tour, "via_grid_m = 0.1 is not 0 or in [0.25, 1000]");
+  Mesh huge = m;
+  test::add_quad(huge, {0, 0, 0}, {1e8, 0, 0}, {1e8, 1, 0}, {0, 1, 0});
+  try {
+    level_walk(huge, test::two_room_waypoints(), LevelWalkParams{});
+    FAIL("expected InputError");
+  } catch (const InputError& e) {
+    CHECK(test::contains(e.what(), "spans more than 10,000 km"));
+  }
 }
 
 TEST_CASE("level walk: via points join waypoints that no straight leg joins") {

@@ -48,6 +48,8 @@ class LwGrid {
       hi = glm::max(hi, glm::max(a, glm::max(b, c)));
     }
     if (tris_.empty()) throw InputError("level_walk", "the mesh has no triangle of non-zero area");
+    if (!(std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z}) <= 1e7))
+      throw InputError("level_walk", "the mesh spans more than 10,000 km: not a level in metres (see --unit-m)");
     // Pad: a flat level (all z equal) still has cells of non-zero height.
     const double pad = std::max(1e-3, 1e-6 * std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z}));
     lo_ = lo - pad;
@@ -65,6 +67,16 @@ class LwGrid {
     for (int k = 0; k < 3; ++k) cell_[k] = ext[k] / n_[k];
     const std::size_t cells = static_cast<std::size_t>(n_[0]) * static_cast<std::size_t>(n_[1]) *
                               static_cast<std::size_t>(n_[2]);
+    std::uint64_t listed = 0;  // triangle-cell pairs, checked before anything is allocated for them
+    for (const Tri& t : tris_) {
+      const glm::dvec3 b = t.a + t.e1, c = t.a + t.e2;
+      const glm::ivec3 c0 = cell_of(glm::min(t.a, glm::min(b, c))), c1 = cell_of(glm::max(t.a, glm::max(b, c)));
+      listed += static_cast<std::uint64_t>(c1.x - c0.x + 1) * static_cast<std::uint64_t>(c1.y - c0.y + 1) *
+                static_cast<std::uint64_t>(c1.z - c0.z + 1);
+    }
+    if (listed > (std::uint64_t{1} << 27))  // 512 MiB of indices
+      throw InputError("level_walk", fmt::format("the mesh's {} triangles overlap {} grid cells (limit 2^27): many "
+                                                 "large triangles crossing the level", tris_.size(), listed));
     start_.assign(cells + 1, 0);
     for (int pass = 0; pass < 2; ++pass) {
       std::vector<std::uint32_t> fill;
@@ -392,8 +404,11 @@ Trace level_walk(const Mesh& mesh, const std::vector<glm::dvec3>& wp, const Leve
     int cols_x = 0, cols_y = 0;
     if (p.via_grid_m > 0.0) {
       const glm::dvec3 lo = grid.lo(), hi = grid.hi();
-      cols_x = static_cast<int>(std::min(4096.0, std::floor((hi.x - lo.x) / p.via_grid_m) + 1));
-      cols_y = static_cast<int>(std::min(4096.0, std::floor((hi.y - lo.y) / p.via_grid_m) + 1));
+      cols_x = static_cast<int>(std::min(1e7, std::floor((hi.x - lo.x) / p.via_grid_m) + 1));
+      cols_y = static_cast<int>(std::min(1e7, std::floor((hi.y - lo.y) / p.via_grid_m) + 1));
+      if (static_cast<double>(cols_x) * cols_y > 4e6)
+        throw InputError("level_walk", fmt::format("via_grid_m = {} gives {} x {} columns over the mesh (limit 4M): "
+                                                   "raise it", p.via_grid_m, cols_x, cols_y));
       columns.resize(static_cast<std::size_t>(cols_x) * static_cast<std::size_t>(cols_y));
       for (int iy = 0; iy < cols_y; ++iy)
         for (int ix = 0; ix < cols_x; ++ix) {
