@@ -55,6 +55,8 @@ TEST_CASE("level walk: a tour of two rooms through the door, at eye height, neve
   CHECK(st.waypoints == 6);
   CHECK(st.no_floor == 1);     // (30, 30): outside the level
   CHECK(st.unreachable == 1);  // on the pedestal: a 1 m step
+  CHECK(st.no_floor_list == std::vector<std::size_t>{5});
+  CHECK(st.unreachable_list == std::vector<std::size_t>{4});
   CHECK(st.visited == 4);
   REQUIRE(st.order.size() == 4);
   CHECK(st.order[0] == 0);
@@ -194,7 +196,8 @@ TEST_CASE("level walk: the CLI walks a level's spawn points and items through an
   CAPTURE(r.err);
   CHECK(r.code == 0);
   CHECK(test::contains(r.err, "6 waypoints (6 spawns, 0 items, 0 others), 4 visited"));
-  CHECK(test::contains(r.err, "warning: 1 of 6 waypoints have no floor"));
+  CHECK(test::contains(r.err, "warning: 1 of 6 waypoints have no floor within 3 m below them, left out: "
+                                      "info_player_deathmatch (30.00, 30.00, 0.60) m"));
   CHECK(test::contains(test::slurp(out), "level_walk waypoints=6 visited=4"));
   const test::CliRun bad = test::run_vtsim_capture("trace level-walk --mesh " + (dir / "level.obj").string() + " -o " + out,
                                                    (dir / "err.txt").string());

@@ -514,6 +514,7 @@ void register_level_walk(CLI::App* trace) {
       throw InputError("level", "give a level (.bsp or .pk3) or --waypoints FILE, one of the two");
     std::vector<glm::dvec3> wp;
     std::size_t spawns = 0, items = 0, others = 0;
+    std::vector<std::string> names;  // classname per waypoint (a level's)
     if (!a->waypoints.empty()) {
       wp = read_waypoints(a->waypoints);
       a->p.in_order = true;
@@ -528,6 +529,7 @@ void register_level_walk(CLI::App* trace) {
                                         : a->all_points && !spawn && !item && e.classname != "light";
           if (!e.origin || !take) continue;
           wp.push_back(*e.origin * a->unit_m);
+          names.push_back(e.classname);
           ++(pass == 0 ? spawns : pass == 1 ? items : others);
         }
       if (spawns == 0) warn(fmt::format("{}: no spawn point (info_player_*, team_CTF_*)", a->level));
@@ -535,10 +537,22 @@ void register_level_walk(CLI::App* trace) {
     const Mesh mesh = lw_load_level_mesh(a->mesh, a->unit_m);
     LevelWalkStats st;
     const Trace t = level_walk(mesh, wp, a->p, &st);
-    if (st.no_floor) warn(fmt::format("{} of {} waypoints have no floor within {} m below them: left out", st.no_floor,
-                                      st.waypoints, a->p.probe_m));
+    // "item_health (3.2, 4, 0.61) m, ..." for the first 8 waypoints left out for a reason.
+    const auto which = [&](const std::vector<std::size_t>& idx) {
+      std::string list;
+      for (std::size_t k = 0; k < idx.size() && k < 8; ++k) {
+        const glm::dvec3& q = wp[idx[k]];
+        list += fmt::format("{}{}{}({:.2f}, {:.2f}, {:.2f}) m", k ? ", " : "", names.empty() ? "" : names[idx[k]],
+                            names.empty() ? "" : " ", q.x, q.y, q.z);
+      }
+      return list + (idx.size() > 8 ? ", ..." : "");
+    };
+    if (st.no_floor)
+      warn(fmt::format("{} of {} waypoints have no floor within {} m below them, left out: {}", st.no_floor,
+                       st.waypoints, a->p.probe_m, which(st.no_floor_list)));
     if (st.unreachable)
-      warn(fmt::format("{} of {} waypoints are not reachable from the start: left out", st.unreachable, st.waypoints));
+      warn(fmt::format("{} of {} waypoints are not reachable from the start, left out: {}", st.unreachable,
+                       st.waypoints, which(st.unreachable_list)));
     save_trace(t, a->out);
     fmt::print(stderr, "legs refused: {} no line of sight, {} no floor within a step, {} no headroom, {} blocked, {} "
                "other level\n", st.refused[0], st.refused[1], st.refused[2], st.refused[3], st.refused[4]);

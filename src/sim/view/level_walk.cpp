@@ -365,8 +365,9 @@ Trace level_walk(const Mesh& mesh, const std::vector<glm::dvec3>& wp, const Leve
   std::vector<char> has_floor(n, 0);
   for (std::size_t i = 0; i < n; ++i) {
     has_floor[i] = walker.floor_below({wp[i].x, wp[i].y}, wp[i].z + 0.1, p.probe_m + 0.1, floor[i]);
-    st.no_floor += has_floor[i] ? 0 : 1;
+    if (!has_floor[i]) st.no_floor_list.push_back(i);
   }
+  st.no_floor = st.no_floor_list.size();
   const auto xy = [&](std::size_t i) { return glm::dvec2(wp[i].x, wp[i].y); };
 
   LwPath path;
@@ -552,7 +553,9 @@ Trace level_walk(const Mesh& mesh, const std::vector<glm::dvec3>& wp, const Leve
       }
       cur = target;
     }
-    for (std::size_t i = 0; i < n; ++i) st.unreachable += has_floor[i] && !visited[i] ? 1 : 0;
+    for (std::size_t i = 0; i < n; ++i)
+      if (has_floor[i] && !visited[i]) st.unreachable_list.push_back(i);
+    st.unreachable = st.unreachable_list.size();
   }
   st.visited = order.size();
   st.order = order;

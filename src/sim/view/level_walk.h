@@ -55,6 +55,7 @@ struct LevelWalkStats {
   std::size_t visited = 0;        // waypoints the walk passes
   std::size_t unreachable = 0;    // with a floor, outside the walked part of the graph (excluded)
   std::vector<std::size_t> order; // waypoints in the order the walk reaches them (indices)
+  std::vector<std::size_t> no_floor_list, unreachable_list;  // the waypoints left out (indices)
   double path_length_m = 0.0;     // of the tour, 3-D along the floor samples, metres
   double tour_s = 0.0;            // one pass of the tour at speed_mps, seconds
   std::size_t rays = 0;           // raycasts made (segments and downward probes)
