@@ -23,17 +23,17 @@ while (($#)); do
 done
 ((${#maps[@]})) || maps=(oa_dm1 oa_minia)
 base=/usr/share/games/openarena/baseoa
-if ! dpkg-query -W -f='${Status}' openarena-data 2>/dev/null | grep -q "install ok installed"; then
-  if [ "$(id -u)" -ne 0 ] && ! command -v sudo >/dev/null; then
-    echo "fetch_levels: the Debian package openarena-data (~350 MB) is needed; install it as root:" >&2
-    echo "  apt-get install openarena-data" >&2
+# shellcheck source=scripts/packages.sh
+. "$here/scripts/packages.sh"
+for p in openarena-data python3; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" &&
+     [ "$(id -u)" -ne 0 ] && ! command -v sudo >/dev/null; then
+    echo "fetch_levels: the Debian package $p is needed (openarena-data: ~350 MB); install it as root:" >&2
+    echo "  apt-get install $p" >&2
     exit 2
   fi
-  # shellcheck source=scripts/packages.sh
-  . "$here/scripts/packages.sh"
-  ensure_packages openarena-data python3
-fi
-command -v python3 >/dev/null || { . "$here/scripts/packages.sh"; ensure_packages python3; }
+done
+ensure_packages openarena-data python3
 mkdir -p "$out"
 python3 - "$base" "$out" "$list" "${maps[@]}" <<'PY'
 import glob, io, os, sys, zipfile
