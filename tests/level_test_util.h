@@ -74,21 +74,21 @@ inline std::string make_zip(const std::string& name, const std::string& data, in
   return z;
 }
 
-inline void add_quad(Mesh& m, glm::dvec3 a, glm::dvec3 b, glm::dvec3 c, glm::dvec3 d) {
+inline void level_add_quad(Mesh& m, glm::dvec3 a, glm::dvec3 b, glm::dvec3 c, glm::dvec3 d) {
   const auto base = static_cast<std::uint32_t>(m.positions.size());
   m.positions.insert(m.positions.end(), {a, b, c, d});
   m.tris.push_back({{base, base + 1, base + 2}, {-1, -1, -1}});
   m.tris.push_back({{base, base + 2, base + 3}, {-1, -1, -1}});
 }
 
-inline void add_box(Mesh& m, glm::dvec3 lo, glm::dvec3 hi) {
+inline void level_add_box(Mesh& m, glm::dvec3 lo, glm::dvec3 hi) {
   const auto p = [&](int x, int y, int z) { return glm::dvec3(x ? hi.x : lo.x, y ? hi.y : lo.y, z ? hi.z : lo.z); };
-  add_quad(m, p(0, 0, 0), p(0, 1, 0), p(1, 1, 0), p(1, 0, 0));  // bottom
-  add_quad(m, p(0, 0, 1), p(1, 0, 1), p(1, 1, 1), p(0, 1, 1));  // top
-  add_quad(m, p(0, 0, 0), p(1, 0, 0), p(1, 0, 1), p(0, 0, 1));  // -y
-  add_quad(m, p(0, 1, 0), p(0, 1, 1), p(1, 1, 1), p(1, 1, 0));  // +y
-  add_quad(m, p(0, 0, 0), p(0, 0, 1), p(0, 1, 1), p(0, 1, 0));  // -x
-  add_quad(m, p(1, 0, 0), p(1, 1, 0), p(1, 1, 1), p(1, 0, 1));  // +x
+  level_add_quad(m, p(0, 0, 0), p(0, 1, 0), p(1, 1, 0), p(1, 0, 0));  // bottom
+  level_add_quad(m, p(0, 0, 1), p(1, 0, 1), p(1, 1, 1), p(0, 1, 1));  // top
+  level_add_quad(m, p(0, 0, 0), p(1, 0, 0), p(1, 0, 1), p(0, 0, 1));  // -y
+  level_add_quad(m, p(0, 1, 0), p(0, 1, 1), p(1, 1, 1), p(1, 1, 0));  // +y
+  level_add_quad(m, p(0, 0, 0), p(0, 0, 1), p(0, 1, 1), p(0, 1, 0));  // -x
+  level_add_quad(m, p(1, 0, 0), p(1, 1, 0), p(1, 1, 1), p(1, 0, 1));  // +x
 }
 
 // Two rooms 5 m x 5 m x 3 m, A (x 0..5) and B (x 6..11), joined through a 1 m thick wall by a door
@@ -97,17 +97,17 @@ inline void add_box(Mesh& m, glm::dvec3 lo, glm::dvec3 hi) {
 // x 2..3, y 0..5 (a step up and down on the way to the door).
 inline Mesh two_room_level(bool step = false) {
   Mesh m;
-  add_quad(m, {-1, -1, 0}, {12, -1, 0}, {12, 6, 0}, {-1, 6, 0});  // floor
-  add_quad(m, {-1, -1, 3}, {-1, 6, 3}, {12, 6, 3}, {12, -1, 3});  // ceiling
-  add_box(m, {-1, -1, 0}, {0, 6, 3});     // west wall
-  add_box(m, {11, -1, 0}, {12, 6, 3});    // east wall
-  add_box(m, {0, -1, 0}, {11, 0, 3});     // south wall
-  add_box(m, {0, 5, 0}, {11, 6, 3});      // north wall
-  add_box(m, {5, 0, 0}, {6, 1.5, 3});     // dividing wall, south of the door
-  add_box(m, {5, 3.5, 0}, {6, 5, 3});     // north of the door
-  add_box(m, {5, 1.5, 2.5}, {6, 3.5, 3}); // lintel
-  add_box(m, {0.5, 3.5, 0}, {1.5, 4.5, 1});  // pedestal
-  if (step) add_box(m, {2, 0, 0}, {3, 5, 0.3});
+  level_add_quad(m, {-1, -1, 0}, {12, -1, 0}, {12, 6, 0}, {-1, 6, 0});  // floor
+  level_add_quad(m, {-1, -1, 3}, {-1, 6, 3}, {12, 6, 3}, {12, -1, 3});  // ceiling
+  level_add_box(m, {-1, -1, 0}, {0, 6, 3});     // west wall
+  level_add_box(m, {11, -1, 0}, {12, 6, 3});    // east wall
+  level_add_box(m, {0, -1, 0}, {11, 0, 3});     // south wall
+  level_add_box(m, {0, 5, 0}, {11, 6, 3});      // north wall
+  level_add_box(m, {5, 0, 0}, {6, 1.5, 3});     // dividing wall, south of the door
+  level_add_box(m, {5, 3.5, 0}, {6, 5, 3});     // north of the door
+  level_add_box(m, {5, 1.5, 2.5}, {6, 3.5, 3}); // lintel
+  level_add_box(m, {0.5, 3.5, 0}, {1.5, 4.5, 1});  // pedestal
+  if (step) level_add_box(m, {2, 0, 0}, {3, 5, 0.3});
   return m;
 }
 

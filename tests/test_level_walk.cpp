@@ -146,7 +146,7 @@ TEST_CASE("level walk: a path walked in order, and a blocked leg or too few wayp
   tour.via_grid_m = 0.1;
   refused(test::two_room_waypoints(), tour, "via_grid_m = 0.1 is not 0 or in [0.25, 1000]");
   Mesh huge = m;
-  test::add_quad(huge, {0, 0, 0}, {1e8, 0, 0}, {1e8, 1, 0}, {0, 1, 0});
+  test::level_add_quad(huge, {0, 0, 0}, {1e8, 0, 0}, {1e8, 1, 0}, {0, 1, 0});
   try {
     level_walk(huge, test::two_room_waypoints(), LevelWalkParams{});
     FAIL("expected InputError");
