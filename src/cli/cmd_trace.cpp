@@ -21,6 +21,9 @@
 #include "sim/trace/trace_io.h"
 #include "sim/trace/trace_resample.h"
 #include "sim/trace/trace_stats.h"
+#include "sim/view/level_walk.h"
+#include "sim/view/mesh.h"
+#include "sim/view/q3_entities.h"
 
 namespace vtsim::cli {
 
@@ -453,6 +456,114 @@ void register_info(CLI::App* trace) {
   });
 }
 
+
+// The level's mesh in world metres. THE IMPORTER HOOK: today an OBJ (load_obj) whose coordinates
+// are in the level's units (Quake units for an OpenArena level exported as it is), scaled by
+// unit_m, z up; at the assimp importer's merge this becomes its import_mesh with the same unit
+// scale and up axis (a .pk3 level read directly).
+Mesh lw_load_level_mesh(const std::string& path, double unit_m) {
+  ObjStats os;
+  Mesh m = load_obj(path, &os);
+  for (const std::string& w : obj_warnings(os, path)) warn(w);
+  for (glm::dvec3& q : m.positions) q *= unit_m;
+  return m;
+}
+
+void register_level_walk(CLI::App* trace) {
+  struct Args {
+    std::string level, mesh, waypoints, out, image;
+    double unit_m = 0.0254;
+    bool no_items = false, all_points = false;
+    LevelWalkParams p;
+  };
+  auto a = std::make_shared<Args>();
+  auto* c = trace->add_subcommand("level-walk", "A camera walk through a level's spawn points and items");
+  c->footer(
+      "Waypoints: the spawn points (info_player_*, team_CTF_*) of a Quake 3 level (.bsp, or a .pk3\n"
+      "from scripts/fetch_levels.sh) in file order, then its items (weapon_*, item_*, ammo_*),\n"
+      "scaled by --unit-m; or --waypoints FILE (x y z per line, world metres) walked in order.\n"
+      "The tour starts at the first waypoint with a walkable neighbour and goes to the nearest\n"
+      "unvisited one along walkable legs until none is reachable (docs/traces.md, \"Walks through a\n"
+      "level\"; docs/levels.md). Example:\n"
+      "  scripts/fetch_levels.sh && vtsim trace level-walk build/levels/oa_dm1.bsp \\\n"
+      "      --mesh oa_dm1.obj -o oa_dm1_walk.csv");
+  c->add_option("level", a->level, "Quake 3 level (.bsp or .pk3) whose entities give the waypoints");
+  c->add_option("--mesh", a->mesh, "The level's geometry (.obj, in the level's units)")->required();
+  c->add_option("-o,--output", a->out, "Output native trace (.csv; - for stdout)")->required();
+  c->add_option("--waypoints", a->waypoints, "Walk these points in order instead (x y z per line, metres)");
+  c->add_option("--unit-m", a->unit_m, "Metres per level unit (Quake: 1 unit = 1 inch)")->capture_default_str();
+  c->add_flag("--no-items", a->no_items, "Spawn points only, not items");
+  c->add_flag("--all-entities", a->all_points,
+              "Also every other entity with an origin but lights (targets, teleport destinations...): more legs");
+  c->add_option("--speed", a->p.speed_mps, "Walking speed, m/s")->capture_default_str();
+  c->add_option("--eye", a->p.eye_m, "Eye height above the floor, m")->capture_default_str();
+  c->add_option("--duration", a->p.duration_s, "Seconds (0: one tour; longer: back and forth)")->capture_default_str();
+  c->add_option("--fps", a->p.fps, "Frames per second")->capture_default_str();
+  c->add_option("--pitch", a->p.pitch_deg, "Pitch in degrees, up positive")->capture_default_str();
+  c->add_option("--vfov", a->p.vfov_deg, "Vertical field of view in degrees")->capture_default_str();
+  c->add_option("--image", a->image, "Image size WxH in pixels (default 1920x1080)");
+  c->add_option("--max-leg", a->p.max_leg_m, "Waypoints further apart are not joined directly, m")->capture_default_str();
+  c->add_option("--via-grid", a->p.via_grid_m, "Via points on a grid this far apart, m (0: none)")->capture_default_str();
+  c->add_option("--max-turn", a->p.max_turn_dps, "Yaw turning rate limit, deg/s")->capture_default_str();
+  c->callback([a] {
+    check_output("--output", a->out);
+    if (!std::isfinite(a->unit_m) || a->unit_m <= 0.0 || a->unit_m > 1e3)
+      throw InputError("--unit-m", fmt::format("{} is not in (0, 1000]", a->unit_m));
+    if (!a->image.empty()) parse_image(a->image, a->p.image_width, a->p.image_height);
+    if (a->level.empty() == a->waypoints.empty())
+      throw InputError("level", "give a level (.bsp or .pk3) or --waypoints FILE, one of the two");
+    std::vector<glm::dvec3> wp;
+    std::size_t spawns = 0, items = 0, others = 0;
+    std::vector<std::string> names;  // classname per waypoint (a level's)
+    if (!a->waypoints.empty()) {
+      wp = read_waypoints(a->waypoints);
+      a->p.in_order = true;
+    } else {
+      const std::vector<Q3Entity> es = read_q3_entities(a->level);
+      // Spawn points first (the tour starts at the first one of the largest walkable part).
+      for (int pass = 0; pass < 3; ++pass)
+        for (const Q3Entity& e : es) {
+          const bool spawn = is_q3_spawn(e), item = is_q3_item(e);
+          const bool take = pass == 0   ? spawn
+                            : pass == 1 ? !a->no_items && item
+                                        : a->all_points && !spawn && !item && e.classname != "light";
+          if (!e.origin || !take) continue;
+          wp.push_back(*e.origin * a->unit_m);
+          names.push_back(e.classname);
+          ++(pass == 0 ? spawns : pass == 1 ? items : others);
+        }
+      if (spawns == 0) warn(fmt::format("{}: no spawn point (info_player_*, team_CTF_*)", a->level));
+    }
+    const Mesh mesh = lw_load_level_mesh(a->mesh, a->unit_m);
+    LevelWalkStats st;
+    const Trace t = level_walk(mesh, wp, a->p, &st);
+    // "item_health (3.2, 4, 0.61) m, ..." for the first 8 waypoints left out for a reason.
+    const auto which = [&](const std::vector<std::size_t>& idx) {
+      std::string list;
+      for (std::size_t k = 0; k < idx.size() && k < 8; ++k) {
+        const glm::dvec3& q = wp[idx[k]];
+        list += fmt::format("{}{}{}({:.2f}, {:.2f}, {:.2f}) m", k ? ", " : "", names.empty() ? "" : names[idx[k]],
+                            names.empty() ? "" : " ", q.x, q.y, q.z);
+      }
+      return list + (idx.size() > 8 ? ", ..." : "");
+    };
+    if (st.no_floor)
+      warn(fmt::format("{} of {} waypoints have no floor within {} m below them, left out: {}", st.no_floor,
+                       st.waypoints, a->p.probe_m, which(st.no_floor_list)));
+    if (st.unreachable)
+      warn(fmt::format("{} of {} waypoints are not reachable from the start, left out: {}", st.unreachable,
+                       st.waypoints, which(st.unreachable_list)));
+    save_trace(t, a->out);
+    fmt::print(stderr, "legs refused: {} no line of sight, {} no floor within a step, {} no headroom, {} blocked, {} "
+               "other level\n", st.refused[0], st.refused[1], st.refused[2], st.refused[3], st.refused[4]);
+    fmt::print(stderr,
+               "level walk: {} waypoints ({} spawns, {} items, {} others), {} visited; {} via points, {} walkable legs; path {:.1f} m, tour "
+               "{:.1f} s; {} triangles, {} raycasts\n",
+               st.waypoints, spawns, items, others, st.visited, st.via_points, st.legs, st.path_length_m, st.tour_s, mesh.tris.size(), st.rays);
+    if (a->out != "-") fmt::print(stderr, "wrote {} poses ({:.1f} s) to {}\n", t.poses.size(), t.poses.back().t_s, a->out);
+  });
+}
+
 }  // namespace
 
 void register_trace_commands(CLI::App& app) {
@@ -463,6 +574,7 @@ void register_trace_commands(CLI::App& app) {
   register_export(trace);
   register_resample(trace);
   register_info(trace);
+  register_level_walk(trace);
 }
 
 }  // namespace vtsim::cli
