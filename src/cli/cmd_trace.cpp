@@ -3,6 +3,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <filesystem>
 #include <memory>
 #include <numbers>
 #include <nlohmann/json.hpp>
@@ -23,7 +24,9 @@
 #include "sim/trace/trace_stats.h"
 #include "sim/view/level_walk.h"
 #include "sim/view/mesh.h"
+#include "sim/view/mesh_import.h"
 #include "sim/view/q3_entities.h"
+#include "sim/view/scene.h"
 
 namespace vtsim::cli {
 
@@ -461,11 +464,29 @@ void register_info(CLI::App* trace) {
 // are in the level's units (Quake units for an OpenArena level exported as it is), scaled by
 // unit_m, z up; at the assimp importer's merge this becomes its import_mesh with the same unit
 // scale and up axis (a .pk3 level read directly).
+// The level's mesh in world metres: an OBJ through load_obj (scaled by unit_m, z up), anything
+// else (a Quake 3 .pk3, glTF, ...) through import_mesh with the same scale, its up axis "auto" (z
+// for Quake 3, where the entity origins are read). Only the geometry matters to the walk: the
+// texture regions are laid out in the default scene's texture.
 Mesh lw_load_level_mesh(const std::string& path, double unit_m) {
-  ObjStats os;
-  Mesh m = load_obj(path, &os);
-  for (const std::string& w : obj_warnings(os, path)) warn(w);
-  for (glm::dvec3& q : m.positions) q *= unit_m;
+  const std::string ext = std::filesystem::path(path).extension().string();
+  if (ext == ".obj" || ext == ".OBJ") {
+    ObjStats os;
+    Mesh m = load_obj(path, &os);
+    for (const std::string& w : obj_warnings(os, path)) warn(w);
+    for (glm::dvec3& q : m.positions) q *= unit_m;
+    return m;
+  }
+  MeshImportOptions o;
+  o.unit_m = unit_m;
+  if (mesh_up_axis(o, path) != "z")
+    throw InputError(path, "a level walk reads waypoints in the file's own z-up frame; this file is y-up "
+                           "(give --waypoints in world metres and a z-up mesh, or convert it)");
+  const SceneConfig defaults;
+  const TextureExtent ext_tex = scene_texture(defaults);
+  MeshImportStats st;
+  Mesh m = import_mesh(path, o, ext_tex.width, ext_tex.height, &st);
+  for (const std::string& w : mesh_import_warnings(st, path)) warn(w);
   return m;
 }
 
@@ -486,9 +507,9 @@ void register_level_walk(CLI::App* trace) {
       "unvisited one along walkable legs until none is reachable (docs/traces.md, \"Walks through a\n"
       "level\"; docs/levels.md). Example:\n"
       "  scripts/fetch_levels.sh && vtsim trace level-walk build/levels/oa_dm1.bsp \\\n"
-      "      --mesh oa_dm1.obj -o oa_dm1_walk.csv");
+      "      --mesh build/levels/oa_dm1.pk3 -o oa_dm1_walk.csv");
   c->add_option("level", a->level, "Quake 3 level (.bsp or .pk3) whose entities give the waypoints");
-  c->add_option("--mesh", a->mesh, "The level's geometry (.obj, in the level's units)")->required();
+  c->add_option("--mesh", a->mesh, "The level's geometry, in the level's units (a .pk3 from scripts/fetch_levels.sh, glTF, ... or .obj)")->required();
   c->add_option("-o,--output", a->out, "Output native trace (.csv; - for stdout)")->required();
   c->add_option("--waypoints", a->waypoints, "Walk these points in order instead (x y z per line, metres)");
   c->add_option("--unit-m", a->unit_m, "Metres per level unit (Quake: 1 unit = 1 inch)")->capture_default_str();
