@@ -150,7 +150,7 @@ int main(int argc, char** argv) {
   if (render && is_mesh) {
     const double n = frames;
     const auto per = [&](double v) { return v / n; };
-    fmt::print("render work per frame (walk): chunks {} in the mesh, {:.0f} in the frustum, {:.0f} occluded; triangles "
+    fmt::print("render work per frame (walk): chunks {} in the mesh, {:.0f} reached by the BVH walk, {:.0f} occluded; triangles "
                "{:.0f} visited, {:.0f} back faces skipped, {:.0f} occluded, {:.0f} rasterised over {:.0f} rows, {:.0f} "
                "depth tests ({:.2f} per buffer sample), {:.1f} visible; resolve {:.0f} runs, {:.0f} samples, {:.0f} spans\n",
                walk_work.chunks, per(walk_work.chunks_in_frustum), per(walk_work.chunks_occluded),

@@ -7,11 +7,14 @@
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
 #include <glm/geometric.hpp>
 #include <glm/gtc/quaternion.hpp>
 
 #include "core/error.h"
 #include "level_test_util.h"
+#include "sim/trace/trace_io.h"
 #include "sim/view/level_walk.h"
 #include "test_util.h"
 
@@ -215,4 +218,30 @@ TEST_CASE("level walk: waypoint files") {
   CHECK_THROWS_WITH_AS(read_waypoints(path), doctest::Contains((path + ":2").c_str()), InputError);
   std::ofstream(path) << "1 1 x\n";
   CHECK_THROWS_WITH_AS(read_waypoints(path), doctest::Contains((path + ":1").c_str()), InputError);
+}
+
+TEST_CASE("level walk: the CLI reads a Quake 3 .pk3 mesh through the importer (scaled by --unit-m, z up)") {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("vtsim_lw_pk3_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  // tests/data/make_quad_q3_pk3.py: one 64 × 32-unit quad at z = 8 units = 0.2032 m, 1.63 × 0.81 m.
+  const std::string pk3 = std::string(VTSIM_TEST_DATA) + "/quad_q3.pk3";
+  std::ofstream(dir / "wp.txt") << "0.3 0.3 0.5\n1.3 0.5 0.5\n";
+  const std::string out = (dir / "walk.csv").string();
+  const test::CliRun r = test::run_vtsim_capture(
+      "trace level-walk --waypoints " + (dir / "wp.txt").string() + " --mesh " + pk3 + " -o " + out,
+      (dir / "err.txt").string());
+  CAPTURE(r.err);
+  REQUIRE(r.code == 0);
+  CHECK(test::contains(r.err, "2 visited"));
+  const Trace t = load_trace(out);
+  REQUIRE(t.poses.size() > 2);
+  for (const Pose& p : t.poses) CHECK(p.pos_m.z == doctest::Approx(8 * 0.0254 + 1.7).epsilon(1e-9));
+  // A mesh file that is not there: exit 2, the file named.
+  const test::CliRun missing = test::run_vtsim_capture(
+      "trace level-walk --waypoints " + (dir / "wp.txt").string() + " --mesh " + (dir / "none.pk3").string() + " -o " + out,
+      (dir / "err.txt").string());
+  CHECK(missing.code == 2);
+  CHECK(test::contains(missing.err, "none.pk3"));
+  fs::remove_all(dir);
 }
