@@ -51,22 +51,7 @@ Mesh scaling_town(int blocks, int tiles, SceneConfig& cfg) {
   const double S = town_size_m(cfg);
   cfg.size_x_m = cfg.size_y_m = std::max(4.0 * S, 2048.0);  // the ground, then the shelf-packed walls and roofs
   const Mesh base = generate_town(cfg);
-  if (tiles == 1) return base;
-  Mesh m;
-  for (int j = 0; j < tiles; ++j)
-    for (int i = 0; i < tiles; ++i) {
-      const glm::dvec3 off(i * S, j * S, 0.0);
-      const auto p0 = static_cast<std::uint32_t>(m.positions.size());
-      for (const glm::dvec3& p : base.positions) m.positions.push_back(p + off);
-      for (Mesh::Tri t : base.tris) {
-        for (auto& v : t.p) v += p0;
-        m.tris.push_back(t);
-      }
-      for (const Mesh::Box& b : base.solids)
-        if (std::isfinite(b.lo.x) || (i == 0 && j == 0)) m.solids.push_back(Mesh::Box{b.lo + off, b.hi + off});
-    }
-  m.uvs = base.uvs;
-  return m;
+  return tiles == 1 ? base : tile_town(base, S, tiles);
 }
 
 struct Built {

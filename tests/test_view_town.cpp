@@ -299,26 +299,9 @@ TEST_CASE("town: render work counts add up, and culling is what removes the work
 
 namespace {
 
-// The town of `cfg` repeated tiles × tiles side by side (an instanced town: bench_mesh_scaling's
-// large scenes), the half-space under the ground kept once.
+// The town of `cfg` repeated tiles × tiles side by side (tile_town: an instanced town).
 Mesh town_tiled_for_test(const SceneConfig& cfg, int tiles) {
-  const Mesh base = generate_town(cfg);
-  const double S = town_size_m(cfg);
-  Mesh m;
-  m.uvs = base.uvs;
-  for (int j = 0; j < tiles; ++j)
-    for (int i = 0; i < tiles; ++i) {
-      const glm::dvec3 off(i * S, j * S, 0.0);
-      const auto p0 = static_cast<std::uint32_t>(m.positions.size());
-      for (const glm::dvec3& p : base.positions) m.positions.push_back(p + off);
-      for (Mesh::Tri t : base.tris) {
-        for (auto& v : t.p) v += p0;
-        m.tris.push_back(t);
-      }
-      for (const Mesh::Box& b : base.solids)
-        if (std::isfinite(b.lo.x) || (i == 0 && j == 0)) m.solids.push_back(Mesh::Box{b.lo + off, b.hi + off});
-    }
-  return m;
+  return tile_town(generate_town(cfg), town_size_m(cfg), tiles);
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <string>
 
 #include <glm/geometric.hpp>
@@ -170,6 +171,24 @@ Mesh generate_town(const SceneConfig& cfg) {
 // The table's "town" (scene.cpp).
 std::unique_ptr<IScene> make_town_scene(const SceneConfig& cfg, TextureExtent extent) {
   return std::make_unique<MeshScene>(generate_town(cfg), extent);
+}
+
+Mesh tile_town(const Mesh& town, double period_m, int tiles) {
+  Mesh m;
+  m.uvs = town.uvs;
+  for (int j = 0; j < tiles; ++j)
+    for (int i = 0; i < tiles; ++i) {
+      const glm::dvec3 off(i * period_m, j * period_m, 0.0);
+      const auto p0 = static_cast<std::uint32_t>(m.positions.size());
+      for (const glm::dvec3& p : town.positions) m.positions.push_back(p + off);
+      for (Mesh::Tri t : town.tris) {
+        for (auto& v : t.p) v += p0;
+        m.tris.push_back(t);
+      }
+      for (const Mesh::Box& b : town.solids)
+        if (std::isfinite(b.lo.x) || (i == 0 && j == 0)) m.solids.push_back(Mesh::Box{b.lo + off, b.hi + off});
+    }
+  return m;
 }
 
 }  // namespace vtsim

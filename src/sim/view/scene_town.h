@@ -18,4 +18,10 @@ Mesh generate_town(const SceneConfig& cfg);
 // Side length S of the town square, metres.
 double town_size_m(const SceneConfig& cfg);
 
+// `town` repeated tiles × tiles side by side, tile (i, j) shifted by (i, j)·period_m along x and y
+// (an instanced town: bench_mesh_scaling's large scenes). Texture coordinates are shared, not
+// repeated into new texels; solids are shifted with their tile, infinite ones (the half-space
+// under the ground) kept once. tiles ≥ 1; the result has tiles² times the triangles.
+Mesh tile_town(const Mesh& town, double period_m, int tiles);
+
 }  // namespace vtsim
