@@ -83,7 +83,7 @@ void parse_view_size(const std::string& s, int& w, int& h) {
 }
 
 void run_view(const ViewOptions& o) {
-  SceneConfig cfg;
+  SceneConfig cfg = o.mesh;  // the --mesh-* flags; every other field is set below
   cfg.kind = find_scene(o.scene).name;
   cfg.size_x_m = cfg.size_y_m = o.terrain_size_m;
   cfg.texels_per_m = o.texels_per_m;
@@ -92,12 +92,6 @@ void run_view(const ViewOptions& o) {
   cfg.height_scale_m = o.height_scale_m;
   cfg.z0_m = o.z0_m;
   cfg.seed = o.seed;
-  cfg.mesh_loader = o.mesh.mesh_loader;
-  cfg.mesh_unit_m = o.mesh.mesh_unit_m;
-  cfg.mesh_up = o.mesh.mesh_up;
-  cfg.mesh_uv_set = o.mesh.mesh_uv_set;
-  cfg.mesh_no_uv = o.mesh.mesh_no_uv;
-  cfg.mesh_planar_m = o.mesh.mesh_planar_m;
   if (o.zoom < 1 || o.zoom > 64) throw InputError("--zoom", "must be in [1, 64]");
   // Checked whether or not the scene reads them (the generated heightfield has no height scale).
   if (!(o.spacing_m > 0.0) || !std::isfinite(o.spacing_m)) throw InputError("--spacing", "must be finite and > 0");
