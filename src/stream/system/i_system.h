@@ -17,6 +17,7 @@
 #include "core/trace.h"
 #include "core/view.h"
 #include "core/view_spans.h"
+#include "stream/exec/produce.h"
 #include "stream/throttle/i_throttle.h"
 
 namespace vtsim {
@@ -67,6 +68,9 @@ class IStreamingSystem : public IResidency {
   // texturing: every layer of a page shares one slot), or -1 when the key alone places it (the
   // clipmap's toroidal windows). The real clock copies the tile's texels there.
   virtual std::int64_t vram_slot(TileKey) const { return -1; }
+  // A produced tile (stream/exec/produce.h): true and its work when `key` is rendered by a
+  // producer instead of read from the store. Systems that only stream return false.
+  virtual bool produced(TileKey /*key*/, ProduceWork& /*work*/) const { return false; }
   virtual void set_mark_sampled(bool on) = 0;
   // True when the system reads SystemFrame::spans and resolves spans (span_resident_levels); the
   // frame loop then renders spans only. Otherwise it also passes the per-sample buffer (`view`).
