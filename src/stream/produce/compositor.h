@@ -1,0 +1,91 @@
+#pragma once
+// The CPU compositor of procedural virtual texturing (seed 002's produced tiles): one output tile
+// of a clipmap level, T x T RGBA8 plus a border, blended from up to 16 brush layers of an Atlas
+// (atlas.h) through per-texel weights from RGBA8 masks (4 layers a mask, bilinear).
+// docs/produced.md, "The compositor".
+//
+// Sampling follows seed 004: the level comes from the *unwrapped* uv derivative (footprint =
+// m_per_texel / period_m * S texels, lod = log2, rounded, clamped to the levels the border covers);
+// then frac() wraps into the cell, the half-texel inset keeps the taps inside it, bilinear with 8
+// bits of sub-texel position (D3D's required subtexel precision). Weights are normalised per texel
+// to kWeightOne (2^14: the largest power of two whose 1.0 fits int16, so a weight times a byte
+// summed over 16 layers fits 32 bits with room); out = (sum w c + 2^13) >> 14, round half up.
+//
+// Complexity: O(texels x active layers). Thread-safety: a Compositor holds scratch rows; use one
+// per thread. No allocation per texel, no virtual call in the inner loops.
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "stream/exec/produce.h"
+#include "stream/produce/atlas.h"
+
+namespace vtsim::produce {
+
+inline constexpr int kMaxLayers = 16;         // 4 RGBA8 masks of 4 weights
+inline constexpr int kWeightBits = 14;        // see the file comment
+inline constexpr int kWeightOne = 1 << kWeightBits;
+
+struct BrushLayer {
+  int cell = 0;          // brush index in the atlas
+  double period_m = 1;   // metres one repeat of the brush covers
+};
+
+// Weights of layers 4i..4i+3 in the channels of mask i, over a world rectangle.
+struct WeightMask {
+  int width = 0, height = 0;               // texels
+  const std::uint8_t* rgba = nullptr;      // width * height * 4
+  double origin_x_m = 0, origin_y_m = 0;   // world position of texel (0, 0)'s corner, m
+  double m_per_texel = 1;                  // m
+};
+
+struct Decal {
+  double x0_m = 0, y0_m = 0, x1_m = 0, y1_m = 0;  // world rectangle, m (counted, not yet rendered)
+};
+
+struct CompositeJob {
+  const Atlas* atlas = nullptr;
+  std::span<const BrushLayer> layers;   // <= kMaxLayers
+  std::span<const WeightMask> masks;    // mask i weights layers 4i..4i+3
+  std::span<const Decal> decals;
+  double origin_x_m = 0, origin_y_m = 0;  // world position of payload texel (0, 0)'s corner, m
+  double m_per_texel = 1;                 // m
+  int tile = 128;                         // payload side T, texels
+  int border = 0;                         // texels around the payload
+};
+
+// The level of `atlas` a layer samples for texels of m_per_texel: round(log2(m_per_texel /
+// period_m * S)) clamped to [0, atlas.max_level()].
+int select_level(const Atlas& atlas, double m_per_texel, double period_m);
+// lod of a uv derivative (brush repeats per output texel) for a brush of side s: log2(|du| s).
+double lod_from_derivative(double du_per_texel, int side);
+
+// The layers a job blends (bit i = layer i): those whose mask channel is non-zero somewhere under
+// the tile's bilinear footprint; layer 0 when none is.
+std::uint32_t active_layers(const CompositeJob& job);
+// What the job costs (exec/produce.h): texels with border, active layers, overlapping decals; the
+// compositor samples exactly these layers.
+ProduceWork count_work(const CompositeJob& job);
+
+// out[t] = (sum_l weights[l][t] * layers[l][4t+c] + 2^13) >> 14 for `texels` RGBA8 texels; the
+// weights of a texel must sum to kWeightOne.
+void blend_rgba8(const std::uint8_t* const* layers, const std::uint16_t* const* weights, int n_layers, std::size_t texels,
+                 std::uint8_t* out);
+
+// Bilinear sample of brush b at level m at uv (brush repeats, unwrapped), RGBA out. inset: the
+// half-texel inset (seed 004 §6); without it a tap at the cell edge reads the neighbouring cell.
+void sample_bilinear(const Atlas& atlas, int m, int b, double u, double v, bool inset, std::uint8_t out[4]);
+
+class Compositor {
+ public:
+  // Writes (T + 2B)^2 RGBA8 texels to out. Throws InputError on a job it cannot run.
+  void compose(const CompositeJob& job, std::uint8_t* out);
+
+ private:
+  std::vector<float> raw_;            // kMaxLayers rows of raw weights
+  std::vector<std::uint16_t> w_;      // kMaxLayers rows of normalised weights
+  std::vector<std::uint8_t> samp_;    // kMaxLayers rows of sampled RGBA8
+};
+
+}  // namespace vtsim::produce

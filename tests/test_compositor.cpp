@@ -1,0 +1,88 @@
+// The compositor (docs/produced.md "The compositor"): exact fixed-point blends, weights from masks,
+// the work it counts, bad jobs.
+#include <doctest/doctest.h>
+
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+#include "stream/produce/atlas.h"
+#include "stream/produce/compositor.h"
+
+using namespace vtsim::produce;
+
+namespace {
+
+Rgba8 comp_solid(int s, std::uint8_t r, std::uint8_t g, std::uint8_t b) {
+  Rgba8 im;
+  im.width = im.height = s;
+  for (int i = 0; i < s * s; ++i) im.texels.insert(im.texels.end(), {r, g, b, 255});
+  return im;
+}
+
+}  // namespace
+
+TEST_CASE("compositor: blend_rgba8 rounds sum w c / 2^14 half up") {
+  const std::vector<std::uint8_t> a = {255, 0, 100, 1}, b = {0, 255, 101, 2};
+  const std::vector<std::uint16_t> wa = {kWeightOne / 2}, wb = {kWeightOne / 2};
+  const std::uint8_t* l[2] = {a.data(), b.data()};
+  const std::uint16_t* w[2] = {wa.data(), wb.data()};
+  std::uint8_t out[4];
+  blend_rgba8(l, w, 2, 1, out);
+  CHECK(out[0] == 128);  // 127.5 -> 128
+  CHECK(out[1] == 128);
+  CHECK(out[2] == 101);  // 100.5 -> 101
+  CHECK(out[3] == 2);    // 1.5 -> 2
+}
+
+TEST_CASE("compositor: a two-layer mask blend is exact and deterministic, and count_work matches it") {
+  const Atlas at = build_atlas({comp_solid(16, 200, 0, 0), comp_solid(16, 0, 100, 0), comp_solid(16, 0, 0, 50)}, {}, {.cols = 2, .border = 2});
+  // Mask 2 x 1 texels over [0, 2) m: left all layer 0, right 3/4 layer 0 + 1/4 layer 1; layer 2 unused.
+  const std::vector<std::uint8_t> mask = {255, 0, 0, 0, 192, 64, 0, 0};
+  const WeightMask wm{2, 1, mask.data(), 0.0, 0.0, 1.0};
+  const BrushLayer layers[3] = {{0, 1.0}, {1, 1.0}, {2, 1.0}};
+  CompositeJob job;
+  job.atlas = &at;
+  job.layers = layers;
+  job.masks = {&wm, 1};
+  job.origin_x_m = 0.0;
+  job.origin_y_m = 0.0;
+  job.m_per_texel = 2.0 / 8;
+  job.tile = 8;
+  job.border = 1;
+  std::vector<std::uint8_t> out(10 * 10 * 4), again(out.size());
+  Compositor c;
+  c.compose(job, out.data());
+  c.compose(job, again.data());
+  CHECK(out == again);
+  // Texel x = 0 (border, world -0.125 m): clamped to mask texel 0 -> pure layer 0.
+  CHECK(out[0] == 200);
+  CHECK(out[1] == 0);
+  // Texel x = 9 (border, world 2.125 m): clamped to mask texel 1 -> 0.75 * 200, 0.25 * 100.
+  CHECK(out[9 * 4 + 0] == 150);
+  CHECK(out[9 * 4 + 1] == 25);
+  CHECK(out[9 * 4 + 3] == 255);
+  const vtsim::ProduceWork w = count_work(job);
+  CHECK(w.texels == 100);
+  CHECK(w.layers == 2);
+  CHECK(w.decals == 0);
+  const Decal d[2] = {{0.5, 0.5, 1.0, 1.0}, {5.0, 5.0, 6.0, 6.0}};
+  job.decals = d;
+  CHECK(count_work(job).decals == 1);
+}
+
+TEST_CASE("compositor: bad jobs are refused naming the field") {
+  const Atlas at = build_atlas({comp_solid(16, 1, 1, 1)}, {}, {.cols = 1});
+  const BrushLayer layers[1] = {{3, 1.0}};
+  const std::vector<std::uint8_t> mask(4, 255);
+  const WeightMask wm{1, 1, mask.data(), 0, 0, 1};
+  CompositeJob job;
+  job.atlas = &at;
+  job.layers = layers;
+  job.masks = {&wm, 1};
+  std::vector<std::uint8_t> out(128 * 128 * 4);
+  Compositor c;
+  CHECK_THROWS_WITH_AS(c.compose(job, out.data()), doctest::Contains("layers: cell 3 (atlas has 1)"), vtsim::InputError);
+  job.masks = {};
+  CHECK_THROWS_WITH_AS(c.compose(job, out.data()), doctest::Contains("masks: 0 masks weight 1 layers"), vtsim::InputError);
+}
