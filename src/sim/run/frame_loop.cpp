@@ -156,10 +156,24 @@ SystemRun::SystemRun(const ReplayConfig& cfg, const FramePlan& plan, const IScen
     for (const auto& L : cfg.texture.layers.specs) by_layer.push_back({tile_disk_bytes(cfg, L), tile_decoded_bytes(cfg, L)});
     sizer = [by_layer](TileKey k) { return by_layer[k.layer() < by_layer.size() ? k.layer() : 0]; };
   }
+  // The system's own tiles first: produced ones (no disk; their normal decoded size), then the
+  // ones it sizes itself; the rest as the texture's layers. Called once per new request.
+  sizer = [base = std::move(sizer), sys = system_.get()](TileKey k) {
+    ProduceWork w;
+    if (sys->produced(k, w)) {
+      TileSizes s = base(k);
+      s.disk_bytes = 0;
+      s.produce = w;
+      return s;
+    }
+    TileSizes s;
+    if (sys->tile_sizes(k, s.disk_bytes, s.decoded_bytes)) return s;
+    return base(k);
+  };
   IExecutor* exec = env.executor;
   if (!exec) {
     sim_ = std::make_unique<SimExecutor>(disk_model(cfg.disk), cfg.decode, static_cast<std::size_t>(cfg.io.max_in_flight),
-                                         cfg.io.faults);
+                                         cfg.io.faults, cfg.produce);
     exec = sim_.get();
   }
   PipelineConfig pc;
@@ -168,6 +182,7 @@ SystemRun::SystemRun(const ReplayConfig& cfg, const FramePlan& plan, const IScen
   pc.retry_backoff_frames = cfg.io.retry_backoff_frames;
   pc.thrash_frames = cfg.metrics.thrash_frames;
   pc.ram_policy = cfg.ram.policy;
+  pc.produce_tiles_per_frame = cfg.produce.tiles_per_frame;
   pipe_ = std::make_unique<Pipeline>(pc, *exec, sizer);
   accesses_ = env.accesses;
   if (!accesses_ && cfg.metrics.opt) {
@@ -355,6 +370,8 @@ void SystemRun::step(const FrameView& view) {
   row.live_requests = static_cast<std::uint32_t>(pipe_->live_requests());
   row.ram_bytes = pipe_->ram_bytes_used();
   row.throttled_needs = system_->throttled_needs();
+  row.produced = static_cast<std::uint32_t>(c1.produced - c0_.produced);
+  row.produce_ms = static_cast<double>(c1.produce_ns - c0_.produce_ns) * 1e-6;
   system_->frame_counters(row.system);
   res_.metrics.add_frame(row);
 }
@@ -426,6 +443,18 @@ ReplayResult SystemRun::summarize(const RunCost& cost) {
                  {"checksum", c.fault_by_kind[static_cast<int>(Fault::checksum)]},
                  {"decode_error", c.fault_by_kind[static_cast<int>(Fault::decode_error)]},
                  {"bad_record", c.fault_by_kind[static_cast<int>(Fault::bad_record)]}};
+  if (c.produce_requests > 0) {
+    const SimExecutor* sim = sim_.get();
+    s["produce"] = {{"requests", c.produce_requests},
+                    {"submitted", c.produce_submitted},
+                    {"produced", c.produced},
+                    {"produced_bytes", c.produced_bytes},
+                    {"production_ms", static_cast<double>(c.produce_ns) * 1e-6},
+                    {"mean_ms_per_tile", c.produced ? static_cast<double>(c.produce_ns) * 1e-6 / static_cast<double>(c.produced) : 0.0},
+                    {"deferred_by_budget", c.produce_deferred},
+                    {"cancelled_before_start", c.produce_cancelled},
+                    {"busy_ms", sim ? ticks_to_ms(sim->produce_busy_ticks()) : 0.0}};
+  }
   s[cfg_.run.system] = system_->stats_json();
   if (cfg_.metrics.opt) add_cache_bounds(s);
   if (env_.on_finish) env_.on_finish(*system_);

@@ -190,6 +190,10 @@ void MetricsCollector::write_frames_csv(const std::string& path) const {
   std::string header = "frame,t_s,clamp,bias,measured,samples,blurry_fraction,mean_deficit,pops,finest_needed,event,"
                        "disk_bytes,decoded_bytes,upload_bytes,uploads,needs,live_requests,ram_bytes,throttled_needs";
   for (const auto& c : system_columns_) header += "," + c;
+  // The produce stage's columns only when a tile was produced: other runs' CSVs stay as they were.
+  bool produced = false;
+  for (const auto& r : frames_) produced |= r.produced > 0;
+  if (produced) header += ",produced_tiles,produce_ms";
   header += "\n";
   std::fputs(header.c_str(), f.get());
   for (const auto& r : frames_) {
@@ -200,6 +204,7 @@ void MetricsCollector::write_frames_csv(const std::string& path) const {
                                    r.finest_needed, r.event ? 1 : 0, r.disk_bytes, r.decoded_bytes, r.upload_bytes,
                                    r.uploads, r.needs, r.live_requests, r.ram_bytes, r.throttled_needs);
     for (std::size_t i = 0; i < system_columns_.size(); ++i) line += fmt::format(",{}", r.system[i]);
+    if (produced) line += fmt::format(",{},{:.6f}", r.produced, r.produce_ms);
     line += "\n";
     std::fputs(line.c_str(), f.get());
   }

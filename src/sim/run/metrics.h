@@ -35,6 +35,8 @@ struct FrameRow {
   std::uint64_t ram_bytes = 0;      // RAM cache occupancy
   std::uint32_t throttled_needs = 0;  // tiles the clamp kept from being requested
   SystemCounters system{};          // system-specific counters (MetricsCollector::set_system_columns)
+  std::uint32_t produced = 0;       // produced tiles completed this frame (the produce stage)
+  double produce_ms = 0.0;          // their production time, ms
 
   bool operator==(const FrameRow&) const = default;
 };

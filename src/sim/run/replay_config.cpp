@@ -197,6 +197,18 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
         .add(cfg::real<C>("io.fault.slow_rate", at(&C::io, &IoConfig::faults, &FaultConfig::slow_rate), 0.0, 1.0,
                           "probability that a read is slow (io.fault.slow_ms more)"))
         .add(cfg::real<C>("io.fault.slow_ms", at(&C::io, &IoConfig::faults, &FaultConfig::slow_ms), 0.0, 60000.0, "extra time of a slow read, ms"))
+        .add(cfg::real<C>("produce.per_tile_us", at(&C::produce, &ProduceModel::per_tile_us), 0.0, 1e9,
+                          "produced tile: fixed cost per tile (setup, mask fetch), us"))
+        .add(cfg::real<C>("produce.per_texel_ns", at(&C::produce, &ProduceModel::per_texel_ns), 0.0, 1e6,
+                          "produced tile: cost per output texel whatever its layers (store, pack), ns"))
+        .add(cfg::real<C>("produce.per_layer_texel_ns", at(&C::produce, &ProduceModel::per_layer_texel_ns), 0.0, 1e6,
+                          "produced tile: cost per output texel per blended brush layer (seed 002), ns"))
+        .add(cfg::real<C>("produce.per_decal_us", at(&C::produce, &ProduceModel::per_decal_us), 0.0, 1e9,
+                          "produced tile: cost per decal rendered over it, us"))
+        .add(cfg::integer<C>("produce.workers", at(&C::produce, &ProduceModel::workers), 0, 1024,
+                             "production servers (real clock: the decode workers); 0 = unlimited"))
+        .add(cfg::integer<C>("produce.tiles_per_frame", at(&C::produce, &ProduceModel::tiles_per_frame), 0, 1 << 20,
+                             "production budget, produced tiles started per frame; 0 = unlimited (r.VT.MaxTilesProducedPerFrame)"))
         .add(cfg::choice<C>("throttle.policy", at(&C::throttle, &ThrottleParams::policy), throttle_policies(),
                             "MaxTextureLOD / residency policy"))
         .add(cfg::real<C>("throttle.deadline_ms", at(&C::throttle, &ThrottleParams::deadline_ms), 0.001, 1e7, "clamp levels whose backlog takes longer, ms"))

@@ -14,6 +14,7 @@
 #include "core/view.h"
 #include "stream/exec/device_model.h"
 #include "stream/exec/fault_layer.h"
+#include "stream/exec/produce.h"
 #include "stream/system/clipmap_system.h"
 #include "stream/system/vt_system.h"
 #include "stream/throttle/i_throttle.h"
@@ -117,6 +118,7 @@ struct ReplayConfig {
   DecodeModel decode;              // stream/exec/device_model.h
   UploadModel upload;              // stream/exec/device_model.h
   IoConfig io;
+  ProduceModel produce;            // stream/exec/produce.h: the produce stage's cost model and budget
   ThrottleParams throttle;         // stream/throttle/i_throttle.h
   MetricsConfig metrics;
 };

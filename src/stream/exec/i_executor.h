@@ -13,6 +13,7 @@
 
 #include "core/tile_key.h"
 #include "core/time.h"
+#include "stream/exec/produce.h"
 
 namespace vtsim {
 
@@ -27,10 +28,11 @@ struct TileJob {
   std::uint64_t disk_bytes = 0;     // bytes read from disk (codec model or the store's index)
   std::uint64_t decoded_bytes = 0;  // bytes after decode (what RAM and VRAM hold)
   std::uint64_t priority = 0;       // lower is served first (ties: submission order)
+  ProduceWork produce{};            // a produced tile (produce.texels > 0): no read, no decode; disk_bytes 0
 };
 
 enum class JobOutcome : std::uint8_t {
-  ready,      // read and decoded
+  ready,      // read and decoded (a produced tile: produced)
   cancelled,  // cancelled after the read started: the read was paid, decode skipped
   failed,     // IO or decode fault (see fault)
 };
@@ -44,9 +46,9 @@ struct JobResult {
   JobOutcome outcome = JobOutcome::ready;
   Fault fault = Fault::none;
   Ticks submitted = 0;     // stage timestamps (ticks); a stage not reached repeats the previous one
-  Ticks read_start = 0;
+  Ticks read_start = 0;    // a produced tile: read_start = read_end = submitted (no read)
   Ticks read_end = 0;
-  Ticks decode_start = 0;
+  Ticks decode_start = 0;  // a produced tile: production start and end
   Ticks decode_end = 0;    // = completion time for every outcome
   std::uint64_t bytes_read = 0;     // disk bytes actually read (0 if the read never started)
   std::uint64_t decoded_bytes = 0;
@@ -63,8 +65,9 @@ class IExecutor {
   virtual std::size_t capacity() const = 0;
   virtual std::size_t in_flight() const = 0;
   virtual void submit(const TileJob& job) = 0;
-  // true: the job had not started reading; it is dropped with no cost and no result.
-  // false: it is under way; its result still arrives (cancelled if reading, ready if decoding).
+  // true: the job had not started reading (a produced job: producing); it is dropped with no cost
+  // and no result. false: it is under way; its result still arrives (cancelled if reading, ready
+  // if decoding or producing).
   virtual bool cancel(RequestId id) = 0;
   // Simulated: runs every event up to and including `until`, then now() == until.
   // Real: `until` is the current wall time; returns what completed by then (never blocks).

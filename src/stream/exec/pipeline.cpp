@@ -35,6 +35,7 @@ bool Pipeline::is_failed(TileKey key) const {
 void Pipeline::begin_frame(int frame, Ticks now) {
   frame_ = frame;
   now_ = now;
+  produced_this_frame_ = 0;
   if (ram_any_) ram_any_->begin_frame(frame);
   if (ram_log_) ram_log_->frame_start.push_back(ram_log_->accesses.size());
   results_.clear();
@@ -67,8 +68,25 @@ void Pipeline::on_result(JobResult& r) {
     if (q.prefetch) counters_.prefetch_disk_bytes += r.bytes_read;
   }
   const bool abandoned = q.state == State::cancelling && !q.revived;
+  const bool produced = q.sizes.produce.produced();
   switch (r.outcome) {
     case JobOutcome::ready: {
+      if (produced) {
+        // Rendered for VRAM, not kept in RAM: abandoned, it is gone (needed again: produced again).
+        ++counters_.produced;
+        counters_.produced_bytes += r.decoded_bytes;
+        counters_.produce_ns += static_cast<std::uint64_t>(r.decode_end - r.decode_start);
+        if (abandoned) {
+          requests_.erase(key);
+          return;
+        }
+        q.timing = r;
+        q.state = State::waiting_upload;
+        q.in_ram_time = r.decode_end;
+        q.data = std::move(r.data);
+        q.revived = false;
+        return;
+      }
       counters_.decoded_bytes += r.decoded_bytes;
       ++counters_.decodes;
       q.timing = r;
@@ -91,8 +109,12 @@ void Pipeline::on_result(JobResult& r) {
       return;
     }
     case JobOutcome::cancelled: {
-      ++counters_.cancelled_after_read;
-      counters_.wasted_read_bytes += r.bytes_read;
+      if (produced) {
+        ++counters_.produce_cancelled;  // only at an executor's shutdown: production never started
+      } else {
+        ++counters_.cancelled_after_read;
+        counters_.wasted_read_bytes += r.bytes_read;
+      }
       if (q.state == State::cancelling && q.revived) {
         q.state = State::queued;  // needed again: read it again
         q.revived = false;
@@ -132,16 +154,21 @@ void Pipeline::set_needs(const std::vector<Need>& needs) {
         if (ram_contains(n.key)) continue;  // already in RAM: nothing to fetch
       }
       Request q;
+      q.sizes = sizer_(n.key);
+      if (q.sizes.produce.produced() && n.prefetch) continue;  // prefetch fills RAM; produced tiles skip it
       q.key = n.key;
       q.id = next_id_++;
       q.prefetch = n.prefetch;
       q.priority = n.priority;
-      q.sizes = sizer_(n.key);
       q.needed = true;
       q.needed_frame = frame_;
       q.needed_time = now_;
       if (n.prefetch) {
         ++counters_.prefetch_requests;
+        q.state = State::queued;
+      } else if (q.sizes.produce.produced()) {
+        ++counters_.requests;  // no RAM lookup: a produced tile is never in RAM
+        ++counters_.produce_requests;
         q.state = State::queued;
       } else {
         ++counters_.requests;
@@ -194,11 +221,11 @@ void Pipeline::set_needs(const std::vector<Need>& needs) {
     switch (q.state) {
       case State::queued:
       case State::backoff:
-        ++counters_.cancelled_queued;
+        ++(q.sizes.produce.produced() ? counters_.produce_cancelled : counters_.cancelled_queued);
         break;
       case State::submitted:
         if (exec_.cancel(q.id)) {
-          ++counters_.cancelled_queued;
+          ++(q.sizes.produce.produced() ? counters_.produce_cancelled : counters_.cancelled_queued);
           by_id_.erase(q.id);
         } else {
           q.state = State::cancelling;
@@ -228,14 +255,23 @@ void Pipeline::dispatch() {
     std::sort(scratch_.begin(), scratch_.end(), [](const Request* a, const Request* b) {
       return a->priority != b->priority ? a->priority < b->priority : a->key < b->key;
     });
+    const int produce_budget = cfg_.produce_tiles_per_frame;
     for (Request* q : scratch_) {
       if (exec_.in_flight() >= exec_.capacity()) break;
+      if (q->sizes.produce.produced()) {
+        if (produce_budget > 0 && produced_this_frame_ >= produce_budget) {
+          ++counters_.produce_deferred;  // stays queued for a later frame; reads may still go
+          continue;
+        }
+        ++produced_this_frame_;
+        ++counters_.produce_submitted;
+      }
       q->state = State::submitted;
       ++q->attempts;
       by_id_[q->id] = q->key;
       ++counters_.submitted;
       exec_.submit(TileJob{q->id, q->key, q->sizes.disk_bytes, q->sizes.decoded_bytes,
-                           q->prefetch ? kPrefetchPriorityBase + q->priority : q->priority});
+                           q->prefetch ? kPrefetchPriorityBase + q->priority : q->priority, q->sizes.produce});
     }
   }
   // Work that completes at this very tick (an unconstrained device, a RAM-speed read) is ready for
@@ -266,6 +302,7 @@ void Pipeline::take_uploads(const UploadBudget& budget, std::vector<UploadItem>&
     u.needed_time = q->needed_time;
     u.ram_hit = q->ram_hit;
     u.prefetched = q->prefetched_entry;
+    u.produced = q->sizes.produce.produced();
     if (!q->ram_hit) {
       const JobResult& t = q->timing;
       u.queue_ticks = t.read_start - q->needed_time;
@@ -275,7 +312,7 @@ void Pipeline::take_uploads(const UploadBudget& budget, std::vector<UploadItem>&
     }
     u.ram_ticks = now_ - q->in_ram_time;
     u.data = std::move(q->data);
-    ram_get(q->key);  // used: most recent
+    if (!u.produced) ram_get(q->key);  // used: most recent
     ++counters_.uploads;
     counters_.upload_bytes += u.bytes;
     out.push_back(std::move(u));

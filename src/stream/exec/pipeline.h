@@ -15,6 +15,14 @@
 // to the executor's capacity, then collect zero-time completions), take_uploads() (choose by
 // priority within the upload budget; the caller commits them to VRAM).
 //
+// Produced tiles (TileSizes::produce, stream/exec/produce.h; docs/pipeline.md, "The produce
+// stage"): needed -> queued -> submitted (producing, inside the executor) -> waiting_upload. At
+// most PipelineConfig::produce_tiles_per_frame of them are submitted per frame, in priority order;
+// the rest stay queued (counted: produce_deferred). They bypass the RAM cache both ways (no lookup,
+// no insertion): seed 002 renders them into the clipmap on the GPU, so a tile evicted from VRAM
+// and needed again is produced again. Prefetch needs of produced tiles are ignored (prefetch fills
+// RAM only).
+//
 // Complexity per frame: O(R + N log N) for R live requests and N needs; nothing when nothing is
 // needed or in flight. Thread-safety: single-threaded (the frame loop); the executor may have
 // threads of its own behind its interface.
@@ -32,6 +40,7 @@
 #include "core/tile_key.h"
 #include "core/time.h"
 #include "stream/exec/i_executor.h"
+#include "stream/exec/produce.h"
 
 namespace vtsim {
 
@@ -43,12 +52,15 @@ struct PipelineConfig {
   bool cache_prefetched_on_cancel = true;  // a cancelled tile whose decode finished still enters RAM
   int thrash_frames = 60;                  // a miss within this many frames of an eviction is thrash
   std::string ram_policy = "lru";          // RAM replacement policy (replacement_policies()); "lru": LruCache
+  int produce_tiles_per_frame = 0;         // produced jobs submitted per frame; 0 = unlimited (produce.tiles_per_frame)
 };
 
-// Sizes of a tile: what crosses the disk and what decode produces (RAM and VRAM bytes).
+// Sizes of a tile: what crosses the disk and what decode produces (RAM and VRAM bytes). A produced
+// tile (produce.texels > 0) has disk_bytes 0 and its work instead of a read.
 struct TileSizes {
   std::uint64_t disk_bytes = 0;
   std::uint64_t decoded_bytes = 0;
+  ProduceWork produce{};  // texels == 0: read from the store
 };
 using TileSizer = std::function<TileSizes(TileKey)>;
 
@@ -61,9 +73,10 @@ struct UploadItem {
   Ticks queue_ticks = 0;             // needed -> read start (pipeline queue + executor queue)
   Ticks io_ticks = 0;                // read start -> read end
   Ticks decode_wait_ticks = 0;       // read end -> decode start
-  Ticks decode_ticks = 0;            // decode start -> decode end
+  Ticks decode_ticks = 0;            // decode start -> decode end (a produced tile: production)
   Ticks ram_ticks = 0;               // in RAM -> chosen for upload (waiting for upload budget)
   bool ram_hit = false;              // came from the RAM cache: no IO, no decode
+  bool produced = false;             // produced (io_ticks 0; decode_wait/decode = production queue/time)
   bool prefetched = false;           // the RAM entry was brought in by look-ahead prefetch
   std::shared_ptr<const TileData> data;  // real clock: the decoded tile to copy into VRAM
 };
@@ -94,6 +107,13 @@ struct PipelineCounters {
   std::uint64_t fault_by_kind[8] = {};
   std::uint64_t ram_thrash = 0;          // RAM misses on tiles evicted within thrash_frames
   std::uint64_t disk_bytes_by_level[TileKey::kMaxLevels] = {};
+  // The produce stage (none of the above disk, decode or RAM counters moves for a produced tile).
+  std::uint64_t produce_requests = 0;    // demand requests created for produced tiles
+  std::uint64_t produce_submitted = 0;   // produced jobs given to the executor (retries included)
+  std::uint64_t produced = 0, produced_bytes = 0;  // produced tiles completed (ready), their bytes
+  std::uint64_t produce_ns = 0;          // production time of the completed ones (decode_start -> decode_end), ns
+  std::uint64_t produce_deferred = 0;    // (request, frame) pairs left queued by the production budget
+  std::uint64_t produce_cancelled = 0;   // dropped before production started (no cost)
 };
 
 // What a throttling policy may read: the backlog by level (bytes not yet resident).
@@ -183,6 +203,7 @@ class Pipeline {
   Ticks now_ = 0;
   std::vector<JobResult> results_;
   std::vector<Request*> scratch_;
+  int produced_this_frame_ = 0;  // produced jobs submitted since begin_frame (the production budget)
 };
 
 }  // namespace vtsim

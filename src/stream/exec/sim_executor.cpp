@@ -1,5 +1,6 @@
 #include "stream/exec/sim_executor.h"
 
+#include <cmath>
 #include <stdexcept>
 
 namespace vtsim {
@@ -17,9 +18,13 @@ const char* fault_name(Fault f) {
 }
 
 SimExecutor::SimExecutor(const DiskModel& disk, const DecodeModel& decode, std::size_t capacity,
-                         SimFaultModel faults)
-    : disk_(disk), decode_(decode), capacity_(capacity), faults_(faults) {
+                         SimFaultModel faults, const ProduceModel& produce)
+    : disk_(disk), decode_(decode), produce_(produce), capacity_(capacity), faults_(faults) {
   if (capacity_ == 0) throw std::invalid_argument("SimExecutor: capacity must be positive");
+}
+
+Ticks SimExecutor::produce_ticks(const ProduceModel& m, const ProduceWork& w) {
+  return static_cast<Ticks>(std::llround(produce_ns(m, w)));
 }
 
 void SimExecutor::submit(const TileJob& job) {
@@ -31,6 +36,15 @@ void SimExecutor::submit(const TileJob& job) {
   j.result.key = job.key;
   j.result.submitted = now_;
   j.result.decoded_bytes = job.decoded_bytes;
+  if (job.produce.produced()) {
+    // No disk: the read is empty at the submission time, no fault is drawn.
+    j.stage = Stage::produce_queue;
+    j.result.read_start = j.result.read_end = j.result.decode_start = j.result.decode_end = now_;
+    produce_queue_.emplace(QueueKey{job.priority, j.seq}, job.id);
+    jobs_.emplace(job.id, std::move(j));
+    start_produce_jobs();
+    return;
+  }
   disk_queue_.emplace(QueueKey{job.priority, j.seq}, job.id);
   jobs_.emplace(job.id, std::move(j));
   start_disk_jobs();
@@ -40,12 +54,12 @@ bool SimExecutor::cancel(RequestId id) {
   auto it = jobs_.find(id);
   if (it == jobs_.end()) return false;
   Job& j = it->second;
-  if (j.stage == Stage::disk_queue) {
-    disk_queue_.erase(QueueKey{j.job.priority, j.seq});
+  if (j.stage == Stage::disk_queue || j.stage == Stage::produce_queue) {
+    (j.stage == Stage::disk_queue ? disk_queue_ : produce_queue_).erase(QueueKey{j.job.priority, j.seq});
     jobs_.erase(it);
     return true;
   }
-  j.cancelled = true;  // reading: decode will be skipped; decoding: finishes as ready
+  j.cancelled = true;  // reading: decode will be skipped; decoding or producing: finishes as ready
   return false;
 }
 
@@ -74,6 +88,20 @@ void SimExecutor::start_decode_jobs() {
     const Ticks fixed = static_cast<Ticks>(decode_.per_tile_us * 1000.0 + 0.5);
     const double bps = decode_.throughput_MBps > 0 ? decode_.throughput_MBps * 1e6 : 0.0;
     events_.push(now_ + fixed + transfer_ticks(j.job.decoded_bytes, bps), Event{Ev::decode_done, id});
+  }
+}
+
+void SimExecutor::start_produce_jobs() {
+  while (!produce_queue_.empty() && (produce_.workers <= 0 || produce_active_ < produce_.workers)) {
+    const RequestId id = produce_queue_.begin()->second;
+    produce_queue_.erase(produce_queue_.begin());
+    Job& j = jobs_.at(id);
+    j.stage = Stage::producing;
+    j.result.decode_start = now_;
+    ++produce_active_;
+    const Ticks dur = produce_ticks(produce_, j.job.produce);
+    produce_busy_ += dur;
+    events_.push(now_ + dur, Event{Ev::produce_done, id});
   }
 }
 
@@ -129,6 +157,14 @@ void SimExecutor::collect(Ticks until, std::vector<JobResult>& out) {
         j.result.fault = j.faults.fault == Fault::checksum ? Fault::checksum : Fault::none;
         finish(j, out);
         start_decode_jobs();
+        break;
+      }
+      case Ev::produce_done: {
+        --produce_active_;
+        j.result.decode_end = now_;
+        j.result.outcome = JobOutcome::ready;
+        finish(j, out);
+        start_produce_jobs();
         break;
       }
     }

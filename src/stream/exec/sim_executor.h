@@ -5,7 +5,12 @@
 // Disk (DiskModel): up to `channels` jobs in service; queued jobs start by (priority, submission
 // order) when a channel frees. A job spends latency_us, then transfers over one shared bus
 // (first come first served), then frees its channel. Decode (DecodeModel): `workers` servers,
-// queued by (priority, submission order). Complexity: O(log n) per event. Single-threaded.
+// queued by (priority, submission order). Production (ProduceModel, stream/exec/produce.h): a
+// produced job (TileJob::produce) skips the disk and the decode — no latency, no bus, no IO fault,
+// read_start = read_end = its submission — and waits for one of the model's `workers` servers, by
+// (priority, submission order), for round(produce_ns(model, work)) ticks; decode_start/decode_end
+// are its production. Cancel as for reads: not started, dropped at no cost; producing, it finishes
+// as ready. Complexity: O(log n) per event. Single-threaded.
 #include <map>
 #include <set>
 #include <unordered_map>
@@ -14,6 +19,7 @@
 #include "stream/exec/device_model.h"
 #include "stream/exec/fault_layer.h"
 #include "stream/exec/i_executor.h"
+#include "stream/exec/produce.h"
 
 namespace vtsim {
 
@@ -27,7 +33,7 @@ using SimFaultModel = FaultConfig;
 class SimExecutor final : public IExecutor {
  public:
   SimExecutor(const DiskModel& disk, const DecodeModel& decode, std::size_t capacity,
-              SimFaultModel faults = {});
+              SimFaultModel faults = {}, const ProduceModel& produce = {});
 
   Ticks now() const override { return now_; }
   std::size_t capacity() const override { return capacity_; }
@@ -38,9 +44,13 @@ class SimExecutor final : public IExecutor {
 
   // Busy time accounting for utilisation metrics.
   Ticks disk_busy_ticks() const { return bus_busy_; }
+  // Production servers' busy time, summed over the servers (ticks; cancelled jobs never started).
+  Ticks produce_busy_ticks() const { return produce_busy_; }
+  // A produced tile's production time under the model, ticks (produce_ns rounded to the nearest).
+  static Ticks produce_ticks(const ProduceModel& m, const ProduceWork& w);
 
  private:
-  enum class Stage : std::uint8_t { disk_queue, disk_latency, disk_transfer, decode_queue, decoding };
+  enum class Stage : std::uint8_t { disk_queue, disk_latency, disk_transfer, decode_queue, decoding, produce_queue, producing };
   struct Job {
     TileJob job;
     Stage stage = Stage::disk_queue;
@@ -49,7 +59,7 @@ class SimExecutor final : public IExecutor {
     FaultPlan faults;       // drawn when the read starts
     JobResult result;
   };
-  enum class Ev : std::uint8_t { latency_done, transfer_done, decode_done };
+  enum class Ev : std::uint8_t { latency_done, transfer_done, decode_done, produce_done };
   struct Event {
     Ev kind;
     RequestId id;
@@ -58,10 +68,12 @@ class SimExecutor final : public IExecutor {
 
   void start_disk_jobs();
   void start_decode_jobs();
+  void start_produce_jobs();
   void finish(Job& j, std::vector<JobResult>& out);
 
   DiskModel disk_;
   DecodeModel decode_;
+  ProduceModel produce_;
   std::size_t capacity_;
   FaultLayer faults_;
   Ticks now_ = 0;
@@ -69,9 +81,11 @@ class SimExecutor final : public IExecutor {
   Ticks bus_busy_ = 0;
   int disk_active_ = 0;
   int decode_active_ = 0;
+  int produce_active_ = 0;
+  Ticks produce_busy_ = 0;
   std::uint64_t next_seq_ = 0;
   std::unordered_map<RequestId, Job> jobs_;
-  std::map<QueueKey, RequestId> disk_queue_, decode_queue_;
+  std::map<QueueKey, RequestId> disk_queue_, decode_queue_, produce_queue_;
   EventQueue<Event> events_;
   std::vector<JobResult>* sink_ = nullptr;
 };
