@@ -15,6 +15,7 @@
 #include "stream/exec/device_model.h"
 #include "stream/exec/fault_layer.h"
 #include "stream/system/clipmap_system.h"
+#include "stream/system/terrain_system.h"
 #include "stream/system/vt_system.h"
 #include "stream/throttle/i_throttle.h"
 
@@ -111,6 +112,7 @@ struct ReplayConfig {
   ViewConfig view;
   ClipmapConfig clipmap;           // stream/system/clipmap_system.h
   VtConfig vt;                     // stream/system/vt_system.h
+  TerrainConfig terrain;           // stream/system/terrain_system.h
   RamConfig ram;
   PrefetchConfig prefetch;
   DiskConfig disk;                 // stream/exec/device_model.h: a preset and its overrides
