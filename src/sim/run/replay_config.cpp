@@ -152,6 +152,27 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
                              "window edge tiles excluded from sampling (Yao 2007 §4-6)"))
         .add(cfg::integer<C>("clipmap.filter_margin_texels", at(&C::clipmap, &ClipmapConfig::filter_margin_texels), 0, 64,
                              "footprint half-width that must be valid (bilinear: 1)"))
+        .add(cfg::integer<C>("terrain.sectors_x", at(&C::terrain, &TerrainConfig::sectors_x), 1, 4096, "terrain: sectors along x (seed 002: 16 × 512 m = 8192 m)"))
+        .add(cfg::integer<C>("terrain.sectors_y", at(&C::terrain, &TerrainConfig::sectors_y), 1, 4096, "terrain: sectors along y"))
+        .add(cfg::real<C>("terrain.sector_m", at(&C::terrain, &TerrainConfig::sector_m), 1e-3, 1e7, "terrain: sector side, m"))
+        .add(cfg::integer<C>("terrain.brushes_per_sector", at(&C::terrain, &TerrainConfig::brushes_per_sector), 0, 1 << 20,
+                             "terrain: brushes a sector blends (1-16: four RGBA masks, a 4×4 atlas)"))
+        .add(cfg::integer<C>("terrain.brush_size", at(&C::terrain, &TerrainConfig::brush_size), 1, 1 << 16, "terrain: brush mip 0 side, texels (a power of two)"))
+        .add(cfg::real<C>("terrain.brush_period_m", at(&C::terrain, &TerrainConfig::brush_period_m), 1e-6, 1e6, "terrain: ground one brush tile covers, m"))
+        .add(cfg::integer<C>("terrain.brush_tree_levels", at(&C::terrain, &TerrainConfig::brush_tree_levels), 1, 17,
+                             "terrain: brush quadtree levels (leaves mip 0, each level up one mip coarser)"))
+        .add(cfg::real<C>("terrain.brush_compression", at(&C::terrain, &TerrainConfig::brush_compression), 1e-3, 1e3,
+                          "terrain: decoded / disk bytes of a brush mip (1 = raw)"))
+        .add(cfg::integer<C>("terrain.mask_size", at(&C::terrain, &TerrainConfig::mask_size), 1, 1 << 16, "terrain: mask texels a side per sector (divides the sector's texels)"))
+        .add(cfg::integer<C>("terrain.decals_static", at(&C::terrain, &TerrainConfig::decals_static), 0, 1 << 24, "terrain: seeded static decals over the terrain"))
+        .add(cfg::real<C>("terrain.decal_size_m", at(&C::terrain, &TerrainConfig::decal_size_m), 0.0, 1e6, "terrain: static decal side, m"))
+        .add(cfg::integer<C>("terrain.decal_seed", at(&C::terrain, &TerrainConfig::decal_seed), 0, std::numeric_limits<std::int64_t>::max(),
+                             "terrain: seed of the static decals' positions"))
+        .add(cfg::real<C>("terrain.footprint_every_m", at(&C::terrain, &TerrainConfig::footprint_every_m), 0.0, 1e6,
+                          "terrain: a footprint decal per this much camera travel, m; 0 = none"))
+        .add(cfg::real<C>("terrain.footprint_size_m", at(&C::terrain, &TerrainConfig::footprint_size_m), 0.0, 1e6, "terrain: footprint side, m"))
+        .add(cfg::integer<C>("terrain.footprint_levels", at(&C::terrain, &TerrainConfig::footprint_levels), 0, 63,
+                             "terrain: finest levels a footprint re-renders (resident tiles there are produced again)"))
         .add(cfg::integer<C>("vt.pool_pages", at(&C::vt, &VtConfig::pool_pages), 1, std::int64_t{1} << 24,
                              "physical page pool, slots of one page in every layer (the VRAM budget)"))
         .add(cfg::integer<C>("vt.locked_levels", at(&C::vt, &VtConfig::locked_levels), 0, 63,

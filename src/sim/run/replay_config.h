@@ -16,6 +16,7 @@
 #include "stream/exec/fault_layer.h"
 #include "stream/exec/produce.h"
 #include "stream/system/clipmap_system.h"
+#include "stream/system/terrain_system.h"
 #include "stream/system/vt_system.h"
 #include "stream/throttle/i_throttle.h"
 
@@ -112,6 +113,7 @@ struct ReplayConfig {
   ViewConfig view;
   ClipmapConfig clipmap;           // stream/system/clipmap_system.h
   VtConfig vt;                     // stream/system/vt_system.h
+  TerrainConfig terrain;           // stream/system/terrain_system.h
   RamConfig ram;
   PrefetchConfig prefetch;
   DiskConfig disk;                 // stream/exec/device_model.h: a preset and its overrides

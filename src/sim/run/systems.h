@@ -60,4 +60,23 @@ SystemInfo system_entry(std::string_view name, std::string_view why) {
           S::kVramField};
 }
 
+// A table entry for a system whose windows read the [clipmap] section besides its own (the terrain):
+// a constructor S(const SystemSetup&, const ClipmapConfig&, const S::Config&) and
+// validate(setup, clipmap, section, throttle); store_levels and vram_arena take [clipmap].
+template <class S, typename S::Config ReplayConfig::*Section>
+SystemInfo clipmap_system_entry(std::string_view name, std::string_view why) {
+  return {name,
+          why,
+          [](const ReplayConfig& c) { S::validate(system_setup(c), c.clipmap, c.*Section, c.throttle); },
+          [](const ReplayConfig& c, TextureExtent extent) -> std::unique_ptr<IStreamingSystem> {
+            return std::make_unique<S>(system_setup(c, extent), c.clipmap, c.*Section);
+          },
+          [](const ReplayConfig& c) { return S::store_levels(system_setup(c), c.clipmap); },
+          S::kStoreLevels,
+          [](const ReplayConfig& c, std::vector<std::uint32_t> layer_bytes, std::uint64_t host_limit) {
+            return S::vram_arena(system_setup(c), c.clipmap, std::move(layer_bytes), host_limit);
+          },
+          S::kVramField};
+}
+
 }  // namespace vtsim
