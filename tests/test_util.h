@@ -17,6 +17,17 @@
 
 namespace vtsim::test {
 
+// Iterations of a randomised property test: all of them in the Release build, a quarter under the
+// sanitizers (tests/CMakeLists.txt defines VTSIM_TESTS_SANITIZED), where each costs 5-10x more
+// and the memory checks need the code paths, not every random case, which Release already runs.
+inline constexpr int property_runs(int n) {
+#ifdef VTSIM_TESTS_SANITIZED
+  return n / 4 > 0 ? n / 4 : 1;
+#else
+  return n;
+#endif
+}
+
 inline bool contains(const std::string& haystack, const std::string& needle) {
   return haystack.find(needle) != std::string::npos;
 }

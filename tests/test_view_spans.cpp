@@ -11,6 +11,7 @@
 #include "stream/system/feedback.h"
 #include "sim/run/popin.h"
 #include "sim/view/scene.h"
+#include "test_util.h"
 #include "view_test_util.h"
 
 using namespace vtsim;
@@ -116,7 +117,8 @@ TEST_CASE("plane render_spans equals spans_from_samples(render) exactly on rando
   ViewBuffer vb;
   SpanBuffer sb;
   std::size_t total_spans = 0, total_samples = 0;
-  for (int it = 0; it < 250; ++it) {
+  const int runs = vtsim::test::property_runs(250);
+  for (int it = 0; it < runs; ++it) {
     const bool far = it % 5 == 4;  // texture origin at (1e7 m, −1e7 m)
     const IScene& sc = far ? *far_scene : *scene;
     const RandomView rv = random_view(rng, far ? 1.0e7 + 4096.0 : 4096.0, far ? -1.0e7 + 4096.0 : 4096.0);
@@ -125,7 +127,7 @@ TEST_CASE("plane render_spans equals spans_from_samples(render) exactly on rando
     total_samples += vb.samples.size();
   }
   // The cameras exercise the structure: many spans, most of them longer than one sample.
-  CHECK(total_spans > 5000);
+  CHECK(total_spans > 5000u * static_cast<unsigned>(runs) / 250u);
   CHECK(total_samples > 4 * total_spans);
 }
 
@@ -141,7 +143,8 @@ TEST_CASE("town render_spans equals spans_from_samples(render) exactly on random
   ViewBuffer vb;
   SpanBuffer sb;
   std::size_t total_spans = 0, total_samples = 0;
-  for (int it = 0; it < 150; ++it) {
+  const int runs = vtsim::test::property_runs(150);
+  for (int it = 0; it < runs; ++it) {
     RandomView rv = random_view(rng, -50.0 + 1100.0 * U(rng), -50.0 + 1100.0 * U(rng));
     if (it % 2 == 0) {
       rv.cam = make_camera(pose_from_angles({30.0 + 5.0 * U(rng), 8.0 + 200.0 * U(rng), 1.7}, 360.0 * U(rng),
@@ -153,7 +156,7 @@ TEST_CASE("town render_spans equals spans_from_samples(render) exactly on random
     total_spans += check_spans_exact(*scene, rv, vb, sb);
     total_samples += vb.samples.size();
   }
-  CHECK(total_spans > 5000);
+  CHECK(total_spans > 5000u * static_cast<unsigned>(runs) / 150u);
   CHECK(total_samples > 3 * total_spans);
 }
 
@@ -171,7 +174,8 @@ TEST_CASE("plane render_spans on translating cameras (cached level runs) equals 
   SpanBuffer sb[2];
   std::vector<ViewSpan> ref;
   std::size_t total_spans = 0, flat_views = 0;
-  for (int it = 0; it < 120; ++it) {
+  const int runs = vtsim::test::property_runs(120);
+  for (int it = 0; it < runs; ++it) {
     const bool far = it % 5 == 4;
     const IScene& sc = far ? *far_scene : *scene;
     RandomView rv[2] = {random_view(rng, far ? 1.0e7 + 4096.0 : 4096.0, far ? -1.0e7 + 4096.0 : 4096.0), {}};
@@ -206,8 +210,8 @@ TEST_CASE("plane render_spans on translating cameras (cached level runs) equals 
       }
     }
   }
-  CHECK(flat_views > 60);
-  CHECK(total_spans > 20000);
+  CHECK(flat_views > static_cast<std::size_t>(runs) / 2);
+  CHECK(total_spans > 20000u * static_cast<unsigned>(runs) / 120u);
 }
 
 TEST_CASE("spans_from_samples: definition on a hand-made buffer / keep_samples / bad arguments") {
@@ -259,7 +263,7 @@ TEST_CASE("aggregate_feedback over spans equals the per-sample aggregation (any 
   ViewBuffer vb;
   SpanBuffer sb;
   std::vector<TileUse> a, b;
-  for (int it = 0; it < 80; ++it) {
+  for (int it = 0; it < vtsim::test::property_runs(80); ++it) {
     const RandomView rv = random_view(rng, 4096.0, 4096.0);
     sb.block_shift = rv.block_shift;
     scene->render(rv.cam, rv.vp, vb);
