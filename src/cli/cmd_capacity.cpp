@@ -1,15 +1,22 @@
 // vtsim capacity: memory of a clipmap (stack + pyramid, per layer) against a full mip chain, and
 // Yao 2007 §2-3's table recomputed (docs/clipmap.md); for --system vt, a virtual texture's disk
 // size, page-table size and the physical pool a screen needs, and Yao 2011's arithmetic checked
-// (docs/vt.md "Capacity").
+// (docs/vt.md "Capacity"); for --system terrain, seed 002's produced clipmap from a config: stored
+// texels against stored brushes and masks, the clipmap, and the brushes resident to render
+// (docs/produced.md "Capacity").
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
 
 #include "cache/clipmap.h"
 #include "cache/page_table.h"
+#include "cli/cli_io.h"
 #include "cli/commands.h"
 #include "cli/format.h"
 #include "core/error.h"
@@ -30,6 +37,10 @@ struct CapacityArgs {
   std::string screen = "1920x1080";
   double overdraw = 3.0, redundancy = 1.0, texels_per_pixel = 1.0;
   bool seed_check = false;
+  // terrain
+  std::string config;
+  std::vector<std::string> sets;
+  std::string camera;
 };
 
 std::string with_commas(std::uint64_t v) {
@@ -198,12 +209,130 @@ void print_seed_table() {
   }
 }
 
+
+// Bytes of brush mip m of one brush as the terrain stores it: the quadtree's root (mip
+// brush_tree_levels − 1) carries its tail down to 1×1 (TerrainSystem::tile_sizes).
+std::uint64_t brush_mip_bytes_of(const TerrainConfig& t, int m) {
+  const int last = m == t.brush_tree_levels - 1 ? std::countr_zero(static_cast<unsigned>(t.brush_size)) : m;
+  std::uint64_t b = 0;
+  for (int k = m; k <= last; ++k) {
+    const auto side = static_cast<std::uint64_t>(std::max(1, t.brush_size >> k));
+    b += 4 * side * side;
+  }
+  return b;
+}
+
+void run_terrain_capacity(const CapacityArgs& a) {
+  std::vector<std::string> sets = a.sets;
+  const ReplayConfig cfg = a.config.empty() ? load_replay_config("", sets, "terrain")
+                                             : with_input(a.config, [&](const std::string& p) { return load_replay_config(p, sets, "terrain"); });
+  const TerrainConfig& t = cfg.terrain;
+  const double world_x = t.sector_m * t.sectors_x, world_y = t.sector_m * t.sectors_y;
+  // The camera in world metres (default: the terrain's centre, a sector corner with an even count).
+  double cx = cfg.texture.origin_x_m + world_x / 2, cy = cfg.texture.origin_y_m + world_y / 2;
+  if (!a.camera.empty()) {
+    char comma = 0, extra = 0;
+    if (std::sscanf(a.camera.c_str(), "%lf%c%lf%c", &cx, &comma, &cy, &extra) != 3 || comma != ',' || !std::isfinite(cx) ||
+        !std::isfinite(cy))
+      throw InputError("--camera", "'" + a.camera + "': expected X,Y in metres, e.g. 4096,4096");
+  }
+  const double rx = cx - cfg.texture.origin_x_m, ry = cy - cfg.texture.origin_y_m;
+  if (rx < 0 || ry < 0 || rx > world_x || ry > world_y)
+    throw InputError("--camera", fmt::format("({}, {}) m is outside the terrain [{}, {}] × [{}, {}] m", cx, cy, cfg.texture.origin_x_m,
+                                             cfg.texture.origin_x_m + world_x, cfg.texture.origin_y_m, cfg.texture.origin_y_m + world_y));
+  const int clipsize = cfg.clipmap.clipsize;
+  const TerrainCapacity c = terrain_capacity(t, cfg.texture.texels_per_m, clipsize, rx, ry);
+  const std::uint64_t brush_disk =
+      static_cast<std::uint64_t>(static_cast<double>(c.brush_bytes_all_mips) / t.brush_compression);
+  const std::uint64_t stored = brush_disk + c.mask_bytes;
+  // Seed 002's own world: 10 km × 10 km at 10 texels/cm, 4 B a texel (its "363.8 T").
+  constexpr double kSeedStoredTexelBytes = 1e7 * 1e7 * 4.0;
+  const ClipmapMemory mem = clipmap_memory({c.texels_side_x, c.texels_side_y}, cfg.texture.tile_size, clipsize);
+  nlohmann::json levels = nlohmann::json::array();
+  for (std::size_t l = 0; l < c.level_mip.size(); ++l) {
+    const int m = c.level_mip[l];
+    const double window_m = static_cast<double>(clipsize) * std::exp2(static_cast<double>(l)) / cfg.texture.texels_per_m;
+    levels.push_back({{"level", l},
+                      {"window_m", window_m},
+                      {"brush_mip", m},
+                      {"sectors", c.level_sectors[l]},
+                      {"brush_bytes", static_cast<std::uint64_t>(c.level_sectors[l]) * static_cast<std::uint64_t>(t.brushes_per_sector) *
+                                          brush_mip_bytes_of(t, m)}});
+  }
+  nlohmann::json j;
+  j["system"] = "terrain";
+  j["terrain"] = {{"sectors", {t.sectors_x, t.sectors_y}},
+                  {"sector_m", t.sector_m},
+                  {"world_m", {world_x, world_y}},
+                  {"texels_per_m", cfg.texture.texels_per_m},
+                  {"texels", {c.texels_side_x, c.texels_side_y}},
+                  {"brushes_per_sector", t.brushes_per_sector},
+                  {"brush_size", t.brush_size},
+                  {"brush_tree_levels", t.brush_tree_levels},
+                  {"mask_size", t.mask_size}};
+  j["stored_texel_bytes"] = c.stored_equiv_bytes;
+  j["seed_stored_texel_bytes"] = kSeedStoredTexelBytes;
+  j["brushes"] = c.brushes;
+  j["brush_bytes_mip0"] = c.brush_bytes_mip0;
+  j["brush_bytes_all_mips"] = c.brush_bytes_all_mips;
+  j["brush_disk_bytes"] = brush_disk;
+  j["masks"] = c.masks;
+  j["mask_bytes"] = c.mask_bytes;
+  j["stored_bytes"] = stored;
+  j["stored_texels_per_stored_byte"] = c.stored_equiv_bytes / static_cast<double>(stored);
+  j["clipmap"] = {{"clipsize", clipsize},
+                  {"full_levels", c.full_levels},
+                  {"full_levels_bytes", c.clipmap_full_levels_bytes},
+                  {"stack_and_pyramid_bytes", static_cast<std::uint64_t>(mem.stack_texels + mem.pyramid_texels) * 4}};
+  j["camera_m"] = {cx, cy};
+  j["levels"] = levels;
+  j["brush_resident_by_mip"] = c.brush_resident_by_mip;
+  j["brush_resident_bytes"] = c.brush_resident_bytes;
+  if (a.json) {
+    fmt::print("{}\n", j.dump(2));
+    return;
+  }
+  const auto mib = [](double b) { return fmt::format("{:.1f} MiB", b / 1048576.0); };
+  fmt::print("terrain: {} × {} sectors of {} m = {} × {} m at {} texels/m ({} × {} texels), {} brushes a sector of {}² "
+             "({} quadtree levels), masks of {}²\n",
+             t.sectors_x, t.sectors_y, t.sector_m, world_x, world_y, cfg.texture.texels_per_m, c.texels_side_x, c.texels_side_y,
+             t.brushes_per_sector, t.brush_size, t.brush_tree_levels, t.mask_size);
+  fmt::print("  stored texels, 4 B     {} ({} B); seed 002's 10 km at 10 texels/cm: {}\n", human_bytes(c.stored_equiv_bytes),
+             with_commas(static_cast<std::uint64_t>(c.stored_equiv_bytes)), human_bytes(kSeedStoredTexelBytes));
+  fmt::print("  brushes                {} × {}² × 4 B = {} at mip 0; every mip {} ({} B); on disk / {} = {}\n", c.brushes, t.brush_size,
+             mib(static_cast<double>(c.brush_bytes_mip0)), mib(static_cast<double>(c.brush_bytes_all_mips)),
+             with_commas(c.brush_bytes_all_mips), t.brush_compression, mib(static_cast<double>(brush_disk)));
+  fmt::print("  masks                  {} ({} a sector) × {}² × 4 B = {}\n", c.masks, (t.brushes_per_sector + 3) / 4, t.mask_size,
+             mib(static_cast<double>(c.mask_bytes)));
+  fmt::print("  stored (brushes+masks) {} ({} B): 1/{:.0f} of the stored texels\n", mib(static_cast<double>(stored)), with_commas(stored),
+             c.stored_equiv_bytes / static_cast<double>(stored));
+  fmt::print("  clipmap                {} levels × {}² × 4 B = {} (stack + pyramid in {}-texel tiles: {})\n", c.full_levels, clipsize,
+             mib(static_cast<double>(c.clipmap_full_levels_bytes)), cfg.texture.tile_size,
+             mib(static_cast<double>(mem.stack_texels + mem.pyramid_texels) * 4.0));
+  fmt::print("  brushes resident to render, camera at ({}, {}) m:\n", cx, cy);
+  fmt::print("    {:>5} {:>10} {:>9} {:>8} {:>14}\n", "level", "window m", "brush mip", "sectors", "brush bytes");
+  for (const auto& e : levels)
+    fmt::print("    {:>5} {:>10} {:>9} {:>8} {:>14}\n", e["level"].get<int>(), e["window_m"].get<double>(), e["brush_mip"].get<int>(),
+               e["sectors"].get<int>(), mib(static_cast<double>(e["brush_bytes"].get<std::uint64_t>())));
+  std::string by_mip;
+  for (std::size_t m = 0; m < c.brush_resident_by_mip.size(); ++m)
+    by_mip += fmt::format("{}mip {} {}", m ? ", " : "", m, mib(static_cast<double>(c.brush_resident_by_mip[m])));
+  fmt::print("    union over levels (each mip on its widest window's sectors): {}\n", by_mip);
+  fmt::print("    = {} B = {}\n", with_commas(c.brush_resident_bytes), mib(static_cast<double>(c.brush_resident_bytes)));
+}
+
 void run_capacity(const CapacityArgs& a) {
+  if (a.system != "terrain" && (!a.config.empty() || !a.sets.empty() || !a.camera.empty()))
+    throw InputError(!a.config.empty() ? "--config" : !a.sets.empty() ? "--set" : "--camera", "only with --system terrain");
   if (a.system == "vt") {
     run_vt_capacity(a);
     return;
   }
-  if (a.system != "clipmap") throw InputError("--system", "'" + a.system + "': one of clipmap, vt");
+  if (a.system == "terrain") {
+    run_terrain_capacity(a);
+    return;
+  }
+  if (a.system != "clipmap") throw InputError("--system", "'" + a.system + "': one of clipmap, vt, terrain");
   if (a.seed_table) {
     print_seed_table();
     return;
@@ -266,8 +395,9 @@ void run_capacity(const CapacityArgs& a) {
 void register_capacity_commands(CLI::App& app) {
   auto a = std::make_shared<CapacityArgs>();
   auto* c = app.add_subcommand("capacity", "VRAM needed by a clipmap (stack + pyramid per layer) vs a full mip chain; "
-                                           "for --system vt: disk, page table and the pool a screen needs");
-  c->add_option("--system", a->system, "clipmap | vt")->capture_default_str();
+                                           "for --system vt: disk, page table and the pool a screen needs; for --system terrain: "
+                                           "seed 002's stored brushes and masks, clipmap and resident brushes");
+  c->add_option("--system", a->system, "clipmap | vt | terrain")->capture_default_str();
   c->add_option("--width,--size", a->width, "level-0 width, texels (any size)")->capture_default_str()->check(CLI::Range(std::int64_t{1}, std::int64_t{1} << 40));
   c->add_option("--height", a->height, "level-0 height, texels (default: = width)")->check(CLI::Range(std::int64_t{0}, std::int64_t{1} << 40));
   c->add_option("--clipsize", a->clipsize, "clip stack window side N, texels")->capture_default_str();
@@ -281,6 +411,9 @@ void register_capacity_commands(CLI::App& app) {
   c->add_option("--redundancy", a->redundancy, "vt: screen-sized textures of cache slack (Yao 2011 §2: 6)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
   c->add_option("--texels-per-pixel", a->texels_per_pixel, "vt: texels per pixel at the desired level (Yao 2011 §2: 1)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
   c->add_flag("--seed-check", a->seed_check, "vt: recompute Yao 2011's arithmetic (§2, §3, §5)");
+  c->add_option("--config,-c", a->config, "terrain: TOML config file (docs/config.md; e.g. docs/examples/terrain.toml)");
+  c->add_option("--set", a->sets, "terrain: override one config key (repeatable)");
+  c->add_option("--camera", a->camera, "terrain: camera X,Y, m (default: the terrain's centre)");
   c->callback([a] { run_capacity(*a); });
 }
 

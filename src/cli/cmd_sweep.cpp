@@ -100,7 +100,7 @@ void register_sweep_commands(CLI::App& app) {
   auto* t = c->add_subcommand("table", "Print a sweep's metrics as pivot tables (Markdown or CSV): lines by --rows, columns by --col");
   t->add_option("dir", *table_dir, "a sweep's output directory (sweep.json, rows.jsonl)")->required();
   t->add_option("--rows", *table_rows, "keys that make a line, comma-separated: trace, config or spec axes")->required();
-  t->add_option("--col", table->col, "the key whose values make the columns")->required();
+  t->add_option("--col", table->col, "the key whose values make the columns, or metric: one table, a column per metric")->required();
   t->add_option("--metric", table->metrics, "a dotted summary path (repeatable: one table each)")->required();
   t->add_flag("--csv", table->csv, "CSV (metric, row keys, column, value) instead of Markdown");
   t->add_option("--digits", table->digits, "significant digits of a cell")->capture_default_str();

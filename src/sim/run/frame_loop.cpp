@@ -13,6 +13,7 @@
 #include "sim/run/cache_bounds.h"
 #include "sim/run/provenance.h"
 #include "sim/run/render_ahead.h"
+#include "sim/run/resources.h"
 #include "sim/run/systems.h"
 #include "sim/trace/trace_resample.h"
 #include "sim/view/scene.h"
@@ -456,6 +457,7 @@ ReplayResult SystemRun::summarize(const RunCost& cost) {
                     {"busy_ms", sim ? ticks_to_ms(sim->produce_busy_ticks()) : 0.0}};
   }
   s[cfg_.run.system] = system_->stats_json();
+  s["resources"] = resources_json(cfg_, *system_, s[cfg_.run.system], m);
   if (cfg_.metrics.opt) add_cache_bounds(s);
   if (env_.on_finish) env_.on_finish(*system_);
   s["run"] = {{"wall_s", cost.wall_s},

@@ -123,6 +123,7 @@ nlohmann::json MetricsCollector::popin_json(double sharp_margin) const {
   }
   const Percentiles tp = percentiles(tts);
   return {{"blurry_fraction_mean", bp.mean},
+          {"blurry_fraction_p95", bp.p95},
           {"blurry_fraction_p99", bp.p99},
           {"blurry_fraction_max", bp.max},
           {"mean_deficit", samples > 0 ? deficit / samples : 0.0},

@@ -115,7 +115,8 @@ std::string sweep_table(const SweepOutputs& out, const SweepTableSpec& spec) {
   if (spec.rows.empty()) throw InputError("--rows", "give at least one key (trace, config or an axis)");
   if (spec.metrics.empty()) throw InputError("--metric", "give at least one metric (a dotted summary path)");
   for (const auto& k : spec.rows) check_key(out, k, "--rows");
-  check_key(out, spec.col, "--col");
+  const bool by_metric = spec.col == "metric";  // one table: a column per metric
+  if (!by_metric) check_key(out, spec.col, "--col");
   std::vector<std::vector<std::string>> lines;  // each line's key values
   std::vector<std::string> cols;
   std::map<std::string, std::size_t> line_of, col_of;
@@ -128,7 +129,7 @@ std::string sweep_table(const SweepOutputs& out, const SweepTableSpec& spec) {
       vals.push_back(key_value(out, r, k));
       line += vals.back() + '\x1f';
     }
-    const std::string col = key_value(out, r, spec.col);
+    const std::string col = by_metric ? std::string() : key_value(out, r, spec.col);
     auto [li, lnew] = line_of.emplace(line, lines.size());
     if (lnew) lines.push_back(vals);
     auto [ci, cnew] = col_of.emplace(col, cols.size());
@@ -144,7 +145,8 @@ std::string sweep_table(const SweepOutputs& out, const SweepTableSpec& spec) {
       }
       if (differ.empty() && other["trace"] != r["trace"]) differ = "trace";
       throw InputError("--rows", fmt::format("configs {} and {} both land in the cell ({}; {}): add {} to --rows or --col",
-                                             other["config"].get<int>(), r["config"].get<int>(), fmt::join(vals, ", "), col,
+                                             other["config"].get<int>(), r["config"].get<int>(), fmt::join(vals, ", "),
+                                             by_metric ? std::string("metric") : col,
                                              differ.empty() ? std::string("a key that tells them apart") : differ));
     }
   }
@@ -155,6 +157,38 @@ std::string sweep_table(const SweepOutputs& out, const SweepTableSpec& spec) {
     if (!any && !out.rows.empty()) throw InputError("--metric", "'" + m + "' is in no row's summary (a dotted path such as popin.blurry_fraction_mean)");
   }
   std::string s;
+  const auto value_of = [&](std::size_t l, std::size_t c, const std::string& m) {
+    const auto it = cell.find({l, c});
+    if (it == cell.end()) return std::string("-");
+    const nlohmann::json& r = out.rows[it->second];
+    return r.value("status", std::string()) == "ok" ? cell_text(summary_path(r["summary"], m), spec.digits) : std::string("error");
+  };
+  if (by_metric) {
+    if (spec.csv) {
+      s += "metric";
+      for (const auto& k : spec.rows) s.append(",").append(csv_cell(k));
+      s += ",value\n";
+      for (const auto& m : spec.metrics)
+        for (std::size_t l = 0; l < lines.size(); ++l) {
+          s += csv_cell(m);
+          for (const auto& v0 : lines[l]) s.append(",").append(csv_cell(v0));
+          s.append(",").append(csv_cell(value_of(l, 0, m))).append("\n");
+        }
+      return s;
+    }
+    s += "|";
+    for (const auto& k : spec.rows) s += " " + k + " |";
+    for (const auto& m : spec.metrics) s += " " + m + " |";
+    s += "\n|";
+    for (std::size_t k = 0; k < spec.rows.size() + spec.metrics.size(); ++k) s += k < spec.rows.size() ? "---|" : "---:|";
+    s += "\n";
+    for (std::size_t l = 0; l < lines.size(); ++l) {
+      s += "| " + fmt::format("{}", fmt::join(lines[l], " | ")) + " |";
+      for (const auto& m : spec.metrics) s += " " + value_of(l, 0, m) + " |";
+      s += "\n";
+    }
+    return s;
+  }
   if (spec.csv) {
     s += "metric";
     for (const auto& k : spec.rows) s.append(",").append(csv_cell(k));

@@ -5,7 +5,8 @@
 // "trace_file" (its source as the spec wrote it, without the directory), "config"
 // (the point's number) or a spec axis; lines and columns keep the order in which the sweep's rows
 // first show their values. Two rows landing in one cell is an error that names the axis to add.
-// docs/cache.md's policy table is made this way.
+// docs/cache.md's policy table is made this way. With the column key "metric", one table instead: a
+// line per value of the row keys, a column per metric (docs/produced.md's three systems).
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -22,7 +23,7 @@ SweepOutputs load_sweep_outputs(const std::string& dir);
 
 struct SweepTableSpec {
   std::vector<std::string> rows;     // keys whose values make a line: "trace", "trace_file", "config" or axes
-  std::string col;                   // the key whose values make the columns
+  std::string col;                   // the key whose values make the columns; "metric": one table, a column per metric
   std::vector<std::string> metrics;  // dotted summary paths (summary_path); one table each
   bool csv = false;                  // CSV (metric,row keys...,column value,value) instead of Markdown
   int digits = 4;                    // significant digits of a cell
