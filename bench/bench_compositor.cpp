@@ -162,7 +162,7 @@ Imath::M33f inverse_affine(double a, double bx, double by) {
 int main(int argc, char** argv) {
   vb::Harness h("compositor", argc, argv);
   OIIO::attribute("threads", 1);
-  const int reps_work = h.pick(8, 2);  // tiles per repetition, so a repetition lasts >= 1 ms
+  const int reps_work = h.pick(8, 4);  // tiles per repetition, so a repetition lasts >= 1 ms
   h.param("tile", {{"payload", kTile}, {"border", kBorder}, {"texels", kTexels}});
   h.param("tiles_per_rep", reps_work);
   h.param("threads", 1);
