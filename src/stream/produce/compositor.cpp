@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 
@@ -229,6 +230,56 @@ void Compositor::compose(const CompositeJob& job, std::uint8_t* out) {
     }
     blend_rgba8(lp, wp, na, un, out + static_cast<std::size_t>(j) * un * 4);
   }
+}
+
+void compose_exact(const CompositeJob& job, std::uint8_t* out) {
+  const Atlas& at = *job.atlas;
+  const int n = job.tile + 2 * job.border;
+  const std::size_t nl = job.layers.size();
+  const std::size_t first = static_cast<std::size_t>(std::countr_zero(active_layers(job)));  // no weight: all to it
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const double wx = job.origin_x_m + (i - job.border + 0.5) * job.m_per_texel;
+      const double wy = job.origin_y_m + (j - job.border + 0.5) * job.m_per_texel;
+      std::array<double, kMaxLayers> raw{};
+      double sum = 0;
+      for (std::size_t l = 0; l < nl; ++l) {
+        const WeightMask& m = job.masks[l / 4];
+        const double mx = std::clamp((wx - m.origin_x_m) / m.m_per_texel - 0.5, 0.0, m.width - 1.0);
+        const double my = std::clamp((wy - m.origin_y_m) / m.m_per_texel - 0.5, 0.0, m.height - 1.0);
+        const int x0 = static_cast<int>(mx), y0 = static_cast<int>(my);
+        const int x1 = std::min(x0 + 1, m.width - 1), y1 = std::min(y0 + 1, m.height - 1);
+        const auto v = [&](int x, int y) { return static_cast<double>(m.rgba[(static_cast<std::size_t>(y) * static_cast<std::size_t>(m.width) + static_cast<std::size_t>(x)) * 4 + l % 4]); };
+        const double fx = mx - x0, fy = my - y0;
+        raw[l] = (v(x0, y0) * (1 - fx) + v(x1, y0) * fx) * (1 - fy) + (v(x0, y1) * (1 - fx) + v(x1, y1) * fx) * fy;
+        sum += raw[l];
+      }
+      std::array<double, 4> c{};
+      for (std::size_t l = 0; l < nl; ++l) {
+        const double w = sum > 0 ? raw[l] / sum : (l == first ? 1.0 : 0.0);
+        if (w == 0) continue;
+        const BrushLayer& bl = job.layers[l];
+        const AtlasLevel& lv = at.levels[static_cast<std::size_t>(select_level(at, job.m_per_texel, bl.period_m))];
+        const int s = lv.brush_side;
+        const auto axis = [&](double wv, int& i0, double& f) {
+          double p = (wv / bl.period_m - std::floor(wv / bl.period_m)) * s - 0.5;
+          if (p < 0) p += s;
+          i0 = static_cast<int>(std::floor(p));
+          f = p - i0;
+        };
+        int ix = 0, iy = 0;
+        double fx = 0, fy = 0;
+        axis(wx, ix, fx);
+        axis(wy, iy, fy);
+        const auto t = [&](int x, int y) { return lv.texel(at.cols, bl.cell, x % s, y % s); };
+        for (int k = 0; k < 4; ++k)
+          c[static_cast<std::size_t>(k)] += w * ((t(ix, iy)[k] * (1 - fx) + t(ix + 1, iy)[k] * fx) * (1 - fy) +
+                                                  (t(ix, iy + 1)[k] * (1 - fx) + t(ix + 1, iy + 1)[k] * fx) * fy);
+      }
+      for (int k = 0; k < 4; ++k)
+        out[(static_cast<std::size_t>(j) * static_cast<std::size_t>(n) + static_cast<std::size_t>(i)) * 4 + static_cast<std::size_t>(k)] =
+            static_cast<std::uint8_t>(std::clamp(std::floor(c[static_cast<std::size_t>(k)] + 0.5), 0.0, 255.0));
+    }
 }
 
 }  // namespace vtsim::produce
