@@ -52,6 +52,14 @@ TEST_CASE("vtsim atlas build: brushes by pattern, one PNG per kept level and a m
   CHECK(at(4 + 3, 28 + 5)[1] == 24);
   CHECK(at(24 + 4 + 2, 4)[0] == 100);  // brush 1
   CHECK(at(3, 4 + 2)[1] == 15 * 8);    // the wrapped border: texel -1 is texel 15
+  // --constant-border keeps the border at every level: all 5 levels (16² .. 1²), cells of 1 + 8.
+  REQUIRE(vtsim::test::run_vtsim("atlas build " + dir + "/b0.png " + dir + "/b1.png --cols 2 --constant-border --transition 4 -q -o " + out, log) == 0);
+  CHECK(vtsim::test::slurp(log).empty());
+  const nlohmann::json man2 = nlohmann::json::parse(vtsim::test::slurp(out + "/atlas.json"));
+  CHECK(man2["levels_kept"] == 5);
+  CHECK(man2["transition"] == 4);
+  CHECK(man2["levels"][4]["cell"] == 9);
+  CHECK(fs::exists(out + "/atlas_level4.png"));
   fs::remove_all(dir);
   fs::remove_all(out);
   fs::remove(log);
