@@ -165,11 +165,28 @@ void Compositor::compose(const CompositeJob& job, std::uint8_t* out) {
     lp[k] = &samp_[static_cast<std::size_t>(k) * un * 4];
     wp[k] = &w_[static_cast<std::size_t>(k) * un];
   }
+  // The mask columns each output column reads (x0, x1, fraction), once per tile and mask: they do
+  // not depend on the row or the layer.
+  const std::size_t nm = job.masks.size();
+  mx_.resize(nm * un * 2);
+  mfx_.resize(nm * un);
+  for (std::size_t mi = 0; mi < nm; ++mi) {
+    const WeightMask& m = job.masks[mi];
+    for (int i = 0; i < n; ++i) {
+      const double wx = job.origin_x_m + (i - job.border + 0.5) * job.m_per_texel;
+      const double mx = std::clamp((wx - m.origin_x_m) / m.m_per_texel - 0.5, 0.0, m.width - 1.0);
+      const int x0 = static_cast<int>(mx);
+      mx_[(mi * un + static_cast<std::size_t>(i)) * 2] = x0 * 4;
+      mx_[(mi * un + static_cast<std::size_t>(i)) * 2 + 1] = std::min(x0 + 1, m.width - 1) * 4;
+      mfx_[mi * un + static_cast<std::size_t>(i)] = static_cast<float>(mx - x0);
+    }
+  }
   for (int j = 0; j < n; ++j) {
     const double wy = job.origin_y_m + (j - job.border + 0.5) * job.m_per_texel;
     // Raw weights: bilinear in the masks, clamped at their edges.
     for (int k = 0; k < na; ++k) {
-      const WeightMask& m = job.masks[static_cast<std::size_t>(ids[k] / 4)];
+      const std::size_t mi = static_cast<std::size_t>(ids[k] / 4);
+      const WeightMask& m = job.masks[mi];
       const int ch = ids[k] % 4;
       const double my = std::clamp((wy - m.origin_y_m) / m.m_per_texel - 0.5, 0.0, m.height - 1.0);
       const int y0 = static_cast<int>(my), y1 = std::min(y0 + 1, m.height - 1);
@@ -177,13 +194,13 @@ void Compositor::compose(const CompositeJob& job, std::uint8_t* out) {
       const std::uint8_t* r0 = m.rgba + static_cast<std::size_t>(y0) * static_cast<std::size_t>(m.width) * 4 + ch;
       const std::uint8_t* r1 = m.rgba + static_cast<std::size_t>(y1) * static_cast<std::size_t>(m.width) * 4 + ch;
       float* raw = &raw_[static_cast<std::size_t>(k) * un];
+      const int* mx = &mx_[mi * un * 2];
+      const float* mfx = &mfx_[mi * un];
       for (int i = 0; i < n; ++i) {
-        const double wx = job.origin_x_m + (i - job.border + 0.5) * job.m_per_texel;
-        const double mx = std::clamp((wx - m.origin_x_m) / m.m_per_texel - 0.5, 0.0, m.width - 1.0);
-        const int x0 = static_cast<int>(mx), x1 = std::min(x0 + 1, m.width - 1);
-        const float fx = static_cast<float>(mx - x0);
-        const float top = r0[x0 * 4] + (static_cast<float>(r0[x1 * 4]) - r0[x0 * 4]) * fx;
-        const float bot = r1[x0 * 4] + (static_cast<float>(r1[x1 * 4]) - r1[x0 * 4]) * fx;
+        const int x0 = mx[2 * i], x1 = mx[2 * i + 1];
+        const float fx = mfx[i];
+        const float top = r0[x0] + (static_cast<float>(r0[x1]) - r0[x0]) * fx;
+        const float bot = r1[x0] + (static_cast<float>(r1[x1]) - r1[x0]) * fx;
         raw[i] = top + (bot - top) * fy;
       }
     }

@@ -93,6 +93,8 @@ class Compositor {
   std::vector<float> raw_;            // kMaxLayers rows of raw weights
   std::vector<std::uint16_t> w_;      // kMaxLayers rows of normalised weights
   std::vector<std::uint8_t> samp_;    // kMaxLayers rows of sampled RGBA8
+  std::vector<int> mx_;               // per mask and output column: byte offsets of mask texels x0, x1
+  std::vector<float> mfx_;            // ... and the fraction between them
 };
 
 }  // namespace vtsim::produce
