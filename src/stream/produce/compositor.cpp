@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 
@@ -164,11 +165,28 @@ void Compositor::compose(const CompositeJob& job, std::uint8_t* out) {
     lp[k] = &samp_[static_cast<std::size_t>(k) * un * 4];
     wp[k] = &w_[static_cast<std::size_t>(k) * un];
   }
+  // The mask columns each output column reads (x0, x1, fraction), once per tile and mask: they do
+  // not depend on the row or the layer.
+  const std::size_t nm = job.masks.size();
+  mx_.resize(nm * un * 2);
+  mfx_.resize(nm * un);
+  for (std::size_t mi = 0; mi < nm; ++mi) {
+    const WeightMask& m = job.masks[mi];
+    for (int i = 0; i < n; ++i) {
+      const double wx = job.origin_x_m + (i - job.border + 0.5) * job.m_per_texel;
+      const double mx = std::clamp((wx - m.origin_x_m) / m.m_per_texel - 0.5, 0.0, m.width - 1.0);
+      const int x0 = static_cast<int>(mx);
+      mx_[(mi * un + static_cast<std::size_t>(i)) * 2] = x0 * 4;
+      mx_[(mi * un + static_cast<std::size_t>(i)) * 2 + 1] = std::min(x0 + 1, m.width - 1) * 4;
+      mfx_[mi * un + static_cast<std::size_t>(i)] = static_cast<float>(mx - x0);
+    }
+  }
   for (int j = 0; j < n; ++j) {
     const double wy = job.origin_y_m + (j - job.border + 0.5) * job.m_per_texel;
     // Raw weights: bilinear in the masks, clamped at their edges.
     for (int k = 0; k < na; ++k) {
-      const WeightMask& m = job.masks[static_cast<std::size_t>(ids[k] / 4)];
+      const std::size_t mi = static_cast<std::size_t>(ids[k] / 4);
+      const WeightMask& m = job.masks[mi];
       const int ch = ids[k] % 4;
       const double my = std::clamp((wy - m.origin_y_m) / m.m_per_texel - 0.5, 0.0, m.height - 1.0);
       const int y0 = static_cast<int>(my), y1 = std::min(y0 + 1, m.height - 1);
@@ -176,13 +194,13 @@ void Compositor::compose(const CompositeJob& job, std::uint8_t* out) {
       const std::uint8_t* r0 = m.rgba + static_cast<std::size_t>(y0) * static_cast<std::size_t>(m.width) * 4 + ch;
       const std::uint8_t* r1 = m.rgba + static_cast<std::size_t>(y1) * static_cast<std::size_t>(m.width) * 4 + ch;
       float* raw = &raw_[static_cast<std::size_t>(k) * un];
+      const int* mx = &mx_[mi * un * 2];
+      const float* mfx = &mfx_[mi * un];
       for (int i = 0; i < n; ++i) {
-        const double wx = job.origin_x_m + (i - job.border + 0.5) * job.m_per_texel;
-        const double mx = std::clamp((wx - m.origin_x_m) / m.m_per_texel - 0.5, 0.0, m.width - 1.0);
-        const int x0 = static_cast<int>(mx), x1 = std::min(x0 + 1, m.width - 1);
-        const float fx = static_cast<float>(mx - x0);
-        const float top = r0[x0 * 4] + (static_cast<float>(r0[x1 * 4]) - r0[x0 * 4]) * fx;
-        const float bot = r1[x0 * 4] + (static_cast<float>(r1[x1 * 4]) - r1[x0 * 4]) * fx;
+        const int x0 = mx[2 * i], x1 = mx[2 * i + 1];
+        const float fx = mfx[i];
+        const float top = r0[x0] + (static_cast<float>(r0[x1]) - r0[x0]) * fx;
+        const float bot = r1[x0] + (static_cast<float>(r1[x1]) - r1[x0]) * fx;
         raw[i] = top + (bot - top) * fy;
       }
     }
@@ -229,6 +247,56 @@ void Compositor::compose(const CompositeJob& job, std::uint8_t* out) {
     }
     blend_rgba8(lp, wp, na, un, out + static_cast<std::size_t>(j) * un * 4);
   }
+}
+
+void compose_exact(const CompositeJob& job, std::uint8_t* out) {
+  const Atlas& at = *job.atlas;
+  const int n = job.tile + 2 * job.border;
+  const std::size_t nl = job.layers.size();
+  const std::size_t first = static_cast<std::size_t>(std::countr_zero(active_layers(job)));  // no weight: all to it
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const double wx = job.origin_x_m + (i - job.border + 0.5) * job.m_per_texel;
+      const double wy = job.origin_y_m + (j - job.border + 0.5) * job.m_per_texel;
+      std::array<double, kMaxLayers> raw{};
+      double sum = 0;
+      for (std::size_t l = 0; l < nl; ++l) {
+        const WeightMask& m = job.masks[l / 4];
+        const double mx = std::clamp((wx - m.origin_x_m) / m.m_per_texel - 0.5, 0.0, m.width - 1.0);
+        const double my = std::clamp((wy - m.origin_y_m) / m.m_per_texel - 0.5, 0.0, m.height - 1.0);
+        const int x0 = static_cast<int>(mx), y0 = static_cast<int>(my);
+        const int x1 = std::min(x0 + 1, m.width - 1), y1 = std::min(y0 + 1, m.height - 1);
+        const auto v = [&](int x, int y) { return static_cast<double>(m.rgba[(static_cast<std::size_t>(y) * static_cast<std::size_t>(m.width) + static_cast<std::size_t>(x)) * 4 + l % 4]); };
+        const double fx = mx - x0, fy = my - y0;
+        raw[l] = (v(x0, y0) * (1 - fx) + v(x1, y0) * fx) * (1 - fy) + (v(x0, y1) * (1 - fx) + v(x1, y1) * fx) * fy;
+        sum += raw[l];
+      }
+      std::array<double, 4> c{};
+      for (std::size_t l = 0; l < nl; ++l) {
+        const double w = sum > 0 ? raw[l] / sum : (l == first ? 1.0 : 0.0);
+        if (w == 0) continue;
+        const BrushLayer& bl = job.layers[l];
+        const AtlasLevel& lv = at.levels[static_cast<std::size_t>(select_level(at, job.m_per_texel, bl.period_m))];
+        const int s = lv.brush_side;
+        const auto axis = [&](double wv, int& i0, double& f) {
+          double p = (wv / bl.period_m - std::floor(wv / bl.period_m)) * s - 0.5;
+          if (p < 0) p += s;
+          i0 = static_cast<int>(std::floor(p));
+          f = p - i0;
+        };
+        int ix = 0, iy = 0;
+        double fx = 0, fy = 0;
+        axis(wx, ix, fx);
+        axis(wy, iy, fy);
+        const auto t = [&](int x, int y) { return lv.texel(at.cols, bl.cell, x % s, y % s); };
+        for (int k = 0; k < 4; ++k)
+          c[static_cast<std::size_t>(k)] += w * ((t(ix, iy)[k] * (1 - fx) + t(ix + 1, iy)[k] * fx) * (1 - fy) +
+                                                  (t(ix, iy + 1)[k] * (1 - fx) + t(ix + 1, iy + 1)[k] * fx) * fy);
+      }
+      for (int k = 0; k < 4; ++k)
+        out[(static_cast<std::size_t>(j) * static_cast<std::size_t>(n) + static_cast<std::size_t>(i)) * 4 + static_cast<std::size_t>(k)] =
+            static_cast<std::uint8_t>(std::clamp(std::floor(c[static_cast<std::size_t>(k)] + 0.5), 0.0, 255.0));
+    }
 }
 
 }  // namespace vtsim::produce

@@ -77,6 +77,13 @@ void blend_rgba8(const std::uint8_t* const* layers, const std::uint16_t* const* 
 // half-texel inset (seed 004 §6); without it a tap at the cell edge reads the neighbouring cell.
 void sample_bilinear(const Atlas& atlas, int m, int b, double u, double v, bool inset, std::uint8_t out[4]);
 
+// The same tile in double precision with no fixed point: mask weights bilinear (clamped) and
+// normalised exactly, every layer sampled bilinearly at its exact wrapped position, one rounding
+// (half up). A reference for tests and bench_compositor: Compositor::compose stays within 1 of it
+// per channel while neighbouring brush texels differ by < ~32 (docs/produced.md, "The compositor
+// against OpenImageIO"). O(texels x layers), slow; no validation (run compose first).
+void compose_exact(const CompositeJob& job, std::uint8_t* out);
+
 class Compositor {
  public:
   // Writes (T + 2B)^2 RGBA8 texels to out. Throws InputError on a job it cannot run.
@@ -86,6 +93,8 @@ class Compositor {
   std::vector<float> raw_;            // kMaxLayers rows of raw weights
   std::vector<std::uint16_t> w_;      // kMaxLayers rows of normalised weights
   std::vector<std::uint8_t> samp_;    // kMaxLayers rows of sampled RGBA8
+  std::vector<int> mx_;               // per mask and output column: byte offsets of mask texels x0, x1
+  std::vector<float> mfx_;            // ... and the fraction between them
 };
 
 }  // namespace vtsim::produce

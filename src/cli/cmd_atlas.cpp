@@ -1,0 +1,149 @@
+// vtsim atlas build: brush images packed into a texture atlas (seed 004, stream/produce/atlas.h),
+// each kept level written as an image plus a JSON manifest (docs/produced.md, "vtsim atlas build").
+#include <fmt/format.h>
+#include <fnmatch.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "cli/cli_io.h"
+#include "cli/commands.h"
+#include "core/error.h"
+#include "stream/produce/atlas.h"
+#include "stream/store/store_builder.h"
+
+namespace vtsim::cli {
+
+namespace {
+
+struct AtlasBuildArgs {
+  std::vector<std::string> brushes;  // files, or patterns with * ? [ in the file name
+  std::string out_dir;
+  produce::AtlasParams params;
+  std::string ext = "png";
+  bool quiet = false;
+};
+
+bool atlas_is_pattern(const std::string& s) { return s.find_first_of("*?[") != std::string::npos; }
+
+// Files matching a pattern in its file name (the directory part taken literally), sorted.
+std::vector<std::string> atlas_expand(const std::string& pattern) {
+  namespace fs = std::filesystem;
+  const fs::path p(pattern);
+  const fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
+  const std::string name = p.filename().string();
+  std::vector<std::string> out;
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec))
+    if (it->is_regular_file(ec) && fnmatch(name.c_str(), it->path().filename().c_str(), FNM_PERIOD) == 0)
+      out.push_back(p.has_parent_path() ? (dir / it->path().filename()).string() : it->path().filename().string());
+  if (out.empty()) throw InputError(pattern, "no brush image matches this pattern");
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+produce::Rgba8 atlas_read_brush(const std::string& path) {
+  const Image8 im = read_image8(path, store::Transfer::linear);
+  produce::Rgba8 b;
+  b.width = static_cast<int>(im.width);
+  b.height = static_cast<int>(im.height);
+  b.texels.resize(static_cast<std::size_t>(im.width) * static_cast<std::size_t>(im.height) * 4);
+  for (std::size_t t = 0; t < b.texels.size() / 4; ++t) {
+    const std::uint8_t* s = &im.texels[t * im.channels];
+    std::uint8_t* d = &b.texels[t * 4];
+    switch (im.channels) {  // grey, grey + alpha, RGB, RGBA
+      case 1: d[0] = d[1] = d[2] = s[0], d[3] = 255; break;
+      case 2: d[0] = d[1] = d[2] = s[0], d[3] = s[1]; break;
+      case 3: d[0] = s[0], d[1] = s[1], d[2] = s[2], d[3] = 255; break;
+      default: std::copy_n(s, 4, d);
+    }
+  }
+  return b;
+}
+
+void run_atlas_build(const AtlasBuildArgs& a) {
+  namespace fs = std::filesystem;
+  if (a.ext != "png" && a.ext != "tif")
+    throw InputError("--format", fmt::format("'{}': give png or tif", a.ext));
+  std::vector<std::string> files;
+  for (const std::string& b : a.brushes) {
+    if (atlas_is_pattern(b) && !fs::exists(b)) {
+      const auto m = atlas_expand(b);
+      files.insert(files.end(), m.begin(), m.end());
+    } else {
+      files.push_back(b);
+    }
+  }
+  if (files.empty()) throw InputError("brushes", "no brush image given");
+  std::vector<produce::Rgba8> brushes;
+  for (const std::string& f : files) {
+    check_input("brushes", f);
+    brushes.push_back(atlas_read_brush(f));
+  }
+  const produce::Atlas at = produce::build_atlas(brushes, files, a.params);
+  std::error_code ec;  // created only once the brushes made an atlas
+  fs::create_directories(a.out_dir, ec);
+  if (ec || !fs::is_directory(a.out_dir)) throw InputError("--out", fmt::format("{}: cannot create the directory ({})", a.out_dir, ec.message()));
+  nlohmann::json man;
+  man["format"] = "vtsim-atlas/1";
+  man["cols"] = at.cols;
+  man["rows"] = at.rows;
+  man["brushes"] = at.brushes;
+  man["side"] = at.side;
+  man["border"] = at.border;
+  man["transition"] = at.transition;
+  man["constant_border"] = at.constant_border;
+  man["levels_kept"] = at.levels.size();
+  nlohmann::json cells = nlohmann::json::array();
+  for (int b = 0; b < at.brushes; ++b) {
+    const produce::AtlasLevel& l0 = at.levels[0];
+    cells.push_back({{"index", b}, {"file", files[static_cast<std::size_t>(b)]}, {"col", b % at.cols}, {"row", b / at.cols},
+                     {"x", (b % at.cols) * l0.cell + l0.border}, {"y", (b / at.cols) * l0.cell + l0.border}});
+  }
+  man["cells"] = cells;
+  nlohmann::json levels = nlohmann::json::array();
+  for (std::size_t m = 0; m < at.levels.size(); ++m) {
+    const produce::AtlasLevel& lv = at.levels[m];
+    const std::string name = fmt::format("atlas_level{}.{}", m, a.ext);
+    Image8 im;
+    im.width = static_cast<std::uint64_t>(lv.width);
+    im.height = static_cast<std::uint64_t>(lv.height);
+    im.channels = 4;
+    im.texels = lv.rgba;
+    write_image8((fs::path(a.out_dir) / name).string(), im);
+    levels.push_back({{"level", m}, {"file", name}, {"width", lv.width}, {"height", lv.height}, {"brush_side", lv.brush_side},
+                      {"border", lv.border}, {"cell", lv.cell}});
+  }
+  man["levels"] = levels;
+  write_output((fs::path(a.out_dir) / "atlas.json").string(), man.dump(2) + "\n");
+  if (!a.quiet)
+    fmt::print("atlas: {} brushes of {}² in {} x {} cells, border {}, {} level{} kept ({}² to {}²) -> {}/atlas.json\n", at.brushes, at.side,
+               at.cols, at.rows, at.border, at.levels.size(), at.levels.size() == 1 ? "" : "s", at.levels.front().width,
+               at.levels.back().width, a.out_dir);
+}
+
+}  // namespace
+
+void register_atlas_commands(CLI::App& app) {
+  auto* atlas = app.add_subcommand("atlas", "Texture atlases of brushes for produced tiles (docs/produced.md)");
+  atlas->require_subcommand(1);
+  auto a = std::make_shared<AtlasBuildArgs>();
+  auto* b = atlas->add_subcommand("build", "Pack brush images into an atlas; write each kept level as an image and atlas.json");
+  b->add_option("brushes", a->brushes, "brush images (any format OpenImageIO reads), or patterns such as 'brushes/*.png'")->required();
+  b->add_option("--out,-o", a->out_dir, "output directory (created): atlas_level<m>.<format> and atlas.json")->required();
+  b->add_option("--cols", a->params.cols, "cells per row")->capture_default_str();
+  b->add_option("--rows", a->params.rows, "cell rows (0: as many as the brushes need)")->capture_default_str();
+  b->add_option("--border", a->params.border, "texels of wrapped border around each cell at level 0 (4 = one BC block)")->capture_default_str();
+  b->add_option("--transition", a->params.transition, "texels cross-faded at each brush edge (seed 004 §7; 0 = none)")->capture_default_str();
+  b->add_flag("--constant-border", a->params.constant_border, "keep the border at every level (each level its own texture), covering all levels");
+  b->add_option("--max-side", a->params.max_side, "largest atlas side allowed, texels")->capture_default_str();
+  b->add_option("--format", a->ext, "image format of the levels: png or tif (8 bits a channel)")->capture_default_str();
+  b->add_flag("--quiet,-q", a->quiet, "print nothing on success");
+  b->callback([a] { run_atlas_build(*a); });
+}
+
+}  // namespace vtsim::cli
