@@ -279,6 +279,20 @@ int main(int argc, char** argv) {
   const double tile_p95 = pct(unl.tile_real_ms, 0.95);
   const int budget = std::max(1, static_cast<int>(std::floor(kBudgetMs / std::max(tile_p95, 1e-9))));
   fmt::print("budget: {} ms / p95 tile {:.3f} ms -> produce.tiles_per_frame = {}\n", kBudgetMs, tile_p95, budget);
+  if (tile_p95 > kBudgetMs) {
+    // No whole-tile budget holds: what would, under the fitted model.
+    int side = 1;
+    while (produce_ns(fit.model, ProduceWork{static_cast<std::uint64_t>(2 * side) * static_cast<std::uint64_t>(2 * side), 8, 0}) <=
+           kBudgetMs * 1e6)
+      side *= 2;
+    int layers = 0;
+    while (layers < kMaxLayers && produce_ns(fit.model, ProduceWork{256 * 256, static_cast<std::uint32_t>(layers + 1), 0}) <= kBudgetMs * 1e6)
+      ++layers;
+    fmt::print("  one tile is over {} ms: no whole-tile budget holds it; within it (model): a {}² tile of 8 layers, or a 256² tile of {} layers; "
+               "the compositor is {:.1f}x too slow for 256² x 8 layers\n",
+               kBudgetMs, side, layers, tile_p95 / kBudgetMs);
+    h.param("budget_holds", {{"side_at_8_layers", side}, {"layers_at_256", layers}, {"too_slow_factor", tile_p95 / kBudgetMs}});
+  }
   const FrameFigures cl = replay_and_produce(walk, fit.model, budget, scene, reps);
   h.param("budget_tiles_per_frame", budget);
   h.param("per_frame_budget", report(fmt::format("budget (produce.tiles_per_frame = {})", budget), cl, kBudgetMs));
