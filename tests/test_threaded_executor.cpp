@@ -10,11 +10,16 @@
 #include <algorithm>
 #include <filesystem>
 #include <map>
+#include <atomic>
+#include <condition_variable>
+#include <mutex>
 #include <set>
+#include <thread>
 
 #include "real_test_util.h"
 #include "stream/exec/threaded_executor.h"
 #include "core/tile_data.h"
+#include "stream/exec/i_producer.h"
 
 // Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
 TEST_SUITE_BEGIN("threads");
@@ -246,6 +251,161 @@ TEST_CASE("threaded executor: destroyed with reads and decodes under way, no thr
   }  // the destructor shuts down with work in flight
   CHECK(count("/proc/self/task") == threads0);
   CHECK(count("/proc/self/fd") == fds0);
+}
+
+namespace {
+
+// A fake producer: a 4-channel tile of `side` texels whose bytes are the key's x; optionally waits
+// at a gate (the test opens it) and throws for x == 99. Counts its calls.
+class GateProducer final : public ITileProducer {
+ public:
+  explicit GateProducer(bool gated) : open_(!gated) {}
+  void produce(const TileJob& job, TileData& out) override {
+    {
+      std::unique_lock lock(m_);
+      ++started_;
+      cv_.notify_all();
+      cv_.wait(lock, [&] { return open_; });
+    }
+    calls_.fetch_add(1);
+    if (job.key.x() == 99) throw std::runtime_error("brush missing");
+    out.side = 8;
+    out.channels = 4;
+    out.bytes = 8 * 8 * 4;
+    out.texels = std::make_unique<std::uint8_t[]>(out.bytes);
+    std::fill_n(out.texels.get(), out.bytes, static_cast<std::uint8_t>(job.key.x()));
+  }
+  void open() {
+    std::lock_guard lock(m_);
+    open_ = true;
+    cv_.notify_all();
+  }
+  bool wait_started(int n) {
+    std::unique_lock lock(m_);
+    return cv_.wait_for(lock, std::chrono::seconds(10), [&] { return started_ >= n; });
+  }
+  int calls() const { return calls_.load(); }
+
+ private:
+  std::mutex m_;
+  std::condition_variable cv_;
+  bool open_;
+  int started_ = 0;
+  std::atomic<int> calls_{0};
+};
+
+TileJob produced_job(RequestId id, std::int64_t x, std::uint64_t prio = 0) {
+  TileJob j{id, TileKey(0, 0, x, 0), 0, 8 * 8 * 4, prio};
+  j.produce = ProduceWork{64, 4, 0};
+  return j;
+}
+
+}  // namespace
+
+TEST_CASE("threaded executor: produced tiles are rendered by the producer, never read, beside read tiles") {
+  const TileStore store = TileStore::open(test::small_store());
+  GateProducer prod(false);
+  ThreadedExecutorConfig c = exec_cfg(2, 1, 1024);
+  c.producer = &prod;
+  c.produce_workers = 2;
+  ThreadedExecutor ex(store, c);
+  const auto keys = test::all_keys(store);
+  const std::size_t reads = std::min<std::size_t>(keys.size(), 8);
+  for (std::size_t i = 0; i < reads; ++i) ex.submit(test::tile_job(store, i + 1, keys[i]));
+  for (int i = 0; i < 6; ++i) ex.submit(produced_job(100 + static_cast<RequestId>(i), i + 1, static_cast<std::uint64_t>(i)));
+  const auto out = collect_all(ex, reads + 6);
+  REQUIRE(out.size() == reads + 6);
+  int produced = 0;
+  for (const JobResult& r : out) {
+    REQUIRE(r.outcome == JobOutcome::ready);
+    if (r.id < 100) continue;
+    ++produced;
+    CHECK(r.bytes_read == 0);
+    CHECK(r.read_start == r.submitted);
+    CHECK(r.read_end == r.submitted);
+    CHECK(r.submitted <= r.decode_start);
+    CHECK(r.decode_start <= r.decode_end);
+    REQUIRE(r.data);
+    CHECK(r.data->key == r.key);
+    CHECK(r.data->bytes == 256u);
+    CHECK(r.data->texels[255] == static_cast<std::uint8_t>(r.key.x()));
+  }
+  CHECK(produced == 6);
+  CHECK(prod.calls() == 6);
+}
+
+TEST_CASE("threaded executor: a produced tile cancelled before it starts is dropped, one being produced finishes ready") {
+  const TileStore store = TileStore::open(test::small_store());
+  GateProducer prod(true);
+  ThreadedExecutorConfig c = exec_cfg(1, 1, 64);
+  c.producer = &prod;
+  c.produce_workers = 1;
+  ThreadedExecutor ex(store, c);
+  ex.submit(produced_job(1, 1, 0));
+  REQUIRE(prod.wait_started(1));  // job 1 is being produced; 2 and 3 queued behind it
+  ex.submit(produced_job(2, 2, 1));
+  ex.submit(produced_job(3, 3, 2));
+  CHECK(ex.cancel(2));        // queued: dropped, no result
+  CHECK_FALSE(ex.cancel(1));  // under way: its result still comes
+  CHECK_FALSE(ex.cancel(2));  // gone
+  prod.open();
+  const auto out = collect_all(ex, 2);
+  REQUIRE(out.size() == 2);
+  std::set<RequestId> ids;
+  for (const JobResult& r : out) {
+    ids.insert(r.id);
+    CHECK(r.outcome == JobOutcome::ready);
+  }
+  CHECK(ids == std::set<RequestId>{1, 3});
+  CHECK(prod.calls() == 2);
+  std::vector<JobResult> more;
+  ex.shutdown();
+  ex.collect(ex.now(), more);
+  CHECK(more.empty());
+}
+
+TEST_CASE("threaded executor: without a producer a produced tile is refused, a throwing producer fails the job") {
+  const TileStore store = TileStore::open(test::small_store());
+  {
+    ThreadedExecutor ex(store, exec_cfg(1, 1, 8));
+    CHECK_THROWS_WITH_AS(ex.submit(produced_job(1, 1)), doctest::Contains("has no producer"), std::logic_error);
+    CHECK(ex.in_flight() == 0);
+  }
+  GateProducer prod(false);
+  ThreadedExecutorConfig c = exec_cfg(1, 1, 8);
+  c.producer = &prod;
+  c.produce_workers = 1;
+  ThreadedExecutor ex(store, c);
+  ex.submit(produced_job(1, 99));
+  const auto out = collect_all(ex, 1);
+  REQUIRE(out.size() == 1);
+  CHECK(out[0].outcome == JobOutcome::failed);
+  CHECK(out[0].fault == Fault::decode_error);
+  REQUIRE(ex.fault_examples().size() == 1);
+  CHECK(ex.fault_examples()[0].find("brush missing") != std::string::npos);
+}
+
+TEST_CASE("threaded executor: shutdown with productions queued and under way leaves one result per job") {
+  const TileStore store = TileStore::open(test::small_store());
+  GateProducer prod(true);
+  ThreadedExecutorConfig c = exec_cfg(1, 1, 64);
+  c.producer = &prod;
+  c.produce_workers = 1;
+  ThreadedExecutor ex(store, c);
+  for (RequestId i = 1; i <= 5; ++i) ex.submit(produced_job(i, static_cast<std::int64_t>(i), i));
+  REQUIRE(prod.wait_started(1));
+  std::thread stopper([&] { ex.shutdown(); });
+  REQUIRE(eventually([&] { return ex.state() != ThreadedExecutor::State::running; }));
+  prod.open();
+  stopper.join();
+  CHECK(ex.state() == ThreadedExecutor::State::stopped);
+  std::vector<JobResult> out;
+  ex.collect(ex.now(), out);
+  REQUIRE(out.size() == 5);
+  std::set<RequestId> ids;
+  for (const JobResult& r : out) ids.insert(r.id);
+  CHECK(ids.size() == 5);
+  CHECK(std::any_of(out.begin(), out.end(), [](const JobResult& r) { return r.id == 1 && r.outcome == JobOutcome::ready; }));
 }
 
 TEST_SUITE_END();

@@ -1,6 +1,7 @@
 // vtsim calibrate: measure this machine's disk and decode on a tile store and write a device
 // profile (TOML config keys) that the simulated clock uses to predict the real one
-// (docs/real-engine.md §5).
+// (docs/real-engine.md §5). With --produce: time the CPU compositor instead and write the
+// [produce] keys (docs/produced.md, "Calibration").
 #include <fmt/format.h>
 #include <unistd.h>
 
@@ -12,6 +13,7 @@
 #include "cli/commands.h"
 #include "core/error.h"
 #include "stream/exec/calibrate.h"
+#include "stream/produce/produce_calibrate.h"
 #include "stream/store/tile_store.h"
 
 namespace vtsim::cli {
@@ -22,11 +24,67 @@ struct CalibrateArgs {
   std::string store, out;
   int io_threads = 4, decode_workers = 2;
   double seconds = 0.4;
-  bool buffered = false, quick = false, quiet = false, json = false;
+  bool buffered = false, quick = false, quiet = false, json = false, produce = false;
+  int produce_workers = 2;
   std::uint64_t seed = 1;
 };
 
+CalibrateProgress calibrate_progress(bool quiet, bool tty) {
+  if (quiet) return {};
+  return [tty](const std::string& s) {
+    if (tty) fmt::print(stderr, "\r{:60}", s);
+    else fmt::print(stderr, "{}\n", s);
+  };
+}
+
+void run_calibrate_produce(const CalibrateArgs& a) {
+  check_output("--output", a.out);
+  if (a.json && a.out == "-") throw InputError("--output", "--json already prints to stdout: give a file or drop --json");
+  if (a.produce_workers < 0) throw InputError("--produce-workers", fmt::format("{} (must be >= 0)", a.produce_workers));
+  produce::ProduceMeasureOptions o;
+  o.seed = a.seed;
+  if (a.quick) {
+    o.tiles = {64, 128};
+    o.borders = {0, 4};
+    o.layers = {1, 4, 8};
+    o.decals = {0};
+    o.repeats = 3;
+    o.brush_side = 256;
+  }
+  const bool tty = isatty(fileno(stderr)) != 0;
+  const std::vector<produce::ProduceSample> samples = produce::measure_compositor(o, calibrate_progress(a.quiet, tty));
+  if (!a.quiet && tty) fmt::print(stderr, "\r{:60}\r", "");
+  ProduceModel base;
+  base.workers = a.produce_workers;
+  const produce::ProduceFit fit = produce::fit_produce_model(samples, base);
+  const std::string toml = produce::produce_profile_toml(fit, samples);
+  if (!a.out.empty()) write_output(a.out, toml);
+  if (a.json) {
+    nlohmann::json j;
+    for (const auto& p : samples)
+      j["compositor"].push_back({{"tile", p.tile}, {"border", p.border}, {"texels", p.texels}, {"layers", p.layers},
+                                 {"decals", p.decals}, {"us", p.ns / 1000}});
+    j["profile"] = {{"produce.per_tile_us", fit.model.per_tile_us}, {"produce.per_texel_ns", fit.model.per_texel_ns},
+                    {"produce.per_layer_texel_ns", fit.model.per_layer_texel_ns}, {"produce.per_decal_us", fit.model.per_decal_us},
+                    {"produce.workers", fit.model.workers}};
+    j["median_rel_error"] = fit.median_rel_error;
+    j["max_rel_error"] = fit.max_rel_error;
+    j["notes"] = fit.notes;
+    fmt::print("{}\n", j.dump(2));
+  } else if (a.out.empty()) {
+    fmt::print("{}", toml);
+  } else if (a.out != "-" && !a.quiet) {
+    fmt::print("{}", toml.substr(toml.find("[produce]")));
+    fmt::print("wrote {}\n", a.out);
+  }
+}
+
 void run_calibrate(const CalibrateArgs& a) {
+  if (a.produce) {
+    if (!a.store.empty()) throw InputError("--store", "--produce measures the compositor, not a store: give one or the other");
+    return run_calibrate_produce(a);
+  }
+  if (a.store.empty()) throw InputError("--store", "required (the tile store to measure), unless --produce");
   check_output("--output", a.out);  // before the measurements, not after
   if (a.json && a.out == "-") throw InputError("--output", "--json already prints to stdout: give a file or drop --json");
   const TileStore store = TileStore::open(a.store);
@@ -39,13 +97,7 @@ void run_calibrate(const CalibrateArgs& a) {
   o.seed = a.seed;
   if (a.quick) o.concurrency = {1, a.io_threads};
   const bool tty = isatty(fileno(stderr)) != 0;
-  CalibrateProgress progress;
-  if (!a.quiet)
-    progress = [tty](const std::string& s) {
-      if (tty) fmt::print(stderr, "\r{:60}", s);
-      else fmt::print(stderr, "{}\n", s);
-    };
-  const Calibration c = calibrate(store, o, progress);
+  const Calibration c = calibrate(store, o, calibrate_progress(a.quiet, tty));
   if (!a.quiet && tty) fmt::print(stderr, "\r{:60}\r", "");
   if (!c.direct_warning.empty()) warn(c.direct_warning);
   const std::string toml = profile_toml(c, a.store);
@@ -79,8 +131,10 @@ void run_calibrate(const CalibrateArgs& a) {
 void register_calibrate_commands(CLI::App& app) {
   auto a = std::make_shared<CalibrateArgs>();
   auto* c = app.add_subcommand("calibrate",
-                               "Measure read latency/bandwidth and decode speed on a tile store; write a device profile for the simulated clock");
-  c->add_option("--store,-s", a->store, "tile store (.vts) to measure on")->required();
+                               "Measure read latency/bandwidth and decode speed on a tile store (or the compositor: --produce); write a device profile for the simulated clock");
+  c->add_option("--store,-s", a->store, "tile store (.vts) to measure on (required unless --produce)");
+  c->add_flag("--produce", a->produce, "time the CPU compositor on one thread and fit the [produce] keys instead (no store)");
+  c->add_option("--produce-workers", a->produce_workers, "production workers the profile is for (produce.workers)")->capture_default_str();
   c->add_option("--output,-o", a->out, "write the profile (TOML config keys) here (- for stdout); default: print it");
   c->add_option("--io-threads", a->io_threads, "IO pool threads the profile is for (io.threads)")->capture_default_str();
   c->add_option("--decode-workers", a->decode_workers, "decode workers the profile is for (decode.workers)")->capture_default_str();

@@ -165,6 +165,7 @@ void run_replay_command(const ReplayArgs& a) {
                      "only one of --json, --summary -, --frames -, --report - can write to stdout");
   if (a.clock != "sim" && a.clock != "real")
     throw InputError("--clock", "'" + a.clock + "' is not one of: sim (device models), real (threads and files)");
+  if (a.clock == "real") refuse_produced_system(cfg);
   if (a.clock == "real" && a.store.empty())
     throw InputError("--store", "the real clock reads a tile store: give --store S (make one with `vtsim store gen`)");
   check_input("--store", a.store);

@@ -104,8 +104,17 @@ void apply_speed(ReplayConfig& cfg, Trace& trace, double speed) {
   cfg.run.fps *= speed;
 }
 
+void refuse_produced_system(const ReplayConfig& cfg) {
+  // The executor has a producer hook (exec/i_producer.h) but the replay wires none yet: the
+  // terrain's tiles are rendered, not stored, so reading them would time the wrong work.
+  if (cfg.run.system == "terrain")
+    throw InputError("config", "field 'run.system': 'terrain' produces its tiles (docs/produced.md), and the real clock has no "
+                               "producer wired yet; replay it with --clock sim");
+}
+
 RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const TileStore& store,
                         const RealClockOptions& options) {
+  refuse_produced_system(cfg);
   // Start-up, until frame 0: buffers reserved, workers warmed, the arena allocated, the first view
   // rendered (docs/real-engine.md §2, §7a).
   const auto setup_start = std::chrono::steady_clock::now();

@@ -49,6 +49,10 @@ struct RealRun {
 // io.max_in_flight, io.direct, io.fault*), frames paced to the trace's times in wall time, uploads
 // copied into the VRAM arena (clipmap: its windows; VT: the physical page pool, each page in the
 // slot the system gave it). `cfg` must have been bound to `store` (bind_store_texture).
+// InputError naming run.system for a system whose tiles are produced (the terrain): the real clock
+// does not produce them yet (docs/produced.md, "The real clock").
+void refuse_produced_system(const ReplayConfig& cfg);
+
 RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const TileStore& store,
                         const RealClockOptions& options = {});
 

@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <stdexcept>
+#include <string>
 #include <thread>
+
+#include <fmt/format.h>
 
 namespace vtsim {
 
@@ -18,6 +21,11 @@ ThreadedExecutor::ThreadedExecutor(const TileStore& store, const ThreadedExecuto
     for (std::uint32_t i = 0; i < store.layer_count(); ++i) decode_->reserve_tiles(store.tile_bytes(i), count);
   io_ = std::make_unique<IoPool>(store, IoPoolConfig{cfg.io_threads, cfg.direct, /*verify=*/false, capacity_, cfg.warm}, clock_,
                                  [this](ReadResult&& r) { on_read(std::move(r)); }, &faults_);
+  if (cfg.producer) {
+    producer_ = cfg.producer;
+    const int n = checked_workers(cfg.produce_workers, "produce.workers");
+    for (int i = 0; i < n; ++i) producers_.emplace_back([this] { produce_loop(); });
+  }
 }
 
 ThreadedExecutor::~ThreadedExecutor() { shutdown(); }
@@ -57,6 +65,20 @@ void ThreadedExecutor::submit(const TileJob& job) {
   j.result.key = job.key;
   j.result.submitted = clock_.now();
   j.result.decoded_bytes = job.decoded_bytes;
+  if (job.produce.produced()) {
+    if (!producer_)
+      throw std::logic_error(fmt::format("ThreadedExecutor: tile (layer {}, level {}, x {}, y {}) is produced, and the executor has no "
+                                         "producer (ThreadedExecutorConfig::producer): it is not in the store",
+                                         job.key.layer(), job.key.level(), job.key.x(), job.key.y()));
+    j.state = JobState::produce;
+    j.result.read_start = j.result.read_end = j.result.decode_start = j.result.decode_end = j.result.submitted;
+    jobs_.emplace(job.id, std::move(j));
+    if (!produce_q_.push(job.id, job.priority, TileJob(job))) {
+      jobs_.erase(job.id);
+      throw std::logic_error("ThreadedExecutor: the production queue refused a job");
+    }
+    return;
+  }
   jobs_.emplace(job.id, std::move(j));
   if (!io_->submit(ReadRequest{job.id, job.key, job.priority})) {
     jobs_.erase(job.id);
@@ -82,6 +104,12 @@ bool ThreadedExecutor::cancel(RequestId id) {
     case JobState::decode:
       if (decode_->cancel(id)) finish(it, JobOutcome::cancelled, Fault::none, {});
       return false;  // decoding: it finishes as ready
+    case JobState::produce:
+      if (produce_q_.remove(id)) {  // not started: dropped, no cost, no result
+        jobs_.erase(it);
+        return true;
+      }
+      return false;  // producing: it finishes as ready
   }
   return false;
 }
@@ -140,6 +168,32 @@ void ThreadedExecutor::on_decoded(DecodeResult&& dr) {
   finish(it, JobOutcome::ready, Fault::none, {});
 }
 
+void ThreadedExecutor::produce_loop() {
+  while (auto item = produce_q_.pop_wait()) {
+    const Ticks start = clock_.now();
+    auto data = std::make_shared<TileData>();
+    data->key = item->task.key;
+    std::string error;
+    try {
+      producer_->produce(item->task, *data);
+    } catch (const std::exception& e) {
+      error = e.what()[0] ? e.what() : "the producer threw";
+    } catch (...) {
+      error = "the producer threw";
+    }
+    std::lock_guard lock(m_);
+    auto it = jobs_.find(item->id);
+    if (it == jobs_.end()) continue;  // cannot happen: a job being produced leaves only here
+    it->second.result.decode_start = start;
+    if (!error.empty()) {
+      finish(it, JobOutcome::failed, Fault::decode_error, error);
+      continue;
+    }
+    it->second.result.data = std::move(data);
+    finish(it, JobOutcome::ready, Fault::none, {});
+  }
+}
+
 void ThreadedExecutor::collect(Ticks until, std::vector<JobResult>& out) {
   std::lock_guard lock(m_);
   while (!done_.empty() && done_.front().decode_end <= until) {
@@ -168,6 +222,13 @@ void ThreadedExecutor::shutdown() {
     auto it = jobs_.find(id);
     if (it != jobs_.end()) finish(it, JobOutcome::cancelled, Fault::none, {});
   }
+  // Queued productions never start: cancelled; productions under way finish.
+  for (const auto& q : produce_q_.close()) {
+    std::lock_guard lock(m_);
+    auto it = jobs_.find(q.id);
+    if (it != jobs_.end()) finish(it, JobOutcome::cancelled, Fault::none, {});
+  }
+  for (std::thread& t : producers_) t.join();
   state_.store(State::stopped, std::memory_order_release);
 }
 

@@ -10,12 +10,18 @@
 //                 the result is `cancelled`
 //   decode        queued in or being decoded by the decode pool; cancel() while queued removes
 //                 it (result `cancelled`, read paid), while decoding lets it finish (`ready`)
+//   produce       a produced tile (TileJob::produce.texels > 0, with a producer): queued in or
+//                 being rendered by the production threads, never read; cancel() while queued
+//                 drops it (true: no result), while producing lets it finish (`ready`). Without a
+//                 producer, submitting a produced tile throws std::logic_error: it is never read
+//                 from the store.
 //   then its JobResult waits in the completion list until collect(until) with until >= its
 //   completion time takes it.
 // Executor lifecycle (std::atomic): running -> stopping -> stopped. shutdown() (also the
 // destructor) refuses new jobs, completes queued jobs as `cancelled` with nothing read, lets reads
-// and decodes under way finish (a read that finishes during shutdown skips its decode), joins every
-// thread; the results stay collectable.
+// and decodes under way finish (a read that finishes during shutdown skips its decode), queued
+// productions complete as `cancelled`, productions under way finish, joins every thread; the
+// results stay collectable.
 //
 // Lock order: executor mutex, then a pool's queue mutex; pools call back with no lock held.
 // Thread-safety: every member may be called from any thread. submit/cancel/collect hold the
@@ -32,9 +38,11 @@
 #include "stream/exec/decode_pool.h"
 #include "stream/exec/fault_layer.h"
 #include "stream/exec/i_executor.h"
+#include "stream/exec/i_producer.h"
 #include "stream/exec/io_pool.h"
 #include "stream/store/tile_store.h"
 #include "stream/exec/wall_clock.h"
+#include "stream/exec/work_queue.h"
 
 namespace vtsim {
 
@@ -53,6 +61,10 @@ struct ThreadedExecutorConfig {
   // first read took 0.3-1.6 ms and its first decode 0.4-4 ms (io_pool.h, decode_pool.h). Not
   // through the fault layer; no results.
   bool warm = true;
+  // Renders produced tiles (i_producer.h; not owned, must outlive the executor); null: a produced
+  // tile is refused (submit throws).
+  ITileProducer* producer = nullptr;
+  int produce_workers = 2;     // production threads when producer is set (produce.workers; 1..1024)
 };
 
 class ThreadedExecutor final : public IExecutor {
@@ -108,7 +120,7 @@ class ThreadedExecutor final : public IExecutor {
   std::vector<TileFaults> faulted_tiles() const;
 
  private:
-  enum class JobState : std::uint8_t { io, io_cancelled, decode };
+  enum class JobState : std::uint8_t { io, io_cancelled, decode, produce };
   struct Job {
     TileJob job;
     JobState state = JobState::io;
@@ -116,6 +128,7 @@ class ThreadedExecutor final : public IExecutor {
   };
   void on_read(ReadResult&& r);
   void on_decoded(DecodeResult&& r);
+  void produce_loop();
   // Completes a job (caller holds m_): stamps the completion time, queues the result.
   void finish(std::unordered_map<RequestId, Job>::iterator it, JobOutcome outcome, Fault fault,
               const std::string& error);
@@ -133,6 +146,9 @@ class ThreadedExecutor final : public IExecutor {
   std::unordered_map<TileKey, TileFaults, TileKeyHash> faulted_;  // guarded by m_; erased on a success
   std::unique_ptr<DecodePool> decode_;        // made before io_: reads hand over to it
   std::unique_ptr<IoPool> io_;
+  ITileProducer* producer_ = nullptr;
+  WorkQueue<TileJob> produce_q_;              // produced tiles not yet started
+  std::vector<std::thread> producers_;        // started last, joined by shutdown()
 };
 
 }  // namespace vtsim

@@ -1,0 +1,268 @@
+#include "stream/produce/produce_calibrate.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+
+#include <time.h>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+
+namespace vtsim::produce {
+
+namespace {
+
+std::uint64_t pcal_mix(std::uint64_t x) {  // splitmix64's finaliser
+  x += 0x9e3779b97f4a7c15ULL;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+
+constexpr int kPcalUnknowns = 4;  // per_tile_us, per_texel_ns, per_layer_texel_ns, per_decal_us
+
+// The model's terms of one sample, in ns per unit of each unknown.
+std::array<double, kPcalUnknowns> pcal_terms(const ProduceSample& s) {
+  const double t = static_cast<double>(s.texels);
+  return {1000.0, t, t * static_cast<double>(s.layers), 1000.0 * static_cast<double>(s.decals)};
+}
+
+// Weighted least squares over the unknowns in `use` (others fixed at 0); false when singular.
+bool pcal_solve(const std::vector<ProduceSample>& samples, const std::array<bool, kPcalUnknowns>& use,
+                std::array<double, kPcalUnknowns>& x) {
+  std::vector<int> cols;
+  for (int i = 0; i < kPcalUnknowns; ++i)
+    if (use[static_cast<std::size_t>(i)]) cols.push_back(i);
+  const std::size_t n = cols.size();
+  std::vector<double> a(n * (n + 1), 0.0);  // augmented normal equations
+  for (const ProduceSample& s : samples) {
+    const auto t = pcal_terms(s);
+    const double w = 1.0 / (s.ns * s.ns);  // relative error
+    for (std::size_t r = 0; r < n; ++r) {
+      const double tr = t[static_cast<std::size_t>(cols[r])];
+      for (std::size_t c = 0; c < n; ++c) a[r * (n + 1) + c] += w * tr * t[static_cast<std::size_t>(cols[c])];
+      a[r * (n + 1) + n] += w * tr * s.ns;
+    }
+  }
+  // Scaled to a unit diagonal, so "singular" is a relative test.
+  std::vector<double> scale(n);
+  for (std::size_t r = 0; r < n; ++r) {
+    if (!(a[r * (n + 1) + r] > 0)) return false;  // a term that is 0 in every sample
+    scale[r] = std::sqrt(a[r * (n + 1) + r]);
+  }
+  for (std::size_t r = 0; r < n; ++r) {
+    for (std::size_t c = 0; c < n; ++c) a[r * (n + 1) + c] /= scale[r] * scale[c];
+    a[r * (n + 1) + n] /= scale[r];
+  }
+  for (std::size_t c = 0; c < n; ++c) {  // Gauss-Jordan, partial pivoting
+    std::size_t p = c;
+    for (std::size_t r = c + 1; r < n; ++r)
+      if (std::fabs(a[r * (n + 1) + c]) > std::fabs(a[p * (n + 1) + c])) p = r;
+    if (std::fabs(a[p * (n + 1) + c]) < 1e-9) return false;
+    for (std::size_t k = 0; k <= n; ++k) std::swap(a[c * (n + 1) + k], a[p * (n + 1) + k]);
+    for (std::size_t r = 0; r < n; ++r) {
+      if (r == c) continue;
+      const double f = a[r * (n + 1) + c] / a[c * (n + 1) + c];
+      for (std::size_t k = c; k <= n; ++k) a[r * (n + 1) + k] -= f * a[c * (n + 1) + k];
+    }
+  }
+  x.fill(0.0);
+  for (std::size_t r = 0; r < n; ++r) x[static_cast<std::size_t>(cols[r])] = a[r * (n + 1) + n] / a[r * (n + 1) + r] / scale[r];
+  return true;
+}
+
+Rgba8 pcal_brush(int side, std::uint64_t seed) {
+  // Value noise on an 8-texel lattice (smooth enough that the mips differ from the base level).
+  Rgba8 im;
+  im.width = im.height = side;
+  im.texels.resize(static_cast<std::size_t>(side) * static_cast<std::size_t>(side) * 4);
+  const int cell = std::max(1, std::min(8, side));
+  const int lattice = std::max(1, side / cell);
+  const auto node = [&](int x, int y, int c) {
+    return static_cast<double>(pcal_mix(seed * 0x100000001b3ULL + static_cast<std::uint64_t>(((x % lattice) * 131 + (y % lattice)) * 4 + c)) & 255);
+  };
+  for (int y = 0; y < side; ++y)
+    for (int x = 0; x < side; ++x) {
+      const int gx = x / cell, gy = y / cell;
+      const double fx = static_cast<double>(x % cell) / cell, fy = static_cast<double>(y % cell) / cell;
+      for (int c = 0; c < 4; ++c) {
+        const double v = (node(gx, gy, c) * (1 - fx) + node(gx + 1, gy, c) * fx) * (1 - fy) +
+                         (node(gx, gy + 1, c) * (1 - fx) + node(gx + 1, gy + 1, c) * fx) * fy;
+        im.texels[(static_cast<std::size_t>(y) * static_cast<std::size_t>(side) + static_cast<std::size_t>(x)) * 4 +
+                  static_cast<std::size_t>(c)] = c == 3 ? std::uint8_t{255} : static_cast<std::uint8_t>(std::lround(v));
+      }
+    }
+  return im;
+}
+
+}  // namespace
+
+std::int64_t thread_cpu_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
+}
+
+ProduceFit fit_produce_model(const std::vector<ProduceSample>& samples, const ProduceModel& base) {
+  std::array<bool, kPcalUnknowns> use = {true, true, true, false};
+  for (const ProduceSample& s : samples) {
+    if (!(s.ns > 0)) throw InputError("produce samples", fmt::format("a sample of {} texels took {} ns (must be > 0)", s.texels, s.ns));
+    if (s.decals != samples.front().decals) use[3] = true;
+  }
+  ProduceFit fit;
+  fit.model = base;
+  fit.decals_fitted = use[3];
+  const int unknowns = static_cast<int>(std::count(use.begin(), use.end(), true));
+  if (static_cast<int>(samples.size()) < unknowns)
+    throw InputError("produce samples", fmt::format("{} samples for {} unknowns", samples.size(), unknowns));
+  std::array<double, kPcalUnknowns> x{};
+  static constexpr const char* kNames[kPcalUnknowns] = {"per_tile_us", "per_texel_ns", "per_layer_texel_ns", "per_decal_us"};
+  for (int round = 0; round < kPcalUnknowns; ++round) {
+    if (!pcal_solve(samples, use, x)) {
+      fit.notes.push_back("the samples do not separate the terms (singular); vary texels and layers");
+      throw InputError("produce samples", fit.notes.back());
+    }
+    int worst = -1;
+    for (int i = 0; i < kPcalUnknowns; ++i)
+      if (use[static_cast<std::size_t>(i)] && x[static_cast<std::size_t>(i)] < 0 &&
+          (worst < 0 || x[static_cast<std::size_t>(i)] < x[static_cast<std::size_t>(worst)]))
+        worst = i;
+    if (worst < 0) break;
+    fit.notes.push_back(fmt::format("{} fitted {:.4g} < 0: fixed at 0, the rest refitted", kNames[worst], x[static_cast<std::size_t>(worst)]));
+    use[static_cast<std::size_t>(worst)] = false;
+  }
+  fit.model.per_tile_us = x[0];
+  fit.model.per_texel_ns = x[1];
+  fit.model.per_layer_texel_ns = x[2];
+  if (fit.decals_fitted) fit.model.per_decal_us = x[3];
+  std::vector<double> rel;
+  for (const ProduceSample& s : samples) {
+    const double m = produce_ns(fit.model, ProduceWork{s.texels, s.layers, s.decals});
+    rel.push_back(std::fabs(m - s.ns) / s.ns);
+  }
+  std::sort(rel.begin(), rel.end());
+  if (!rel.empty()) {
+    fit.median_rel_error = rel[rel.size() / 2];
+    fit.max_rel_error = rel[rel.size() - 1];
+  }
+  return fit;
+}
+
+ProduceScene::ProduceScene(int brushes, int brush_side, int active, int mask_side, double mask_m, std::uint64_t seed)
+    : active_(active), mask_side_(mask_side), mask_m_(mask_m) {
+  if (brushes < 1 || brushes > kMaxLayers) throw InputError("produce scene", fmt::format("{} brushes (1 to {})", brushes, kMaxLayers));
+  if (active < 1 || active > kMaxLayers) throw InputError("produce scene", fmt::format("{} active layers (1 to {})", active, kMaxLayers));
+  std::vector<Rgba8> b;
+  for (int i = 0; i < brushes; ++i) b.push_back(pcal_brush(brush_side, seed * 977 + static_cast<std::uint64_t>(i)));
+  // constant_border: every level covered, so a coarse clipmap level samples a coarse brush mip as the
+  // terrain does (terrain_system.h, brush_mip), not level 0's neighbourhood with a long stride.
+  atlas_ = build_atlas(b, {}, AtlasParams{.cols = 4, .border = 4, .constant_border = true});
+  const std::size_t n = static_cast<std::size_t>(mask_side) * static_cast<std::size_t>(mask_side);
+  for (int m = 0; m < kMaxLayers / 4; ++m) {
+    std::vector<std::uint8_t> t(n * 4, 0);
+    for (std::size_t i = 0; i < n; ++i)
+      for (int c = 0; c < 4; ++c)
+        if (m * 4 + c < active)
+          t[i * 4 + static_cast<std::size_t>(c)] = static_cast<std::uint8_t>(16 + pcal_mix(seed ^ (i * 16 + static_cast<std::size_t>(m * 4 + c))) % 240);
+    mask_texels_.push_back(std::move(t));
+  }
+  for (int l = 0; l < kMaxLayers; ++l) layers_.push_back(BrushLayer{l % brushes, 1.0});
+  masks_.resize(mask_texels_.size());
+}
+
+CompositeJob ProduceScene::job(int layers, double period_m, double x_m, double y_m, double mask_x_m, double mask_y_m,
+                               double m_per_texel, int tile, int border, std::span<const Decal> decals) const {
+  if (layers < 1 || layers > active_) throw InputError("produce scene", fmt::format("{} layers (1 to {} active)", layers, active_));
+  for (BrushLayer& l : layers_) l.period_m = period_m;
+  const int nmasks = (layers + 3) / 4;
+  for (int m = 0; m < nmasks; ++m)
+    masks_[static_cast<std::size_t>(m)] =
+        WeightMask{mask_side_, mask_side_, mask_texels_[static_cast<std::size_t>(m)].data(), mask_x_m, mask_y_m, mask_m_ / mask_side_};
+  CompositeJob j;
+  j.atlas = &atlas_;
+  j.layers = std::span<const BrushLayer>(layers_.data(), static_cast<std::size_t>(layers));
+  j.masks = std::span<const WeightMask>(masks_.data(), static_cast<std::size_t>(nmasks));
+  j.decals = decals;
+  j.origin_x_m = x_m;
+  j.origin_y_m = y_m;
+  j.m_per_texel = m_per_texel;
+  j.tile = tile;
+  j.border = border;
+  return j;
+}
+
+std::vector<ProduceSample> measure_compositor(const ProduceMeasureOptions& o, const ProduceProgress& progress) {
+  if (o.repeats < 1) throw InputError("produce calibration", "repeats must be >= 1");
+  int most = 1;
+  for (int l : o.layers) {
+    if (l < 1 || l > kMaxLayers) throw InputError("produce calibration", fmt::format("{} layers (1 to {})", l, kMaxLayers));
+    most = std::max(most, l);
+  }
+  if (progress) progress("building the brush atlas");
+  const double mask_m = 512.0;  // a seed-002 sector; tiles below sit inside it
+  const ProduceScene scene(std::min(most, kMaxLayers), o.brush_side, most, 512, mask_m, o.seed);
+  Compositor comp;
+  std::vector<std::uint8_t> out;
+  std::vector<ProduceSample> samples;
+  using Clock = std::chrono::steady_clock;
+  for (int tile : o.tiles)
+    for (int border : o.borders) {
+      if (tile < 1 || border < 0) throw InputError("produce calibration", fmt::format("tile {} border {}", tile, border));
+      const int side = tile + 2 * border;
+      out.assign(static_cast<std::size_t>(side) * static_cast<std::size_t>(side) * 4, 0);
+      for (int layers : o.layers)
+        for (int nd : o.decals) {
+          if (progress) progress(fmt::format("compositor: tile {} border {} layers {} decals {}", tile, border, layers, nd));
+          // Decals spread over the tile (counted by count_work; the compositor does not render them yet).
+          const double span = tile * o.m_per_texel;
+          std::vector<Decal> decals;
+          for (int d = 0; d < nd; ++d) {
+            const double f = (d + 0.5) / nd;
+            decals.push_back(Decal{100 + f * span, 100 + f * span, 100 + f * span + span / 8, 100 + f * span + span / 8});
+          }
+          std::vector<double> ns;
+          const int reps = o.repeats + 1;  // the first call warms the caches and the scratch rows
+          for (int r = 0; r < reps; ++r) {
+            // Each repetition at another place of the sector: a different part of the brushes and masks.
+            const double x = 100 + 37.0 * r, y = 100 + 53.0 * r;
+            const CompositeJob j = scene.job(layers, 1.0, x, y, 0.0, 0.0, o.m_per_texel, tile, border, decals);
+            const auto t0 = Clock::now();
+            const std::int64_t c0 = thread_cpu_ns();
+            comp.compose(j, out.data());
+            const std::int64_t c1 = thread_cpu_ns();
+            const auto t1 = Clock::now();
+            const double wall = static_cast<double>(std::chrono::duration_cast<std::chrono::nanoseconds>(t1 - t0).count());
+            if (r > 0) ns.push_back(o.cpu_time ? static_cast<double>(c1 - c0) : wall);
+          }
+          std::sort(ns.begin(), ns.end());
+          const ProduceWork w = count_work(scene.job(layers, 1.0, 100, 100, 0, 0, o.m_per_texel, tile, border, decals));
+          samples.push_back(ProduceSample{w.texels, w.layers, w.decals, ns[ns.size() / 2], tile, border});
+        }
+    }
+  return samples;
+}
+
+std::string produce_profile_toml(const ProduceFit& fit, const std::vector<ProduceSample>& samples) {
+  std::string s = "# The produce stage's cost model, fitted by `vtsim calibrate --produce` to the CPU compositor on\n"
+                  "# one thread of this machine (docs/produced.md, \"Calibration\").\n";
+  s += fmt::format("# {} points, median relative error {:.1f} %, max {:.1f} %\n", samples.size(), 100 * fit.median_rel_error,
+                   100 * fit.max_rel_error);
+  for (const std::string& n : fit.notes) s += "# note: " + n + "\n";
+  s += "#   tile border layers decals   measured_us   model_us\n";
+  for (const ProduceSample& p : samples)
+    s += fmt::format("#   {:4} {:6} {:6} {:6}   {:11.1f}   {:8.1f}\n", p.tile, p.border, p.layers, p.decals, p.ns / 1000,
+                     produce_ns(fit.model, ProduceWork{p.texels, p.layers, p.decals}) / 1000);
+  s += "[produce]\n";
+  s += fmt::format("per_tile_us = {:.4g}\n", fit.model.per_tile_us);
+  s += fmt::format("per_texel_ns = {:.4g}\n", fit.model.per_texel_ns);
+  s += fmt::format("per_layer_texel_ns = {:.4g}\n", fit.model.per_layer_texel_ns);
+  s += fmt::format("per_decal_us = {:.4g}{}\n", fit.model.per_decal_us,
+                   fit.decals_fitted ? "  # decals are counted, not yet rendered by the compositor" : "  # not measured: kept");
+  s += fmt::format("workers = {}\n", fit.model.workers);
+  return s;
+}
+
+}  // namespace vtsim::produce

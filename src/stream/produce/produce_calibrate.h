@@ -1,0 +1,102 @@
+#pragma once
+// Calibrating the produce stage's cost model (exec/produce.h, ProduceModel) on this machine's CPU
+// compositor (compositor.h), as `vtsim calibrate` does for the disk and the decoder
+// (docs/produced.md, "Calibration").
+//
+//  - ProduceScene: procedural content to compose — brushes (value noise, RGBA8) built into an
+//    Atlas with build_atlas, and 4 RGBA8 masks whose first `active` channels are non-zero
+//    everywhere (so count_work's layers is exactly the layers asked for).
+//  - measure_compositor: one Compositor on the calling thread, tiles of several sizes, borders,
+//    layer counts and decal counts; per point the median of `repeats` timed compose() calls
+//    (thread CPU time by default: a shared machine's other load does not count).
+//  - fit_produce_model: per_tile_us, per_texel_ns, per_layer_texel_ns (and per_decal_us when the
+//    samples vary the decals) by least squares on the relative error.
+//
+// Thread-safety: fit_produce_model is a pure function; ProduceScene::job() rewrites the scene's
+// layer and mask descriptors (one thread at a time; the job it returns points into the scene);
+// measure_compositor runs on the calling thread only.
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "stream/exec/produce.h"
+#include "stream/produce/atlas.h"
+#include "stream/produce/compositor.h"
+
+namespace vtsim::produce {
+
+// One timed production: the work (as count_work counts it) and its wall time.
+struct ProduceSample {
+  std::uint64_t texels = 0;  // output texels with border
+  std::uint32_t layers = 0;  // active layers blended
+  std::uint32_t decals = 0;  // decals overlapping the tile
+  double ns = 0;             // median wall time of one compose(), ns
+  int tile = 0, border = 0;  // the job's T and B (for reports)
+};
+
+struct ProduceFit {
+  ProduceModel model;             // base model with the fitted fields replaced
+  bool decals_fitted = false;     // false: no decal variation in the samples; per_decal_us kept from the base
+  double median_rel_error = 0;    // |model - measured| / measured over the samples
+  double max_rel_error = 0;
+  std::vector<std::string> notes;  // dropped (negative) coefficients, degenerate columns
+};
+
+// Minimises sum(((model(s) - s.ns) / s.ns)^2) over per_tile_us, per_texel_ns, per_layer_texel_ns
+// (and per_decal_us when decals vary); a coefficient that would be negative is fixed at 0 and the
+// rest refitted. workers and tiles_per_frame come from `base`. Throws InputError on fewer samples
+// than unknowns, or samples with ns <= 0. O(samples).
+ProduceFit fit_produce_model(const std::vector<ProduceSample>& samples, const ProduceModel& base = {});
+
+// Procedural content for the compositor: `brushes` value-noise brushes of side brush_side in an
+// atlas (border 4 at every level: constant_border, 4 columns), and 4 masks of mask_side² RGBA8 texels covering mask_m metres whose
+// channels 0..active-1 (over the 16) are in [16, 255] at every texel, the rest 0.
+class ProduceScene {
+ public:
+  ProduceScene(int brushes, int brush_side, int active, int mask_side, double mask_m, std::uint64_t seed);
+  const Atlas& atlas() const { return atlas_; }
+  int active() const { return active_; }
+  // A job of `layers` (<= active) brush layers of period_m, payload texel (0, 0) at (x_m, y_m), the
+  // masks placed with their corner at (mask_x_m, mask_y_m).
+  CompositeJob job(int layers, double period_m, double x_m, double y_m, double mask_x_m, double mask_y_m,
+                   double m_per_texel, int tile, int border, std::span<const Decal> decals = {}) const;
+
+ private:
+  Atlas atlas_;
+  int active_ = 0;
+  int mask_side_ = 0;
+  double mask_m_ = 0;
+  std::vector<std::vector<std::uint8_t>> mask_texels_;
+  // job() rewrites the layers' period and the masks' origin: call it from one thread at a time.
+  mutable std::vector<BrushLayer> layers_;
+  mutable std::vector<WeightMask> masks_;
+};
+
+struct ProduceMeasureOptions {
+  std::vector<int> tiles = {128, 256, 512};     // payload sides T, texels
+  std::vector<int> borders = {0, 4};            // B, texels
+  std::vector<int> layers = {1, 2, 4, 8, 12, 16};
+  std::vector<int> decals = {0, 16};            // decals overlapping each tile (counted by count_work)
+  int repeats = 7;                              // timed compose() calls per point (median)
+  int brush_side = 1024;                        // the terrain's brush mip 0 (terrain.brush_size)
+  double m_per_texel = 1.0 / 1024;              // output texel, m (level 0 of the seed-002 terrain)
+  std::uint64_t seed = 1;
+  // Time the calling thread's CPU (CLOCK_THREAD_CPUTIME_ID) instead of the wall clock: the same on
+  // an idle core, and not inflated by other tenants of a shared machine taking the core away.
+  bool cpu_time = true;
+};
+
+// The calling thread's CPU time, ns (CLOCK_THREAD_CPUTIME_ID).
+std::int64_t thread_cpu_ns();
+
+using ProduceProgress = std::function<void(const std::string&)>;
+
+// Times the compositor on this thread at every (tile, border, layers, decals) point. ~repeats x
+// points x (T + 2B)^2 x layers x a few ns.
+std::vector<ProduceSample> measure_compositor(const ProduceMeasureOptions& o, const ProduceProgress& progress = {});
+
+// The [produce] section of a profile: the fitted keys with the samples and residuals as comments.
+std::string produce_profile_toml(const ProduceFit& fit, const std::vector<ProduceSample>& samples);
+
+}  // namespace vtsim::produce
