@@ -143,8 +143,9 @@ TEST_CASE("town render_spans equals spans_from_samples(render) exactly on random
   ViewBuffer vb;
   SpanBuffer sb;
   std::size_t total_spans = 0, total_samples = 0;
-  const int runs = vtsim::test::property_runs(150);
-  for (int it = 0; it < runs; ++it) {
+  // All 150 views under the sanitizers too: the first quarter of them has fewer samples per span
+  // (1.88 M samples in 0.87 M spans: 2.2 a span), below the ratio of 3 this case checks.
+  for (int it = 0; it < 150; ++it) {
     RandomView rv = random_view(rng, -50.0 + 1100.0 * U(rng), -50.0 + 1100.0 * U(rng));
     if (it % 2 == 0) {
       rv.cam = make_camera(pose_from_angles({30.0 + 5.0 * U(rng), 8.0 + 200.0 * U(rng), 1.7}, 360.0 * U(rng),
@@ -156,7 +157,7 @@ TEST_CASE("town render_spans equals spans_from_samples(render) exactly on random
     total_spans += check_spans_exact(*scene, rv, vb, sb);
     total_samples += vb.samples.size();
   }
-  CHECK(total_spans > 5000u * static_cast<unsigned>(runs) / 150u);
+  CHECK(total_spans > 5000);
   CHECK(total_samples > 3 * total_spans);
 }
 
