@@ -420,15 +420,13 @@ TEST_CASE("the builder's output does not depend on the thread count") {
 }
 
 namespace {
-// Runs the CLI; returns {exit code, stdout}.
-std::pair<int, std::string> cli(const std::string& args) {
-  std::string text;
-  FILE* p = ::popen((std::string(VTSIM_CLI) + " " + args + " 2>/dev/null").c_str(), "r");
-  if (!p) return {-1, ""};
-  char buf[4096];
-  while (std::fgets(buf, sizeof buf, p)) text += buf;
-  const int r = ::pclose(p);
-  return {WIFEXITED(r) ? WEXITSTATUS(r) : -1, text};
+// Runs the CLI; returns {exit code, stdout}. stderr goes to a file beside the outputs and is
+// printed when the command dies of a signal or an unexpected failure (an ASan abort, 134, once
+// failed this test with nothing to read).
+std::pair<int, std::string> cli(const test::TempDir& dir, const std::string& args) {
+  const test::CliRun r = test::run_vtsim_capture(args, dir.file("stderr.txt"));
+  if (r.code != 0 && r.code != 2) MESSAGE("vtsim " << args << " exited " << r.code << "; stderr:\n" << r.err);
+  return {r.code, r.out};
 }
 }  // namespace
 
@@ -437,11 +435,11 @@ TEST_CASE("vtsim store build / info --json / verify work end to end, bad options
   write_image8(dir.file("a.png"), test::make_image(250, 130, 3));
   write_image8(dir.file("b.png"), test::make_image(250, 130, 2));
   const std::string out = dir.file("c.vts");
-  auto [rc, text] = cli("store build " + dir.file("a.png") + " " + dir.file("b.png") + " -o " + out +
+  auto [rc, text] = cli(dir, "store build " + dir.file("a.png") + " " + dir.file("b.png") + " -o " + out +
                         " --tile 64 --border 2 --codec zstd:5,png --layer-names col,ga --transfer srgb,linear");
   CHECK(rc == 0);
   CHECK(text.find("wrote " + out) != std::string::npos);
-  auto [rc2, json] = cli("store info --json " + out);
+  auto [rc2, json] = cli(dir, "store info --json " + out);
   REQUIRE(rc2 == 0);
   const auto j = nlohmann::json::parse(json);
   CHECK(j["width"] == 250);
@@ -455,15 +453,15 @@ TEST_CASE("vtsim store build / info --json / verify work end to end, bad options
   CHECK(j["layers"][1]["channels"] == 2);
   CHECK(j["layers"][1]["transfer"] == "linear");
   CHECK(j["compression_ratio"].get<double>() > 1.0);
-  CHECK(cli("store verify " + out).first == 0);
-  CHECK(cli("store extract " + out + " --layer 0 --level 1 -o " + dir.file("l1.png")).first == 0);
+  CHECK(cli(dir, "store verify " + out).first == 0);
+  CHECK(cli(dir, "store extract " + out + " --layer 0 --level 1 -o " + dir.file("l1.png")).first == 0);
   const Image8 l1 = read_image8(dir.file("l1.png"), Transfer::linear);
   CHECK(l1.texels == build_mip_chain(test::make_image(250, 130, 3), Transfer::srgb, 2)[1].texels);
-  CHECK(cli("store extract " + out + " --level 99 -o " + dir.file("x.png")).first == 2);
-  CHECK(cli("store build " + dir.file("a.png") + " -o " + dir.file("x.vts") + " --codec webp").first == 2);
-  CHECK(cli("store gen -o " + dir.file("x.vts") + " --size 12xq").first == 2);
-  CHECK(cli("store gen -o " + dir.file("x.vts") + " --size 64x64 --layers rough:zstd").first == 2);
-  CHECK(cli("store info " + dir.file("a.png")).first == 2);  // not a store: bad magic
+  CHECK(cli(dir, "store extract " + out + " --level 99 -o " + dir.file("x.png")).first == 2);
+  CHECK(cli(dir, "store build " + dir.file("a.png") + " -o " + dir.file("x.vts") + " --codec webp").first == 2);
+  CHECK(cli(dir, "store gen -o " + dir.file("x.vts") + " --size 12xq").first == 2);
+  CHECK(cli(dir, "store gen -o " + dir.file("x.vts") + " --size 64x64 --layers rough:zstd").first == 2);
+  CHECK(cli(dir, "store info " + dir.file("a.png")).first == 2);  // not a store: bad magic
   CHECK_FALSE(std::filesystem::exists(dir.file("x.vts")));
 }
 
