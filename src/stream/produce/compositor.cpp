@@ -402,7 +402,9 @@ struct TileRows {
 // compose_reference, reorganised: weights in rows of texels, the brush taps' columns per tile, the
 // bilinear sample split into a vertical pass over the brush columns the row reads and a horizontal
 // pmaddwd per texel; (256-fy)((256-fx)a + fx b) + fy((256-fx)c + fx d) regroups exactly).
-[[gnu::always_inline]] inline void rows_body(TileRows& t, int j0, int j1, std::uint8_t* out) {
+using BlendFn = void (*)(const std::uint8_t* const*, const std::uint16_t* const*, int, std::size_t, std::uint8_t*);
+// blend: the path's blend, called per row (inlined here GCC 12 left its accumulation scalar).
+[[gnu::always_inline]] inline void rows_body(TileRows& t, int j0, int j1, std::uint8_t* out, BlendFn blend) {
   const int n = t.n, na = t.na;
   const std::size_t un = t.un;
   const std::uint8_t* lp[kMaxLayers];
@@ -485,12 +487,12 @@ struct TileRows {
       }
       sample_hpass(t.vrow, t.tx + static_cast<std::size_t>(k) * un, t.twf + static_cast<std::size_t>(k) * un, n, t.samp + static_cast<std::size_t>(k) * un * 4);
     }
-    blend_body(lp, wp, na, un, out + static_cast<std::size_t>(j) * un * 4);
+    blend(lp, wp, na, un, out + static_cast<std::size_t>(j) * un * 4);
   }
 }
 
-void rows_generic(TileRows& t, int j0, int j1, std::uint8_t* out) { rows_body(t, j0, j1, out); }
-VTSIM_TARGET_AVX2 void rows_avx2(TileRows& t, int j0, int j1, std::uint8_t* out) { rows_body(t, j0, j1, out); }
+void rows_generic(TileRows& t, int j0, int j1, std::uint8_t* out) { rows_body(t, j0, j1, out, blend_generic); }
+VTSIM_TARGET_AVX2 void rows_avx2(TileRows& t, int j0, int j1, std::uint8_t* out) { rows_body(t, j0, j1, out, blend_avx2); }
 
 }  // namespace
 
