@@ -344,7 +344,7 @@ struct TileRows {
   std::uint16_t* total = nullptr; // n
   std::uint8_t* heavy = nullptr;  // n
   std::uint16_t* vrow = nullptr;  // (largest side + 1) x 4: the vertical pass of one layer
-  std::uint8_t* samp = nullptr;   // kMaxLayers x n x 4
+  std::int32_t* acc = nullptr;    // n x 4: the blend's sums
 };
 
 // Mask row r (RGBA8) interpolated horizontally at the tile's columns, channels in `chans`:
@@ -376,24 +376,33 @@ struct TileRows {
   return t.hrow + (slot + s) * stride;
 }
 
-// Horizontal pass of one layer's row: out[i] = (X + 2^15) >> 16 with X = (256 - f) v[i0] + f v[i0 + 1],
-// v the vertical pass stored as v - 2^15 (int16), so one pmaddwd gives X - 2^23 per channel.
-[[gnu::always_inline]] inline void sample_hpass(const std::uint16_t* vrow, const int* tx, const std::uint32_t* twf, int n, std::uint8_t* o) {
+// Horizontal pass of one layer's row, blended as it goes: the sample c = (X + 2^15) >> 16 with
+// X = (256 - f) v[i0] + f v[i0 + 1], v the vertical pass stored as v - 2^15 (int16), so one pmaddwd
+// gives X - 2^23 per channel; then acc += w c, c < 256 and w <= 2^14 as int16 pairs (c, 0) . (w, 0),
+// a second pmaddwd. The sum is blend_rgba8's exact integer (the sampled bytes never stored).
+[[gnu::always_inline]] inline void sample_blend(const std::uint16_t* vrow, const int* tx, const std::uint32_t* twf, const std::uint16_t* w, int n,
+                                                std::int32_t* acc) {
   const __m128i bias = _mm_set1_epi32((1 << 23) + (1 << 15));
-  const auto one = [&](int i) {
+  for (int i = 0; i < n; ++i) {
     __m128i x = _mm_loadu_si128(reinterpret_cast<const __m128i*>(vrow + 4 * static_cast<std::size_t>(tx[i])));
     x = _mm_unpacklo_epi16(x, _mm_srli_si128(x, 8));  // (v0 c, v1 c) pairs
     x = _mm_madd_epi16(x, _mm_set1_epi32(static_cast<int>(twf[i])));
-    return _mm_srai_epi32(_mm_add_epi32(x, bias), 16);
-  };
-  int i = 0;
-  for (; i + 4 <= n; i += 4) {
-    const __m128i a = one(i), b = one(i + 1), c = one(i + 2), d = one(i + 3);
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(o + 4 * static_cast<std::size_t>(i)), _mm_packus_epi16(_mm_packs_epi32(a, b), _mm_packs_epi32(c, d)));
+    x = _mm_srai_epi32(_mm_add_epi32(x, bias), 16);
+    x = _mm_madd_epi16(x, _mm_set1_epi32(w[i]));
+    __m128i* a = reinterpret_cast<__m128i*>(acc + 4 * static_cast<std::size_t>(i));
+    _mm_storeu_si128(a, _mm_add_epi32(_mm_loadu_si128(a), x));
   }
+}
+
+// out = acc >> 14 as bytes (acc < 2^22: 255 . 2^14 + 2^13).
+[[gnu::always_inline]] inline void store_row(const std::int32_t* acc, int n, std::uint8_t* o) {
+  const auto at = [&](int i) { return _mm_srli_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(acc + 4 * static_cast<std::size_t>(i))), kWeightBits); };
+  int i = 0;
+  for (; i + 4 <= n; i += 4)
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(o + 4 * static_cast<std::size_t>(i)),
+                     _mm_packus_epi16(_mm_packs_epi32(at(i), at(i + 1)), _mm_packs_epi32(at(i + 2), at(i + 3))));
   for (; i < n; ++i) {
-    const __m128i a = _mm_packus_epi16(_mm_packs_epi32(one(i), one(i)), _mm_setzero_si128());
-    const int v = _mm_cvtsi128_si32(a);
+    const int v = _mm_cvtsi128_si32(_mm_packus_epi16(_mm_packs_epi32(at(i), at(i)), _mm_setzero_si128()));
     std::memcpy(o + 4 * static_cast<std::size_t>(i), &v, 4);
   }
 }
@@ -402,17 +411,9 @@ struct TileRows {
 // compose_reference, reorganised: weights in rows of texels, the brush taps' columns per tile, the
 // bilinear sample split into a vertical pass over the brush columns the row reads and a horizontal
 // pmaddwd per texel; (256-fy)((256-fx)a + fx b) + fy((256-fx)c + fx d) regroups exactly).
-using BlendFn = void (*)(const std::uint8_t* const*, const std::uint16_t* const*, int, std::size_t, std::uint8_t*);
-// blend: the path's blend, called per row (inlined here GCC 12 left its accumulation scalar).
-[[gnu::always_inline]] inline void rows_body(TileRows& t, int j0, int j1, std::uint8_t* out, BlendFn blend) {
+[[gnu::always_inline]] inline void rows_body(TileRows& t, int j0, int j1, std::uint8_t* out) {
   const int n = t.n, na = t.na;
   const std::size_t un = t.un;
-  const std::uint8_t* lp[kMaxLayers];
-  const std::uint16_t* wp[kMaxLayers];
-  for (int k = 0; k < na; ++k) {
-    lp[k] = t.samp + static_cast<std::size_t>(k) * un * 4;
-    wp[k] = t.w + static_cast<std::size_t>(k) * un;
-  }
   for (int j = j0; j < j1; ++j) {
     const double wy = t.origin_y_m + (j - t.border + 0.5) * t.m_per_texel;  // the reference's expression
     // Raw weights: bilinear in the masks (clamped at their edges), horizontal rows cached per mask row.
@@ -467,9 +468,10 @@ using BlendFn = void (*)(const std::uint8_t* const*, const std::uint16_t* const*
         w[i] = static_cast<std::uint16_t>(w[i] + (sel & static_cast<std::uint16_t>(kWeightOne - total[i])));
       }
     }
-    // Sample the layers with weight on this row.
+    // Sample and blend the layers with weight on this row (a layer of weight 0 adds 0).
+    for (std::size_t q = 0; q < 4 * un; ++q) t.acc[q] = kWeightOne / 2;
     for (int k = 0; k < na; ++k) {
-      const std::uint16_t* w = wp[k];
+      const std::uint16_t* w = t.w + static_cast<std::size_t>(k) * un;
       if (std::all_of(w, w + n, [](std::uint16_t v) { return v == 0; })) continue;
       const int s = t.side[k], nb = t.nb[k];
       const Tap ty = tap_of(fixed_pos(wy / t.period[k], s), s, nb);
@@ -485,14 +487,14 @@ using BlendFn = void (*)(const std::uint8_t* const*, const std::uint16_t* const*
         for (std::size_t q = lo; q < hi; ++q) v[q] = static_cast<std::uint16_t>((r0[q] * wa + r1[q] * wb) ^ 0x8000);
         if (b < t.runs[2 * r + 1] + 1) std::memcpy(v + hi, v + hi - 4, 4 * sizeof(std::uint16_t));
       }
-      sample_hpass(t.vrow, t.tx + static_cast<std::size_t>(k) * un, t.twf + static_cast<std::size_t>(k) * un, n, t.samp + static_cast<std::size_t>(k) * un * 4);
+      sample_blend(t.vrow, t.tx + static_cast<std::size_t>(k) * un, t.twf + static_cast<std::size_t>(k) * un, w, n, t.acc);
     }
-    blend(lp, wp, na, un, out + static_cast<std::size_t>(j) * un * 4);
+    store_row(t.acc, n, out + static_cast<std::size_t>(j) * un * 4);
   }
 }
 
-void rows_generic(TileRows& t, int j0, int j1, std::uint8_t* out) { rows_body(t, j0, j1, out, blend_generic); }
-VTSIM_TARGET_AVX2 void rows_avx2(TileRows& t, int j0, int j1, std::uint8_t* out) { rows_body(t, j0, j1, out, blend_avx2); }
+void rows_generic(TileRows& t, int j0, int j1, std::uint8_t* out) { rows_body(t, j0, j1, out); }
+VTSIM_TARGET_AVX2 void rows_avx2(TileRows& t, int j0, int j1, std::uint8_t* out) { rows_body(t, j0, j1, out); }
 
 }  // namespace
 
@@ -597,7 +599,7 @@ void Compositor::compose(const CompositeJob& job, std::uint8_t* out, ComposePath
   total_.resize(un);
   heavy_.resize(un);
   vrow_.resize((static_cast<std::size_t>(max_side) + 1) * 4);
-  samp_.assign(kMaxLayers * un * 4, 0);
+  acc_.resize(un * 4);
   t.raw = raw_.data();
   t.inv = inv_.data();
   t.w = w_.data();
@@ -605,7 +607,7 @@ void Compositor::compose(const CompositeJob& job, std::uint8_t* out, ComposePath
   t.total = total_.data();
   t.heavy = heavy_.data();
   t.vrow = vrow_.data();
-  t.samp = samp_.data();
+  t.acc = acc_.data();
   if (resolve(path) == ComposePath::kAvx2) rows_avx2(t, 0, n, out);
   else rows_generic(t, 0, n, out);
 }

@@ -106,7 +106,7 @@ class Compositor {
   std::vector<std::uint16_t> w_;      // kMaxLayers rows of normalised weights
   std::vector<std::uint16_t> best_, total_;  // per texel: heaviest weight, sum of the rounded weights
   std::vector<std::uint8_t> heavy_;   // per texel: the heaviest layer
-  std::vector<std::uint8_t> samp_;    // kMaxLayers rows of sampled RGBA8
+  std::vector<std::int32_t> acc_;     // one row's blend sums, 4 a texel
   std::vector<int> mx_;               // per mask and output column: byte offsets of mask texels x0, x1
   std::vector<float> mfx_;            // ... and the fraction between them
   std::vector<float> hrow_;           // per mask, 2 cached mask rows interpolated at the columns, 4 x n
