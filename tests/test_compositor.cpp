@@ -127,3 +127,64 @@ TEST_CASE("compositor: compose is within 1 of the exact double-precision tile") 
   CHECK(worst == 1);  // rounding shows somewhere, never more than 1
   CHECK(differ > 0);
 }
+
+TEST_CASE("compositor: every path gives the reference loop's bytes - borders 0 2 4, constant border, 1 to 16 layers, magnified and minified") {
+  // Noisy brushes (0 <-> 255 neighbours: the taps' weights all show), masks with zero corners (the
+  // zero-sum rule) and noise, tiles whose brush steps wrap, clamp at the coarsest level or magnify.
+  const auto noise = [](std::uint64_t x) {
+    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+    x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+    return static_cast<std::uint8_t>((x ^ (x >> 31)) & 255);
+  };
+  std::vector<Rgba8> brushes;
+  for (int b = 0; b < 16; ++b) {
+    Rgba8 im;
+    im.width = im.height = 32;
+    for (std::uint64_t i = 0; i < 32 * 32 * 4; ++i) im.texels.push_back(noise(i * 131 + static_cast<std::uint64_t>(b) * 7919 + 1));
+    brushes.push_back(std::move(im));
+  }
+  struct Case {
+    int border;
+    bool constant;
+    int layers;
+    double m_per_texel, period0;
+    int tile, tile_border;
+  };
+  const Case cases[] = {{0, false, 3, 0.01, 1.0, 29, 0},  {2, false, 1, 0.05, 0.7, 16, 1},  {4, false, 8, 0.013, 0.9, 64, 4},
+                        {4, true, 16, 0.37, 1.1, 40, 2},  {2, false, 16, 2.5, 0.6, 33, 3},  {0, false, 5, 0.2, 3.3, 50, 4}};
+  for (const Case& cs : cases) {
+    CAPTURE(cs.border);
+    CAPTURE(cs.layers);
+    CAPTURE(cs.m_per_texel);
+    const Atlas at = build_atlas(brushes, {}, {.cols = 4, .border = cs.border, .constant_border = cs.constant});
+    std::vector<std::vector<std::uint8_t>> mask_px(4);
+    std::vector<WeightMask> masks;
+    for (std::size_t mi = 0; mi < 4; ++mi) {
+      for (std::uint64_t i = 0; i < 9 * 7 * 4; ++i)
+        mask_px[mi].push_back(i < 8 || i % 11 == 0 ? 0 : noise(i * 17 + mi * 1000 + 3));
+      masks.push_back({9, 7, mask_px[mi].data(), -0.3, 0.2, 0.9});
+    }
+    std::vector<BrushLayer> layers;
+    for (int l = 0; l < cs.layers; ++l) layers.push_back({(l * 5) % 16, cs.period0 * (1 + 0.17 * l)});
+    CompositeJob job;
+    job.atlas = &at;
+    job.layers = layers;
+    job.masks = masks;
+    job.origin_x_m = -0.41;
+    job.origin_y_m = 0.77;
+    job.m_per_texel = cs.m_per_texel;
+    job.tile = cs.tile;
+    job.border = cs.tile_border;
+    const std::size_t side = static_cast<std::size_t>(cs.tile + 2 * cs.tile_border);
+    std::vector<std::uint8_t> ref(side * side * 4);
+    compose_reference(job, ref.data());
+    Compositor c;
+    for (ComposePath p : {ComposePath::kAuto, ComposePath::kGeneric, ComposePath::kAvx2}) {
+      if (!compose_path_available(p)) continue;
+      CAPTURE(static_cast<int>(p));
+      std::vector<std::uint8_t> out(ref.size(), 7);
+      c.compose(job, out.data(), p);
+      CHECK(out == ref);
+    }
+  }
+}

@@ -6,14 +6,20 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <cstring>
+#include <emmintrin.h>
 
 #include "core/error.h"
 
-// An avx2 clone beside the default (as sim/view/simd.h); integer code, so both give the same bits.
+// Two paths (ComposePath): the row kernels inlined into a function for baseline x86-64 (SSE2) and
+// one with target("avx2"), chosen at run time (no ifunc: TSan crashes on an ifunc resolver at load,
+// sim/view/simd.h, so VTSIM_NO_TARGET_CLONES keeps the generic path only). The AVX2 path does not
+// enable FMA and this file is compiled with -ffp-contract=off (CMakeLists.txt), so the float
+// weights are the same IEEE operations in the same order on both paths: the same bits.
 #if defined(VTSIM_NO_TARGET_CLONES)
-#define VTSIM_PRODUCE_CLONES
+#define VTSIM_TARGET_AVX2
 #else
-#define VTSIM_PRODUCE_CLONES __attribute__((target_clones("avx2", "default")))
+#define VTSIM_TARGET_AVX2 __attribute__((target("avx2")))
 #endif
 
 namespace vtsim::produce {
@@ -61,9 +67,11 @@ ProduceWork count_work(const CompositeJob& job) {
   return w;
 }
 
-VTSIM_PRODUCE_CLONES
-void blend_rgba8(const std::uint8_t* const* layers, const std::uint16_t* const* weights, int n_layers, std::size_t texels,
-                 std::uint8_t* out) {
+namespace {
+
+// The blend, inlined into each path's row function (the body is compiled once per instruction set).
+[[gnu::always_inline]] inline void blend_body(const std::uint8_t* const* layers, const std::uint16_t* const* weights, int n_layers,
+                                              std::size_t texels, std::uint8_t* out) {
   // Chunks of 64 texels: the accumulators (1 KiB) stay in L1 across the layers.
   constexpr std::size_t kChunk = 64;
   std::uint32_t acc[kChunk * 4];
@@ -80,7 +88,60 @@ void blend_rgba8(const std::uint8_t* const* layers, const std::uint16_t* const* 
   }
 }
 
+void blend_generic(const std::uint8_t* const* layers, const std::uint16_t* const* weights, int n_layers, std::size_t texels,
+                   std::uint8_t* out) {
+  blend_body(layers, weights, n_layers, texels, out);
+}
+VTSIM_TARGET_AVX2 void blend_avx2(const std::uint8_t* const* layers, const std::uint16_t* const* weights, int n_layers, std::size_t texels,
+                                  std::uint8_t* out) {
+  blend_body(layers, weights, n_layers, texels, out);
+}
+
+}  // namespace
+
+bool compose_path_available(ComposePath path) {
+  switch (path) {
+    case ComposePath::kAuto:
+    case ComposePath::kGeneric:
+      return true;
+    case ComposePath::kAvx2:
+#if defined(VTSIM_NO_TARGET_CLONES)
+      return false;
+#else
+      return __builtin_cpu_supports("avx2");
+#endif
+  }
+  return false;
+}
+
 namespace {
+// kAuto resolved once: the widest path this CPU runs.
+ComposePath resolve(ComposePath path) {
+  static const ComposePath best = compose_path_available(ComposePath::kAvx2) ? ComposePath::kAvx2 : ComposePath::kGeneric;
+  return path == ComposePath::kAuto ? best : path;
+}
+}  // namespace
+
+void blend_rgba8(const std::uint8_t* const* layers, const std::uint16_t* const* weights, int n_layers, std::size_t texels,
+                 std::uint8_t* out) {
+  if (resolve(ComposePath::kAuto) == ComposePath::kAvx2) blend_avx2(layers, weights, n_layers, texels, out);
+  else blend_generic(layers, weights, n_layers, texels, out);
+}
+
+namespace {
+
+void validate(const CompositeJob& job) {
+  if (!job.atlas || job.atlas->levels.empty()) throw InputError("atlas", "no atlas given");
+  if (job.layers.empty() || job.layers.size() > kMaxLayers)
+    throw InputError("layers", fmt::format("{} layers: give 1 to {}", job.layers.size(), kMaxLayers));
+  if (job.masks.size() * 4 < job.layers.size())
+    throw InputError("masks", fmt::format("{} masks weight {} layers: need one mask per 4 layers", job.masks.size(), job.layers.size()));
+  if (job.tile < 1 || job.border < 0 || !(job.m_per_texel > 0))
+    throw InputError("tile", "tile >= 1, border >= 0 and m_per_texel > 0 required");
+  for (const BrushLayer& l : job.layers)
+    if (l.cell < 0 || l.cell >= job.atlas->brushes || !(l.period_m > 0))
+      throw InputError("layers", fmt::format("cell {} (atlas has {}) period {} m: bad layer", l.cell, job.atlas->brushes, l.period_m));
+}
 
 // A position along one axis of level (side s, border nb): taps i0, i1 in brush texels (i1 may be s,
 // the border) and the 8-bit fraction. Without a border the half-texel inset clamps to the edge
@@ -128,17 +189,15 @@ void sample_bilinear(const Atlas& atlas, int m, int b, double u, double v, bool 
   }
 }
 
-void Compositor::compose(const CompositeJob& job, std::uint8_t* out) {
-  if (!job.atlas || job.atlas->levels.empty()) throw InputError("atlas", "no atlas given");
-  if (job.layers.empty() || job.layers.size() > kMaxLayers)
-    throw InputError("layers", fmt::format("{} layers: give 1 to {}", job.layers.size(), kMaxLayers));
-  if (job.masks.size() * 4 < job.layers.size())
-    throw InputError("masks", fmt::format("{} masks weight {} layers: need one mask per 4 layers", job.masks.size(), job.layers.size()));
-  if (job.tile < 1 || job.border < 0 || !(job.m_per_texel > 0))
-    throw InputError("tile", "tile >= 1, border >= 0 and m_per_texel > 0 required");
-  for (const BrushLayer& l : job.layers)
-    if (l.cell < 0 || l.cell >= job.atlas->brushes || !(l.period_m > 0))
-      throw InputError("layers", fmt::format("cell {} (atlas has {}) period {} m: bad layer", l.cell, job.atlas->brushes, l.period_m));
+// The per-texel loop before the row kernels (docs/produced.md, "The compositor"): kept as the
+// bit-exact reference of compose's every path.
+void compose_reference(const CompositeJob& job, std::uint8_t* out) {
+  validate(job);
+  std::vector<float> raw_;
+  std::vector<std::uint16_t> w_;
+  std::vector<std::uint8_t> samp_;
+  std::vector<int> mx_;
+  std::vector<float> mfx_;
   const Atlas& at = *job.atlas;
   const int n = job.tile + 2 * job.border;
   const std::size_t un = static_cast<std::size_t>(n);
@@ -247,6 +306,310 @@ void Compositor::compose(const CompositeJob& job, std::uint8_t* out) {
     }
     blend_rgba8(lp, wp, na, un, out + static_cast<std::size_t>(j) * un * 4);
   }
+}
+
+namespace {
+
+// One tile's state for the row kernels, prepared once per tile by Compositor::compose.
+struct TileRows {
+  int n = 0;           // row length, texels
+  std::size_t un = 0;
+  int na = 0;          // active layers
+  double origin_y_m = 0, m_per_texel = 0;
+  int border = 0;
+  const WeightMask* masks = nullptr;
+  int nm = 0;
+  const int* mx = nullptr;     // per mask, n pairs: byte offsets of mask texels x0, x1 in a row
+  const float* mfx = nullptr;  // per mask, n fractions
+  // Per mask, two cached rows of horizontally interpolated weights (4 channels x n floats each),
+  // for the mask rows in cache_y: a mask magnified over the tile serves many output rows per row.
+  float* hrow = nullptr;
+  int* cache_y = nullptr;
+  std::uint32_t mask_ch[4] = {};  // per mask, the channels some active layer reads
+  // Per active layer k.
+  int mi[kMaxLayers] = {}, ch[kMaxLayers] = {};
+  double period[kMaxLayers] = {};
+  int side[kMaxLayers] = {}, nb[kMaxLayers] = {};
+  std::size_t row_bytes[kMaxLayers] = {};          // atlas level row, bytes
+  const std::uint8_t* brush0[kMaxLayers] = {};     // brush texel (0, 0) of the layer's level
+  const int* tx = nullptr;                         // per layer, n tap columns i0
+  const std::uint32_t* twf = nullptr;              // per layer, n words (f << 16) | (256 - f)
+  const int* runs = nullptr;                       // per layer runs of needed columns [a, b] ...
+  const int* run_begin = nullptr;                  // ... layer k's are runs[2 run_begin[k] .. 2 run_begin[k+1])
+  // Row scratch.
+  float* raw = nullptr;           // kMaxLayers x n
+  float* inv = nullptr;           // n
+  std::uint16_t* w = nullptr;     // kMaxLayers x n
+  std::uint16_t* best = nullptr;  // n
+  std::uint16_t* total = nullptr; // n
+  std::uint8_t* heavy = nullptr;  // n
+  std::uint16_t* vrow = nullptr;  // (largest side + 1) x 4: the vertical pass of one layer
+  std::int32_t* acc = nullptr;    // n x 4: the blend's sums
+};
+
+// Mask row r (RGBA8) interpolated horizontally at the tile's columns, channels in `chans`:
+// out[c * n + i] = r[x0] + (r[x1] - r[x0]) * fx, the reference's float expression.
+[[gnu::always_inline]] inline void mask_hrow(const std::uint8_t* r, const int* mx, const float* mfx, int n, std::uint32_t chans,
+                                             float* out) {
+  const std::size_t un = static_cast<std::size_t>(n);
+  for (int c = 0; c < 4; ++c) {
+    if (!(chans & (1u << c))) continue;
+    float* o = out + static_cast<std::size_t>(c) * un;
+    for (int i = 0; i < n; ++i) {
+      const float a = r[mx[2 * i] + c], b = r[mx[2 * i + 1] + c];
+      o[i] = a + (b - a) * mfx[i];
+    }
+  }
+}
+
+// The cached horizontal row of mask mi for mask row y, computing it into a slot `keep` does not hold.
+[[gnu::always_inline]] inline const float* mask_row(TileRows& t, int mi, int y, int keep) {
+  const std::size_t slot = static_cast<std::size_t>(mi) * 2;
+  const std::size_t stride = 4 * t.un;
+  for (std::size_t s = 0; s < 2; ++s)
+    if (t.cache_y[slot + s] == y) return t.hrow + (slot + s) * stride;
+  const std::size_t s = t.cache_y[slot] == keep ? 1 : 0;
+  const WeightMask& m = t.masks[mi];
+  mask_hrow(m.rgba + static_cast<std::size_t>(y) * static_cast<std::size_t>(m.width) * 4, t.mx + static_cast<std::size_t>(mi) * t.un * 2,
+            t.mfx + static_cast<std::size_t>(mi) * t.un, t.n, t.mask_ch[mi], t.hrow + (slot + s) * stride);
+  t.cache_y[slot + s] = y;
+  return t.hrow + (slot + s) * stride;
+}
+
+// Horizontal pass of one layer's row, blended as it goes: the sample c = (X + 2^15) >> 16 with
+// X = (256 - f) v[i0] + f v[i0 + 1], v the vertical pass stored as v - 2^15 (int16), so one pmaddwd
+// gives X - 2^23 per channel; then acc += w c, c < 256 and w <= 2^14 as int16 pairs (c, 0) . (w, 0),
+// a second pmaddwd. The sum is blend_rgba8's exact integer (the sampled bytes never stored).
+[[gnu::always_inline]] inline void sample_blend(const std::uint16_t* vrow, const int* tx, const std::uint32_t* twf, const std::uint16_t* w, int n,
+                                                std::int32_t* acc) {
+  const __m128i bias = _mm_set1_epi32((1 << 23) + (1 << 15));
+  for (int i = 0; i < n; ++i) {
+    __m128i x = _mm_loadu_si128(reinterpret_cast<const __m128i*>(vrow + 4 * static_cast<std::size_t>(tx[i])));
+    x = _mm_unpacklo_epi16(x, _mm_srli_si128(x, 8));  // (v0 c, v1 c) pairs
+    x = _mm_madd_epi16(x, _mm_set1_epi32(static_cast<int>(twf[i])));
+    x = _mm_srai_epi32(_mm_add_epi32(x, bias), 16);
+    x = _mm_madd_epi16(x, _mm_set1_epi32(w[i]));
+    __m128i* a = reinterpret_cast<__m128i*>(acc + 4 * static_cast<std::size_t>(i));
+    _mm_storeu_si128(a, _mm_add_epi32(_mm_loadu_si128(a), x));
+  }
+}
+
+// out = acc >> 14 as bytes (acc < 2^22: 255 . 2^14 + 2^13).
+[[gnu::always_inline]] inline void store_row(const std::int32_t* acc, int n, std::uint8_t* o) {
+  const auto at = [&](int i) { return _mm_srli_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(acc + 4 * static_cast<std::size_t>(i))), kWeightBits); };
+  int i = 0;
+  for (; i + 4 <= n; i += 4)
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(o + 4 * static_cast<std::size_t>(i)),
+                     _mm_packus_epi16(_mm_packs_epi32(at(i), at(i + 1)), _mm_packs_epi32(at(i + 2), at(i + 3))));
+  for (; i < n; ++i) {
+    const int v = _mm_cvtsi128_si32(_mm_packus_epi16(_mm_packs_epi32(at(i), at(i)), _mm_setzero_si128()));
+    std::memcpy(o + 4 * static_cast<std::size_t>(i), &v, 4);
+  }
+}
+
+// Rows [j0, j1) of the tile (docs/produced.md, "The compositor": the same integers and floats as
+// compose_reference, reorganised: weights in rows of texels, the brush taps' columns per tile, the
+// bilinear sample split into a vertical pass over the brush columns the row reads and a horizontal
+// pmaddwd per texel; (256-fy)((256-fx)a + fx b) + fy((256-fx)c + fx d) regroups exactly).
+[[gnu::always_inline]] inline void rows_body(TileRows& t, int j0, int j1, std::uint8_t* out) {
+  const int n = t.n, na = t.na;
+  const std::size_t un = t.un;
+  for (int j = j0; j < j1; ++j) {
+    const double wy = t.origin_y_m + (j - t.border + 0.5) * t.m_per_texel;  // the reference's expression
+    // Raw weights: bilinear in the masks (clamped at their edges), horizontal rows cached per mask row.
+    for (int k = 0; k < na; ++k) {
+      const WeightMask& m = t.masks[t.mi[k]];
+      const double my = std::clamp((wy - m.origin_y_m) / m.m_per_texel - 0.5, 0.0, m.height - 1.0);
+      const int y0 = static_cast<int>(my), y1 = std::min(y0 + 1, m.height - 1);
+      const float fy = static_cast<float>(my - y0);
+      const float* top = mask_row(t, t.mi[k], y0, y1) + static_cast<std::size_t>(t.ch[k]) * un;
+      const float* bot = mask_row(t, t.mi[k], y1, y0) + static_cast<std::size_t>(t.ch[k]) * un;
+      float* __restrict raw = t.raw + static_cast<std::size_t>(k) * un;
+      for (int i = 0; i < n; ++i) raw[i] = top[i] + (bot[i] - top[i]) * fy;
+    }
+    // Normalise to kWeightOne; the remainder goes to the (first) heaviest layer. Raw weights are
+    // >= 0, so a zero sum means all zero: every q is 0 and layer 0 (the first active) takes all.
+    // Local restrict pointers: a store through heavy (bytes) could otherwise alias t's fields.
+    float* __restrict inv = t.inv;
+    std::uint16_t* __restrict best = t.best;
+    std::uint16_t* __restrict total = t.total;
+    std::uint8_t* __restrict heavy = t.heavy;
+    for (int i = 0; i < n; ++i) inv[i] = 0.0f;
+    for (int k = 0; k < na; ++k) {
+      const float* __restrict raw = t.raw + static_cast<std::size_t>(k) * un;
+      for (int i = 0; i < n; ++i) inv[i] += raw[i];
+    }
+    // A zero sum divides 1 instead (its weights are all 0 whatever the scale); sum + 0 is the sum
+    // exactly. Tested on the bits: a float comparison keeps the loop from vectorising
+    // (-ftrapping-math). A sum of raw weights >= 0 is +0 only when zero.
+    for (int i = 0; i < n; ++i) {
+      std::uint32_t bits;
+      std::memcpy(&bits, &inv[i], 4);
+      inv[i] = static_cast<float>(kWeightOne) / (inv[i] + static_cast<float>(bits == 0));
+    }
+    for (int i = 0; i < n; ++i) best[i] = 0, total[i] = 0, heavy[i] = 0;
+    for (int k = 0; k < na; ++k) {
+      const float* __restrict raw = t.raw + static_cast<std::size_t>(k) * un;
+      std::uint16_t* __restrict w = t.w + static_cast<std::size_t>(k) * un;
+      for (int i = 0; i < n; ++i) {
+        const auto q = static_cast<std::uint16_t>(static_cast<int>(raw[i] * inv[i] + 0.5f));
+        w[i] = q;
+        total[i] = static_cast<std::uint16_t>(total[i] + q);
+        const bool more = q > best[i];
+        best[i] = more ? q : best[i];
+        heavy[i] = more ? static_cast<std::uint8_t>(k) : heavy[i];
+      }
+    }
+    for (int k = 0; k < na; ++k) {
+      std::uint16_t* __restrict w = t.w + static_cast<std::size_t>(k) * un;
+      const auto kk = static_cast<std::uint8_t>(k);
+      for (int i = 0; i < n; ++i) {
+        const auto sel = static_cast<std::uint16_t>(-static_cast<int>(heavy[i] == kk));  // all ones on the heaviest layer
+        w[i] = static_cast<std::uint16_t>(w[i] + (sel & static_cast<std::uint16_t>(kWeightOne - total[i])));
+      }
+    }
+    // Sample and blend the layers with weight on this row (a layer of weight 0 adds 0).
+    for (std::size_t q = 0; q < 4 * un; ++q) t.acc[q] = kWeightOne / 2;
+    for (int k = 0; k < na; ++k) {
+      const std::uint16_t* w = t.w + static_cast<std::size_t>(k) * un;
+      if (std::all_of(w, w + n, [](std::uint16_t v) { return v == 0; })) continue;
+      const int s = t.side[k], nb = t.nb[k];
+      const Tap ty = tap_of(fixed_pos(wy / t.period[k], s), s, nb);
+      const std::uint8_t* r0 = t.brush0[k] + static_cast<std::size_t>(ty.i0) * t.row_bytes[k];
+      const std::uint8_t* r1 = t.brush0[k] + static_cast<std::size_t>(ty.i1) * t.row_bytes[k];
+      const int wa = 256 - ty.f, wb = ty.f;
+      // Vertical pass over the runs of brush columns the row's taps read, and each run's right
+      // neighbour (column s is the border; without a border its tap weight is 0, so a copy).
+      for (int r = t.run_begin[k]; r < t.run_begin[k + 1]; ++r) {
+        const int a = t.runs[2 * r], b = std::min(t.runs[2 * r + 1] + 1, nb > 0 ? s : s - 1);
+        const std::size_t lo = static_cast<std::size_t>(a) * 4, hi = static_cast<std::size_t>(b + 1) * 4;
+        std::uint16_t* __restrict v = t.vrow;
+        for (std::size_t q = lo; q < hi; ++q) v[q] = static_cast<std::uint16_t>((r0[q] * wa + r1[q] * wb) ^ 0x8000);
+        if (b < t.runs[2 * r + 1] + 1) std::memcpy(v + hi, v + hi - 4, 4 * sizeof(std::uint16_t));
+      }
+      sample_blend(t.vrow, t.tx + static_cast<std::size_t>(k) * un, t.twf + static_cast<std::size_t>(k) * un, w, n, t.acc);
+    }
+    store_row(t.acc, n, out + static_cast<std::size_t>(j) * un * 4);
+  }
+}
+
+void rows_generic(TileRows& t, int j0, int j1, std::uint8_t* out) { rows_body(t, j0, j1, out); }
+VTSIM_TARGET_AVX2 void rows_avx2(TileRows& t, int j0, int j1, std::uint8_t* out) { rows_body(t, j0, j1, out); }
+
+}  // namespace
+
+void Compositor::compose(const CompositeJob& job, std::uint8_t* out, ComposePath path) {
+  validate(job);
+  const Atlas& at = *job.atlas;
+  const int n = job.tile + 2 * job.border;
+  const std::size_t un = static_cast<std::size_t>(n);
+  const std::uint32_t act = active_layers(job);
+  int ids[kMaxLayers];
+  int na = 0;
+  for (int l = 0; l < static_cast<int>(job.layers.size()); ++l)
+    if (act & (1u << l)) ids[na++] = l;
+  TileRows t;
+  t.n = n;
+  t.un = un;
+  t.na = na;
+  t.origin_y_m = job.origin_y_m;
+  t.border = job.border;
+  t.m_per_texel = job.m_per_texel;
+  t.masks = job.masks.data();
+  t.nm = static_cast<int>(job.masks.size());
+  // The mask columns each output column reads (x0, x1, fraction), once per tile and mask.
+  const std::size_t nm = job.masks.size();
+  mx_.resize(nm * un * 2);
+  mfx_.resize(nm * un);
+  for (std::size_t mi = 0; mi < nm; ++mi) {
+    const WeightMask& m = job.masks[mi];
+    for (int i = 0; i < n; ++i) {
+      const double wx = job.origin_x_m + (i - job.border + 0.5) * job.m_per_texel;
+      const double mx = std::clamp((wx - m.origin_x_m) / m.m_per_texel - 0.5, 0.0, m.width - 1.0);
+      const int x0 = static_cast<int>(mx);
+      mx_[(mi * un + static_cast<std::size_t>(i)) * 2] = x0 * 4;
+      mx_[(mi * un + static_cast<std::size_t>(i)) * 2 + 1] = std::min(x0 + 1, m.width - 1) * 4;
+      mfx_[mi * un + static_cast<std::size_t>(i)] = static_cast<float>(mx - x0);
+    }
+  }
+  t.mx = mx_.data();
+  t.mfx = mfx_.data();
+  hrow_.resize(nm * 2 * 4 * un);
+  cache_y_.assign(nm * 2, -1);
+  t.hrow = hrow_.data();
+  t.cache_y = cache_y_.data();
+  // Per layer, constant over the tile (a clipmap tile is seen straight down): level, step, and the
+  // tap column and fraction of every output column (the same for every row).
+  tx_.resize(static_cast<std::size_t>(na) * un);
+  twf_.resize(static_cast<std::size_t>(na) * un);
+  runs_.clear();
+  int run_begin[kMaxLayers + 1] = {};
+  int max_side = 1;
+  for (int k = 0; k < na; ++k) {
+    const BrushLayer& bl = job.layers[static_cast<std::size_t>(ids[k])];
+    const int mi = ids[k] / 4;
+    t.mi[k] = mi;
+    t.ch[k] = ids[k] % 4;
+    t.mask_ch[mi] |= 1u << t.ch[k];  // mi < 4: ids[k] < kMaxLayers
+    const AtlasLevel& lv = at.levels[static_cast<std::size_t>(select_level(at, job.m_per_texel, bl.period_m))];
+    const int s = lv.brush_side;
+    max_side = std::max(max_side, s);
+    t.period[k] = bl.period_m;
+    t.side[k] = s;
+    t.nb[k] = lv.border;
+    t.row_bytes[k] = static_cast<std::size_t>(lv.width) * 4;
+    const int cx0 = (bl.cell % at.cols) * lv.cell + lv.border, cy0 = (bl.cell / at.cols) * lv.cell + lv.border;
+    t.brush0[k] = &lv.rgba[(static_cast<std::size_t>(cy0) * static_cast<std::size_t>(lv.width) + static_cast<std::size_t>(cx0)) * 4];
+    const std::int64_t mask = (static_cast<std::int64_t>(s) << 32) - 1;
+    const std::int64_t step = static_cast<std::int64_t>(std::llround(job.m_per_texel / bl.period_m * s * 4294967296.0)) & mask;
+    std::int64_t p = fixed_pos((job.origin_x_m + (0.5 - job.border) * job.m_per_texel) / bl.period_m, s);
+    need_.assign(static_cast<std::size_t>(s), 0);
+    for (int i = 0; i < n; ++i, p = (p + step) & mask) {
+      const Tap tx = tap_of(p, s, lv.border);  // i1 = i0 + 1, or f = 0 (no border)
+      tx_[static_cast<std::size_t>(k) * un + static_cast<std::size_t>(i)] = tx.i0;
+      twf_[static_cast<std::size_t>(k) * un + static_cast<std::size_t>(i)] = (static_cast<std::uint32_t>(tx.f) << 16) | static_cast<std::uint32_t>(256 - tx.f);
+      need_[static_cast<std::size_t>(tx.i0)] = 1;
+    }
+    // Runs of needed columns; gaps under 8 columns are cheaper to fill than to skip.
+    run_begin[k] = static_cast<int>(runs_.size() / 2);
+    for (int c = 0; c < s;) {
+      if (!need_[static_cast<std::size_t>(c)]) {
+        ++c;
+        continue;
+      }
+      int e = c, gap = 0;
+      for (int q = c + 1; q < s && gap < 8; ++q) {
+        if (need_[static_cast<std::size_t>(q)]) e = q, gap = 0;
+        else ++gap;
+      }
+      runs_.push_back(c);
+      runs_.push_back(e);
+      c = e + 1;
+    }
+    run_begin[k + 1] = static_cast<int>(runs_.size() / 2);
+  }
+  t.tx = tx_.data();
+  t.twf = twf_.data();
+  t.runs = runs_.data();
+  t.run_begin = run_begin;
+  raw_.resize(kMaxLayers * un);
+  inv_.resize(un);
+  w_.assign(kMaxLayers * un, 0);
+  best_.resize(un);
+  total_.resize(un);
+  heavy_.resize(un);
+  vrow_.resize((static_cast<std::size_t>(max_side) + 1) * 4);
+  acc_.resize(un * 4);
+  t.raw = raw_.data();
+  t.inv = inv_.data();
+  t.w = w_.data();
+  t.best = best_.data();
+  t.total = total_.data();
+  t.heavy = heavy_.data();
+  t.vrow = vrow_.data();
+  t.acc = acc_.data();
+  if (resolve(path) == ComposePath::kAvx2) rows_avx2(t, 0, n, out);
+  else rows_generic(t, 0, n, out);
 }
 
 void compose_exact(const CompositeJob& job, std::uint8_t* out) {

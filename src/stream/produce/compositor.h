@@ -84,17 +84,38 @@ void sample_bilinear(const Atlas& atlas, int m, int b, double u, double v, bool 
 // against OpenImageIO"). O(texels x layers), slow; no validation (run compose first).
 void compose_exact(const CompositeJob& job, std::uint8_t* out);
 
+// The instruction sets compose runs with: kGeneric is baseline x86-64 (SSE2), kAvx2 the same row
+// kernels compiled for AVX2 (no FMA); kAuto the widest available. Every path gives the same bits
+// (tests/test_compositor.cpp composes with each and compares the bytes).
+enum class ComposePath { kAuto, kGeneric, kAvx2 };
+// Whether this CPU (and build: the TSan build keeps the generic path only) runs `path`.
+bool compose_path_available(ComposePath path);
+
+// The per-texel loop compose ran before its row kernels (docs/produced.md, "The compositor"):
+// compose gives exactly its bytes on every path. For tests and bench_compositor; ~4x slower.
+void compose_reference(const CompositeJob& job, std::uint8_t* out);
+
 class Compositor {
  public:
-  // Writes (T + 2B)^2 RGBA8 texels to out. Throws InputError on a job it cannot run.
-  void compose(const CompositeJob& job, std::uint8_t* out);
+  // Writes (T + 2B)^2 RGBA8 texels to out. Throws InputError on a job it cannot run. `path` forces
+  // an instruction set (tests, benches); an unavailable one is the caller's error.
+  void compose(const CompositeJob& job, std::uint8_t* out, ComposePath path = ComposePath::kAuto);
 
  private:
-  std::vector<float> raw_;            // kMaxLayers rows of raw weights
+  std::vector<float> raw_, inv_;      // kMaxLayers rows of raw weights; per texel kWeightOne / their sum
   std::vector<std::uint16_t> w_;      // kMaxLayers rows of normalised weights
-  std::vector<std::uint8_t> samp_;    // kMaxLayers rows of sampled RGBA8
+  std::vector<std::uint16_t> best_, total_;  // per texel: heaviest weight, sum of the rounded weights
+  std::vector<std::uint8_t> heavy_;   // per texel: the heaviest layer
+  std::vector<std::int32_t> acc_;     // one row's blend sums, 4 a texel
   std::vector<int> mx_;               // per mask and output column: byte offsets of mask texels x0, x1
   std::vector<float> mfx_;            // ... and the fraction between them
+  std::vector<float> hrow_;           // per mask, 2 cached mask rows interpolated at the columns, 4 x n
+  std::vector<int> cache_y_;          // ... the mask rows they hold (-1: none)
+  std::vector<int> tx_;               // per layer and output column: the brush tap column i0
+  std::vector<std::uint32_t> twf_;    // ... and (f << 16) | (256 - f), f its 8-bit fraction
+  std::vector<int> runs_;             // per layer, runs [a, b] of the brush columns the taps read
+  std::vector<std::uint8_t> need_;    // scratch: columns a layer's taps read
+  std::vector<std::uint16_t> vrow_;   // one layer's vertical pass (brush columns x 4, minus 2^15)
 };
 
 }  // namespace vtsim::produce
