@@ -165,9 +165,7 @@ void run_replay_command(const ReplayArgs& a) {
                      "only one of --json, --summary -, --frames -, --report - can write to stdout");
   if (a.clock != "sim" && a.clock != "real")
     throw InputError("--clock", "'" + a.clock + "' is not one of: sim (device models), real (threads and files)");
-  if (a.clock == "real") refuse_produced_system(cfg);
-  if (a.clock == "real" && a.store.empty())
-    throw InputError("--store", "the real clock reads a tile store: give --store S (make one with `vtsim store gen`)");
+  if (a.clock == "real") check_real_clock_system(cfg, !a.store.empty());  // the terrain: no store, a producer
   check_input("--store", a.store);
   Trace trace = load_cli_trace(a.trace, a.allow_repairs);
   apply_speed(cfg, trace, a.speed);
@@ -186,7 +184,8 @@ void run_replay_command(const ReplayArgs& a) {
     progress = [](int f, int n) { fmt::print(stderr, "\rframe {}/{} ({:.0f}%)", f, n, 100.0 * f / n); };
   ReplayResult r;
   if (a.clock == "real") {
-    RealRun run = run_real_replay(cfg, trace, *scene, *store, RealClockOptions{progress});
+    RealRun run = store ? run_real_replay(cfg, trace, *scene, *store, RealClockOptions{progress})
+                        : run_real_replay(cfg, trace, *scene, RealClockOptions{progress});
     r = std::move(run.result);
     const nlohmann::json& rc = r.summary["real_clock"];
     const std::string warning = rc["o_direct_warning"].get<std::string>();
@@ -230,10 +229,11 @@ void register_replay_commands(CLI::App& app) {
   c->add_option("--config,-c", a->config, "TOML config file (docs/config.md; - for stdin)");
   c->add_option("--set", a->sets, "override one config key: --set upload.tiles_per_frame=8 (repeatable)");
   c->add_option("--system", a->system, streaming_systems().names(" | ") + " (overrides run.system)");
-  c->add_option("--clock", a->clock, "sim (device models, deterministic) | real (IO and decode threads on --store, wall-clock pacing)")
+  c->add_option("--clock", a->clock, "sim (device models, deterministic) | real (IO and decode threads on --store, or the terrain's production "
+                "threads, wall-clock pacing)")
       ->capture_default_str();
   c->add_option("--store", a->store,
-                "tile store (.vts): the texture and every tile's disk bytes come from it (both clocks); required by --clock real");
+                "tile store (.vts): the texture and every tile's disk bytes come from it (both clocks); required by --clock real, except for run.system terrain (produced: no store)");
   c->add_option("--speed", a->speed, "play the trace this many times faster (both clocks)")->capture_default_str();
   c->add_option("--summary", a->summary, "write the summary JSON here (- for stdout)");
   c->add_option("--frames", a->frames, "write one CSV row per frame here (- for stdout)");
