@@ -65,8 +65,10 @@ TileJob tile_job(const ReplayConfig& c, TileKey key) {
 }  // namespace
 
 TEST_CASE("terrain producer: a tile composes to the same bytes twice and on another thread, brush mips come from the atlas") {
-  const ReplayConfig c = small_terrain({"texture.border=2"});
-  produce::TerrainProducer p(terrain_producer_params(c));
+  const ReplayConfig c = small_terrain();
+  produce::TerrainProducerParams params = terrain_producer_params(c);
+  params.border = 2;  // the clipmap's borders are 0; the producer composes any (a VT page's)
+  produce::TerrainProducer p(params);
   const TileJob job = tile_job(c, TileKey(0, 1, 5, 3));
   TileData a, b, t;
   p.produce(job, a);

@@ -125,13 +125,25 @@ std::string format_summary(const nlohmann::json& s) {
                        s["faults"]["retries"].get<std::uint64_t>(), s["faults"]["failed_tiles"].get<std::uint64_t>());
   if (s.contains("real_clock")) {
     const auto& rc = s["real_clock"];
-    out += fmt::format("  real clock  {} IO threads ({}), {} decode workers; start-up {:.2f} s; {} late frames (max {:.1f} ms); "
-                       "VRAM arena: {:.1f} MB copied in {:.1f} ms\n",
-                       rc["io_threads"].get<int>(), rc["o_direct"].get<bool>() ? "O_DIRECT" : "page cache",
-                       rc["decode_workers"].get<int>(), rc.value("startup_s", 0.0), rc["late_frames"].get<std::uint64_t>(),
-                       rc["max_late_ms"].get<double>(),
-                       static_cast<double>(rc["vram_arena"]["bytes"].get<std::uint64_t>()) / 1e6,
-                       rc["vram_arena"]["copy_ms"].get<double>());
+    if (rc.contains("producer")) {  // the terrain: production threads only (docs/produced.md, "The real clock")
+      const auto& pr = rc["producer"];
+      out += fmt::format("  real clock  {} production threads: {} tiles composed, {} brush mips served ({:.1f} MB); start-up {:.2f} s; "
+                         "{} late frames (max {:.1f} ms); VRAM arena: {:.1f} MB copied in {:.1f} ms\n",
+                         pr["produce_workers"].get<int>(), pr["tiles_composed"].get<std::uint64_t>(),
+                         pr["brush_mips_served"].get<std::uint64_t>(),
+                         static_cast<double>(pr["brush_bytes_served"].get<std::uint64_t>()) / 1e6, rc.value("startup_s", 0.0),
+                         rc["late_frames"].get<std::uint64_t>(), rc["max_late_ms"].get<double>(),
+                         static_cast<double>(rc["vram_arena"]["bytes"].get<std::uint64_t>()) / 1e6,
+                         rc["vram_arena"]["copy_ms"].get<double>());
+    } else {
+      out += fmt::format("  real clock  {} IO threads ({}), {} decode workers; start-up {:.2f} s; {} late frames (max {:.1f} ms); "
+                         "VRAM arena: {:.1f} MB copied in {:.1f} ms\n",
+                         rc["io_threads"].get<int>(), rc["o_direct"].get<bool>() ? "O_DIRECT" : "page cache",
+                         rc["decode_workers"].get<int>(), rc.value("startup_s", 0.0), rc["late_frames"].get<std::uint64_t>(),
+                         rc["max_late_ms"].get<double>(),
+                         static_cast<double>(rc["vram_arena"]["bytes"].get<std::uint64_t>()) / 1e6,
+                         rc["vram_arena"]["copy_ms"].get<double>());
+    }
   }
   out += fmt::format("  run         {:.2f} s wall, {:.0f} frames/s, {:.0f}x real time, peak {:.0f} MB", r["wall_s"].get<double>(),
                      r["frames_per_s"].get<double>(), r["x_realtime"].get<double>(), r["peak_rss_MB"].get<double>());

@@ -10,7 +10,8 @@
 //                 the result is `cancelled`
 //   decode        queued in or being decoded by the decode pool; cancel() while queued removes
 //                 it (result `cancelled`, read paid), while decoding lets it finish (`ready`)
-//   produce       a produced tile (TileJob::produce.texels > 0, with a producer): queued in or
+//   produce       a produced tile (TileJob::produce.texels > 0, with a producer), or a job the
+//                 producer serves (ITileProducer::serves: the terrain's brush mips): queued in or
 //                 being rendered by the production threads, never read; cancel() while queued
 //                 drops it (true: no result), while producing lets it finish (`ready`). Without a
 //                 producer, submitting a produced tile throws std::logic_error: it is never read
