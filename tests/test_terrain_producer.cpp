@@ -177,3 +177,5 @@ TEST_CASE("vtsim replay --clock real, terrain: runs without a store, and names w
   CHECK(r.code == 2);
   CHECK(r.err.find("field 'produce.workers'") != std::string::npos);
 }
+
+TEST_SUITE_END();
