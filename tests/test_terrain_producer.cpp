@@ -13,6 +13,7 @@
 #include "sim/trace/trace_gen.h"
 #include "sim/trace/trace_io.h"
 #include "sim/view/scene.h"
+#include "stream/exec/threaded_executor.h"
 #include "stream/produce/terrain_producer.h"
 #include "stream/system/terrain_system.h"
 
@@ -111,6 +112,45 @@ TEST_CASE("terrain producer: a tile composes to the same bytes twice and on anot
   CHECK(p.brush_bytes(2) == br.bytes);
   CHECK(p.tiles() == 5);
   CHECK(p.brushes() == 2);
+}
+
+TEST_CASE("threaded executor without a store: production only, a read job and a missing producer refused") {
+  ThreadedExecutorConfig xc;
+  xc.capacity = 4;
+  CHECK_THROWS_AS(ThreadedExecutor{xc}, std::invalid_argument);  // nothing could run
+  const ReplayConfig c = small_terrain();
+  produce::TerrainProducer p(terrain_producer_params(c));
+  xc.producer = &p;
+  xc.produce_workers = 2;
+  ThreadedExecutor exec(xc);
+  CHECK(exec.io_threads() == 0);
+  CHECK(exec.decode_workers() == 0);
+  CHECK_FALSE(exec.direct());
+  TileJob read;
+  read.id = 1;
+  read.key = TileKey(0, 0, 0, 0);  // not produced, not a brush: it would be read
+  CHECK_THROWS_AS(exec.submit(read), std::logic_error);
+  TileJob brush;
+  brush.id = 2;
+  brush.key = TileKey(TerrainSystem::kBrushLayer, 1, 0, 1);
+  brush.decoded_bytes = p.brush_bytes(1);
+  TileJob tile = tile_job(c, TileKey(0, 2, 1, 1));
+  tile.id = 3;
+  exec.submit(brush);
+  exec.submit(tile);
+  REQUIRE(exec.wait_for_results(2, std::chrono::seconds(20)));
+  std::vector<JobResult> out;
+  exec.collect(exec.now(), out);
+  REQUIRE(out.size() == 2);
+  for (const JobResult& r : out) {
+    CHECK(r.outcome == JobOutcome::ready);
+    CHECK(r.bytes_read == 0);
+    REQUIRE(r.data);
+    CHECK(r.data->bytes == (r.id == 2 ? p.brush_bytes(1) : 64u * 64u * 4u));
+  }
+  exec.shutdown();
+  CHECK(p.tiles() == 1);
+  CHECK(p.brushes() == 1);
 }
 
 TEST_CASE("real clock, terrain: a short walk produces its tiles on the production threads, byte-exact in the VRAM arena") {
