@@ -130,12 +130,3 @@ TEST_CASE("vtsim calibrate --produce: a quick run writes the [produce] keys, a c
   CHECK(r.code == 2);
   CHECK(r.err.find("--produce measures the compositor") != std::string::npos);
 }
-
-TEST_CASE("vtsim replay --clock real refuses the terrain (its tiles are produced, not stored), naming run.system") {
-  test::RealScratch dir;
-  const std::string src = VTSIM_SOURCE_DIR;
-  const auto r = test::run_cli(dir, "replay --clock real --config " + src + "/docs/examples/terrain.toml --trace " + src +
-                                        "/traces/static.csv --store " + dir.file("none.vts"));
-  CHECK(r.code == 2);
-  CHECK(r.err.find("field 'run.system': 'terrain' produces its tiles") != std::string::npos);
-}

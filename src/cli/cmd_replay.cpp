@@ -125,13 +125,25 @@ std::string format_summary(const nlohmann::json& s) {
                        s["faults"]["retries"].get<std::uint64_t>(), s["faults"]["failed_tiles"].get<std::uint64_t>());
   if (s.contains("real_clock")) {
     const auto& rc = s["real_clock"];
-    out += fmt::format("  real clock  {} IO threads ({}), {} decode workers; start-up {:.2f} s; {} late frames (max {:.1f} ms); "
-                       "VRAM arena: {:.1f} MB copied in {:.1f} ms\n",
-                       rc["io_threads"].get<int>(), rc["o_direct"].get<bool>() ? "O_DIRECT" : "page cache",
-                       rc["decode_workers"].get<int>(), rc.value("startup_s", 0.0), rc["late_frames"].get<std::uint64_t>(),
-                       rc["max_late_ms"].get<double>(),
-                       static_cast<double>(rc["vram_arena"]["bytes"].get<std::uint64_t>()) / 1e6,
-                       rc["vram_arena"]["copy_ms"].get<double>());
+    if (rc.contains("producer")) {  // the terrain: production threads only (docs/produced.md, "The real clock")
+      const auto& pr = rc["producer"];
+      out += fmt::format("  real clock  {} production threads: {} tiles composed, {} brush mips served ({:.1f} MB); start-up {:.2f} s; "
+                         "{} late frames (max {:.1f} ms); VRAM arena: {:.1f} MB copied in {:.1f} ms\n",
+                         pr["produce_workers"].get<int>(), pr["tiles_composed"].get<std::uint64_t>(),
+                         pr["brush_mips_served"].get<std::uint64_t>(),
+                         static_cast<double>(pr["brush_bytes_served"].get<std::uint64_t>()) / 1e6, rc.value("startup_s", 0.0),
+                         rc["late_frames"].get<std::uint64_t>(), rc["max_late_ms"].get<double>(),
+                         static_cast<double>(rc["vram_arena"]["bytes"].get<std::uint64_t>()) / 1e6,
+                         rc["vram_arena"]["copy_ms"].get<double>());
+    } else {
+      out += fmt::format("  real clock  {} IO threads ({}), {} decode workers; start-up {:.2f} s; {} late frames (max {:.1f} ms); "
+                         "VRAM arena: {:.1f} MB copied in {:.1f} ms\n",
+                         rc["io_threads"].get<int>(), rc["o_direct"].get<bool>() ? "O_DIRECT" : "page cache",
+                         rc["decode_workers"].get<int>(), rc.value("startup_s", 0.0), rc["late_frames"].get<std::uint64_t>(),
+                         rc["max_late_ms"].get<double>(),
+                         static_cast<double>(rc["vram_arena"]["bytes"].get<std::uint64_t>()) / 1e6,
+                         rc["vram_arena"]["copy_ms"].get<double>());
+    }
   }
   out += fmt::format("  run         {:.2f} s wall, {:.0f} frames/s, {:.0f}x real time, peak {:.0f} MB", r["wall_s"].get<double>(),
                      r["frames_per_s"].get<double>(), r["x_realtime"].get<double>(), r["peak_rss_MB"].get<double>());
@@ -165,9 +177,7 @@ void run_replay_command(const ReplayArgs& a) {
                      "only one of --json, --summary -, --frames -, --report - can write to stdout");
   if (a.clock != "sim" && a.clock != "real")
     throw InputError("--clock", "'" + a.clock + "' is not one of: sim (device models), real (threads and files)");
-  if (a.clock == "real") refuse_produced_system(cfg);
-  if (a.clock == "real" && a.store.empty())
-    throw InputError("--store", "the real clock reads a tile store: give --store S (make one with `vtsim store gen`)");
+  if (a.clock == "real") check_real_clock_system(cfg, !a.store.empty());  // the terrain: no store, a producer
   check_input("--store", a.store);
   Trace trace = load_cli_trace(a.trace, a.allow_repairs);
   apply_speed(cfg, trace, a.speed);
@@ -186,7 +196,8 @@ void run_replay_command(const ReplayArgs& a) {
     progress = [](int f, int n) { fmt::print(stderr, "\rframe {}/{} ({:.0f}%)", f, n, 100.0 * f / n); };
   ReplayResult r;
   if (a.clock == "real") {
-    RealRun run = run_real_replay(cfg, trace, *scene, *store, RealClockOptions{progress});
+    RealRun run = store ? run_real_replay(cfg, trace, *scene, *store, RealClockOptions{progress})
+                        : run_real_replay(cfg, trace, *scene, RealClockOptions{progress});
     r = std::move(run.result);
     const nlohmann::json& rc = r.summary["real_clock"];
     const std::string warning = rc["o_direct_warning"].get<std::string>();
@@ -230,10 +241,11 @@ void register_replay_commands(CLI::App& app) {
   c->add_option("--config,-c", a->config, "TOML config file (docs/config.md; - for stdin)");
   c->add_option("--set", a->sets, "override one config key: --set upload.tiles_per_frame=8 (repeatable)");
   c->add_option("--system", a->system, streaming_systems().names(" | ") + " (overrides run.system)");
-  c->add_option("--clock", a->clock, "sim (device models, deterministic) | real (IO and decode threads on --store, wall-clock pacing)")
+  c->add_option("--clock", a->clock, "sim (device models, deterministic) | real (IO and decode threads on --store, or the terrain's production "
+                "threads, wall-clock pacing)")
       ->capture_default_str();
   c->add_option("--store", a->store,
-                "tile store (.vts): the texture and every tile's disk bytes come from it (both clocks); required by --clock real");
+                "tile store (.vts): the texture and every tile's disk bytes come from it (both clocks); required by --clock real, except for run.system terrain (produced: no store)");
   c->add_option("--speed", a->speed, "play the trace this many times faster (both clocks)")->capture_default_str();
   c->add_option("--summary", a->summary, "write the summary JSON here (- for stdout)");
   c->add_option("--frames", a->frames, "write one CSV row per frame here (- for stdout)");

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <thread>
 
 #include "core/error.h"
@@ -16,6 +17,8 @@
 #include "sim/view/scene.h"
 #include "sim/trace/trace_io.h"
 #include "stream/exec/threaded_executor.h"
+#include "stream/produce/terrain_producer.h"
+#include "stream/system/terrain_system.h"
 
 namespace vtsim {
 
@@ -104,17 +107,52 @@ void apply_speed(ReplayConfig& cfg, Trace& trace, double speed) {
   cfg.run.fps *= speed;
 }
 
-void refuse_produced_system(const ReplayConfig& cfg) {
-  // The executor has a producer hook (exec/i_producer.h) but the replay wires none yet: the
-  // terrain's tiles are rendered, not stored, so reading them would time the wrong work.
-  if (cfg.run.system == "terrain")
-    throw InputError("config", "field 'run.system': 'terrain' produces its tiles (docs/produced.md), and the real clock has no "
-                               "producer wired yet; replay it with --clock sim");
+bool produced_system(const ReplayConfig& cfg) { return cfg.run.system == "terrain"; }
+
+void check_real_clock_system(const ReplayConfig& cfg, bool have_store) {
+  if (!produced_system(cfg)) {
+    if (!have_store)
+      throw InputError("--store", "the real clock reads a tile store: give --store S (make one with `vtsim store gen`)");
+    return;
+  }
+  // The terrain stores nothing the tile path reads: its tiles are composed and its brush mips
+  // served from memory by the TerrainProducer (docs/produced.md, "The real clock").
+  if (have_store)
+    throw InputError("--store", "run.system 'terrain' produces its tiles and serves its brush mips from memory in the real clock "
+                                "(docs/produced.md, \"The real clock\"): it reads no store; drop --store");
+  for (const LayerSpec& L : cfg.texture.layers.specs)
+    if (L.format != "rgba8")
+      throw InputError("config", fmt::format("field 'texture.layers': layer '{}' is {}; the terrain's CPU compositor writes rgba8 "
+                                             "only (the real clock composes every layer)",
+                                             L.name, L.format));
+  if (cfg.produce.workers < 1 || cfg.produce.workers > 1024)
+    throw InputError("config", fmt::format("field 'produce.workers': {}; the real clock runs that many production threads (1 to "
+                                           "1024; 0 = unlimited is the simulated clock's only)",
+                                           cfg.produce.workers));
 }
 
-RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const TileStore& store,
-                        const RealClockOptions& options) {
-  refuse_produced_system(cfg);
+produce::TerrainProducerParams terrain_producer_params(const ReplayConfig& cfg) {
+  produce::TerrainProducerParams p;
+  p.width = static_cast<std::uint64_t>(cfg.texture.width);
+  p.height = static_cast<std::uint64_t>(cfg.texture.height);
+  p.tile = cfg.texture.tile_size;
+  p.border = cfg.texture.border;
+  p.texels_per_m = cfg.texture.texels_per_m;
+  p.brushes_per_sector = cfg.terrain.brushes_per_sector;
+  p.brush_size = cfg.terrain.brush_size;
+  p.brush_period_m = cfg.terrain.brush_period_m;
+  p.brush_tree_levels = cfg.terrain.brush_tree_levels;
+  p.mask_size = cfg.terrain.mask_size;
+  p.sector_m = cfg.terrain.sector_m;
+  p.brush_layer = TerrainSystem::kBrushLayer;
+  return p;
+}
+
+namespace {
+
+RealRun run_real(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const TileStore* store,
+                 const RealClockOptions& options) {
+  check_real_clock_system(cfg, store != nullptr);
   // Start-up, until frame 0: buffers reserved, workers warmed, the arena allocated, the first view
   // rendered (docs/real-engine.md §2, §7a).
   const auto setup_start = std::chrono::steady_clock::now();
@@ -132,13 +170,16 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
   // is allocated (core/host_memory.h says why).
   const std::uint64_t usable = options.memory_limit_bytes > 0 ? options.memory_limit_bytes : usable_memory_bytes();
   const auto mib = [](std::uint64_t b) { return static_cast<double>(b) / 1048576.0; };
-  const std::uint64_t reserve = ThreadedExecutor::reserved_pages(store, xc) * ThreadedExecutor::page_bytes(store);
+  const std::uint64_t reserve = store ? ThreadedExecutor::reserved_pages(*store, xc) * ThreadedExecutor::page_bytes(*store) : 0;
   if (reserve > usable)
     throw InputError("config", fmt::format("field 'ram.capacity_MiB': the RAM cache's buffers need {:.1f} MiB, more than "
                                            "the {:.1f} MiB of memory this process may use",
                                            mib(reserve), mib(usable)));
   std::vector<std::uint32_t> layer_bytes;
-  for (std::uint32_t i = 0; i < store.layer_count(); ++i) layer_bytes.push_back(store.tile_bytes(i));
+  if (store)
+    for (std::uint32_t i = 0; i < store->layer_count(); ++i) layer_bytes.push_back(store->tile_bytes(i));
+  else
+    for (const LayerSpec& L : cfg.texture.layers.specs) layer_bytes.push_back(static_cast<std::uint32_t>(tile_decoded_bytes(cfg, L)));
   RealRun run;
   const SystemInfo& system = streaming_systems().at(cfg.run.system);
   try {
@@ -152,7 +193,18 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
     throw InputError("config", fmt::format("field '{}': the VRAM arena does not fit in host memory", system.vram_field));
   }
   VramArena& arena = *run.arena;
-  ThreadedExecutor exec(store, xc);
+  // The terrain: production threads only (produce.workers), composing and serving from one
+  // shared scene built here, before frame 0 (its build is start-up).
+  std::unique_ptr<produce::TerrainProducer> producer;
+  if (!store) {
+    producer = std::make_unique<produce::TerrainProducer>(terrain_producer_params(cfg));
+    xc.producer = producer.get();
+    xc.produce_workers = cfg.produce.workers;
+  }
+  std::optional<ThreadedExecutor> exec_holder;
+  if (store) exec_holder.emplace(*store, xc);
+  else exec_holder.emplace(xc);
+  ThreadedExecutor& exec = *exec_holder;
 
   // Frame pacing: frame f starts at its trace time on the wall clock, or as soon as the previous
   // frame is done when the loop runs late (the lateness is measured, not hidden).
@@ -164,7 +216,7 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
   std::vector<std::pair<int, double>> late_list;  // (frame, ms late): the first 20 late frames
   ReplayEnv env;
   env.executor = &exec;
-  env.sizer = store_sizer(store);
+  if (store) env.sizer = store_sizer(*store);  // the terrain: the config's layers size its tiles (as the simulated clock)
   env.clock_name = "real";
   env.progress = options.progress;
   // The frame loop's own cost: wall and CPU time (this thread) from one frame's start to the next
@@ -195,7 +247,15 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
     cpu_start = thread_cpu_ms();
     return now;
   };
+  const auto arena_layers = static_cast<std::uint32_t>(layer_bytes.size());
+  std::uint64_t brush_uploads = 0;
   env.on_upload = [&](const UploadItem& u, std::int64_t slot) {
+    // The terrain's brush mips stay in RAM for the CPU compositor: no VRAM slot.
+    if (u.key.layer() >= arena_layers) {
+      brush_uploads += u.data != nullptr;
+      no_data += u.data == nullptr;
+      return;
+    }
     if (u.data) arena.upload(*u.data, slot);
     else ++no_data;
   };
@@ -204,7 +264,7 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
   env.on_finish = [&](const IStreamingSystem& sys) {
     sys.pool_pages(run.pool_pages);
     for (const auto& [page, slot] : run.pool_pages)
-      for (std::uint32_t layer = 0; layer < store.layer_count(); ++layer)
+      for (std::uint32_t layer = 0; layer < arena_layers; ++layer)
         pool_layers_missing += arena.peek(TileKey(layer, page.level(), page.x(), page.y()), slot).empty();
   };
   run.result = run_replay(cfg, trace, scene, env);
@@ -252,8 +312,27 @@ RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
   }
   rc["failed_tiles"] = failed;
   rc["failed_tiles_not_listed"] = failed_more;
+  if (producer) {
+    rc["producer"] = {{"kind", "terrain"},
+                      {"produce_workers", cfg.produce.workers},
+                      {"tiles_composed", producer->tiles()},
+                      {"brush_mips_served", producer->brushes()},
+                      {"brush_bytes_served", producer->brush_bytes_served()},
+                      {"brush_commits", brush_uploads}};
+  }
   run.result.summary["provenance"]["machine"] = machine_json();  // what the real-clock figures measured
   return run;
+}
+
+}  // namespace
+
+RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const TileStore& store,
+                        const RealClockOptions& options) {
+  return run_real(cfg, trace, scene, &store, options);
+}
+
+RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const RealClockOptions& options) {
+  return run_real(cfg, trace, scene, nullptr, options);
 }
 
 }  // namespace vtsim

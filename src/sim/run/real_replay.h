@@ -11,6 +11,7 @@
 #include "sim/run/replay.h"
 #include "stream/store/tile_store.h"
 #include "cache/vram_arena.h"
+#include "stream/produce/terrain_producer.h"
 
 namespace vtsim {
 
@@ -49,11 +50,23 @@ struct RealRun {
 // io.max_in_flight, io.direct, io.fault*), frames paced to the trace's times in wall time, uploads
 // copied into the VRAM arena (clipmap: its windows; VT: the physical page pool, each page in the
 // slot the system gave it). `cfg` must have been bound to `store` (bind_store_texture).
-// InputError naming run.system for a system whose tiles are produced (the terrain): the real clock
-// does not produce them yet (docs/produced.md, "The real clock").
-void refuse_produced_system(const ReplayConfig& cfg);
+// Checks what the real clock can run before anything is read (the CLI calls it first): a stored
+// system needs a store (InputError "--store"); the terrain (its tiles produced, its brush mips
+// served from memory: docs/produced.md, "The real clock") takes none (InputError "--store" if
+// given), rgba8 layers only (field texture.layers) and 1..1024 production threads (field
+// produce.workers).
+void check_real_clock_system(const ReplayConfig& cfg, bool have_store);
+// True for a system whose tiles the real clock produces instead of reading (the terrain).
+bool produced_system(const ReplayConfig& cfg);
+// The TerrainProducer's figures from the config's [texture] and [terrain] sections.
+produce::TerrainProducerParams terrain_producer_params(const ReplayConfig& cfg);
 
 RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const TileStore& store,
                         const RealClockOptions& options = {});
+// The terrain in the real clock, without a store: produce.workers production threads run a
+// TerrainProducer (stream/produce/terrain_producer.h) composing every produced tile and serving
+// the brush mips; the VRAM arena is sized from the config's layers. The summary's real_clock has
+// a "producer" section (tiles composed, brush mips served).
+RealRun run_real_replay(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const RealClockOptions& options = {});
 
 }  // namespace vtsim

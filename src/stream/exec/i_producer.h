@@ -19,6 +19,10 @@ class ITileProducer {
   virtual ~ITileProducer() = default;
   // Renders job.key into `out` (out.key is set): side, channels, bytes and texels.
   virtual void produce(const TileJob& job, TileData& out) = 0;
+  // A job that is not produced (produce.texels == 0) that the producer materialises anyway instead
+  // of the store reading it: the terrain's brush mips in the real clock, held in memory
+  // (terrain_producer.h). Called under the executor's lock: constant, cheap, no callbacks.
+  virtual bool serves(const TileJob&) const { return false; }
 };
 
 }  // namespace vtsim

@@ -10,7 +10,7 @@
 namespace vtsim {
 
 ThreadedExecutor::ThreadedExecutor(const TileStore& store, const ThreadedExecutorConfig& cfg)
-    : store_(store), faults_(cfg.faults), capacity_(cfg.capacity) {
+    : faults_(cfg.faults), capacity_(cfg.capacity) {
   if (capacity_ == 0) throw std::invalid_argument("ThreadedExecutor: capacity must be positive");
   const int workers = cfg.decode_workers > 0 ? cfg.decode_workers : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   // Checksums are checked on the decode workers, not the IO workers (io_pool.h says why); a corrupt
@@ -21,11 +21,20 @@ ThreadedExecutor::ThreadedExecutor(const TileStore& store, const ThreadedExecuto
     for (std::uint32_t i = 0; i < store.layer_count(); ++i) decode_->reserve_tiles(store.tile_bytes(i), count);
   io_ = std::make_unique<IoPool>(store, IoPoolConfig{cfg.io_threads, cfg.direct, /*verify=*/false, capacity_, cfg.warm}, clock_,
                                  [this](ReadResult&& r) { on_read(std::move(r)); }, &faults_);
-  if (cfg.producer) {
-    producer_ = cfg.producer;
-    const int n = checked_workers(cfg.produce_workers, "produce.workers");
-    for (int i = 0; i < n; ++i) producers_.emplace_back([this] { produce_loop(); });
-  }
+  start_producers(cfg);
+}
+
+ThreadedExecutor::ThreadedExecutor(const ThreadedExecutorConfig& cfg) : faults_(cfg.faults), capacity_(cfg.capacity) {
+  if (capacity_ == 0) throw std::invalid_argument("ThreadedExecutor: capacity must be positive");
+  if (!cfg.producer) throw std::invalid_argument("ThreadedExecutor: an executor without a store needs a producer");
+  start_producers(cfg);
+}
+
+void ThreadedExecutor::start_producers(const ThreadedExecutorConfig& cfg) {
+  if (!cfg.producer) return;
+  producer_ = cfg.producer;
+  const int n = checked_workers(cfg.produce_workers, "produce.workers");
+  for (int i = 0; i < n; ++i) producers_.emplace_back([this] { produce_loop(); });
 }
 
 ThreadedExecutor::~ThreadedExecutor() { shutdown(); }
@@ -65,7 +74,7 @@ void ThreadedExecutor::submit(const TileJob& job) {
   j.result.key = job.key;
   j.result.submitted = clock_.now();
   j.result.decoded_bytes = job.decoded_bytes;
-  if (job.produce.produced()) {
+  if (job.produce.produced() || (producer_ && producer_->serves(job))) {
     if (!producer_)
       throw std::logic_error(fmt::format("ThreadedExecutor: tile (layer {}, level {}, x {}, y {}) is produced, and the executor has no "
                                          "producer (ThreadedExecutorConfig::producer): it is not in the store",
@@ -79,6 +88,9 @@ void ThreadedExecutor::submit(const TileJob& job) {
     }
     return;
   }
+  if (!io_)
+    throw std::logic_error(fmt::format("ThreadedExecutor: tile (layer {}, level {}, x {}, y {}) is read, and the executor has no store",
+                                       job.key.layer(), job.key.level(), job.key.x(), job.key.y()));
   jobs_.emplace(job.id, std::move(j));
   if (!io_->submit(ReadRequest{job.id, job.key, job.priority})) {
     jobs_.erase(job.id);
@@ -210,18 +222,20 @@ void ThreadedExecutor::shutdown() {
     return;
   }
   // Queued reads never start: they complete as cancelled with nothing read.
-  for (const ReadRequest& q : io_->stop()) {
-    std::lock_guard lock(m_);
-    auto it = jobs_.find(q.id);
-    if (it != jobs_.end()) finish(it, JobOutcome::cancelled, Fault::none, {});
-  }
+  if (io_)
+    for (const ReadRequest& q : io_->stop()) {
+      std::lock_guard lock(m_);
+      auto it = jobs_.find(q.id);
+      if (it != jobs_.end()) finish(it, JobOutcome::cancelled, Fault::none, {});
+    }
   // Reads that finished during the stop skipped their decode (on_read sees stopping); decodes
   // still queued are dropped as cancelled (their reads were paid); decodes under way finish.
-  for (RequestId id : decode_->stop()) {
-    std::lock_guard lock(m_);
-    auto it = jobs_.find(id);
-    if (it != jobs_.end()) finish(it, JobOutcome::cancelled, Fault::none, {});
-  }
+  if (decode_)
+    for (RequestId id : decode_->stop()) {
+      std::lock_guard lock(m_);
+      auto it = jobs_.find(id);
+      if (it != jobs_.end()) finish(it, JobOutcome::cancelled, Fault::none, {});
+    }
   // Queued productions never start: cancelled; productions under way finish.
   for (const auto& q : produce_q_.close()) {
     std::lock_guard lock(m_);

@@ -10,7 +10,8 @@
 //                 the result is `cancelled`
 //   decode        queued in or being decoded by the decode pool; cancel() while queued removes
 //                 it (result `cancelled`, read paid), while decoding lets it finish (`ready`)
-//   produce       a produced tile (TileJob::produce.texels > 0, with a producer): queued in or
+//   produce       a produced tile (TileJob::produce.texels > 0, with a producer), or a job the
+//                 producer serves (ITileProducer::serves: the terrain's brush mips): queued in or
 //                 being rendered by the production threads, never read; cancel() while queued
 //                 drops it (true: no result), while producing lets it finish (`ready`). Without a
 //                 producer, submitting a produced tile throws std::logic_error: it is never read
@@ -72,6 +73,11 @@ class ThreadedExecutor final : public IExecutor {
   enum class State : std::uint8_t { running, stopping, stopped };
 
   ThreadedExecutor(const TileStore& store, const ThreadedExecutorConfig& cfg);
+  // Production only (a system that stores nothing the tile path reads: the terrain in the real
+  // clock, docs/produced.md "The real clock"): no store, no IO or decode threads; cfg.producer is
+  // required (std::invalid_argument), and a job it neither produces nor serves throws
+  // std::logic_error at submit. io_threads() and decode_workers() are 0.
+  explicit ThreadedExecutor(const ThreadedExecutorConfig& cfg);
   ~ThreadedExecutor() override;
   // Decoded bytes of one tile of every layer of `store`.
   static std::uint64_t page_bytes(const TileStore& store);
@@ -100,11 +106,11 @@ class ThreadedExecutor final : public IExecutor {
   // are. For tests and tools, never the frame loop.
   bool wait_for_results(std::size_t n, std::chrono::milliseconds timeout);
 
-  bool direct() const { return io_->direct(); }
-  const std::string& direct_warning() const { return io_->warning(); }
-  int io_threads() const { return io_->threads(); }
-  int reads_under_way() const { return io_->active(); }  // diagnostics and tests
-  int decode_workers() const { return decode_->workers(); }
+  bool direct() const { return io_ && io_->direct(); }
+  const std::string& direct_warning() const { return io_ ? io_->warning() : no_warning_; }
+  int io_threads() const { return io_ ? io_->threads() : 0; }
+  int reads_under_way() const { return io_ ? io_->active() : 0; }  // diagnostics and tests
+  int decode_workers() const { return decode_ ? decode_->workers() : 0; }
   FaultLayer::Counts injected_faults() const { return faults_.injected(); }
   // The first error message of each fault kind seen (for the summary); empty if none.
   std::vector<std::string> fault_examples() const;
@@ -133,7 +139,9 @@ class ThreadedExecutor final : public IExecutor {
   void finish(std::unordered_map<RequestId, Job>::iterator it, JobOutcome outcome, Fault fault,
               const std::string& error);
 
-  const TileStore& store_;
+  void start_producers(const ThreadedExecutorConfig& cfg);
+
+  const std::string no_warning_;
   WallClock clock_;
   FaultLayer faults_;
   std::size_t capacity_;
@@ -144,8 +152,8 @@ class ThreadedExecutor final : public IExecutor {
   std::deque<JobResult> done_;                // completed, in completion order; guarded by m_
   std::vector<std::string> fault_examples_;   // guarded by m_
   std::unordered_map<TileKey, TileFaults, TileKeyHash> faulted_;  // guarded by m_; erased on a success
-  std::unique_ptr<DecodePool> decode_;        // made before io_: reads hand over to it
-  std::unique_ptr<IoPool> io_;
+  std::unique_ptr<DecodePool> decode_;        // made before io_: reads hand over to it; null without a store
+  std::unique_ptr<IoPool> io_;                // null without a store
   ITileProducer* producer_ = nullptr;
   WorkQueue<TileJob> produce_q_;              // produced tiles not yet started
   std::vector<std::thread> producers_;        // started last, joined by shutdown()

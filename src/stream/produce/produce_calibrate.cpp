@@ -175,16 +175,23 @@ ProduceScene::ProduceScene(int brushes, int brush_side, int active, int mask_sid
 
 CompositeJob ProduceScene::job(int layers, double period_m, double x_m, double y_m, double mask_x_m, double mask_y_m,
                                double m_per_texel, int tile, int border, std::span<const Decal> decals) const {
+  return job_into(std::span<BrushLayer, kMaxLayers>(layers_.data(), kMaxLayers), std::span<WeightMask, kMaxLayers / 4>(masks_.data(), kMaxLayers / 4),
+                  layers, period_m, x_m, y_m, mask_x_m, mask_y_m, m_per_texel, tile, border, decals);
+}
+
+CompositeJob ProduceScene::job_into(std::span<BrushLayer, kMaxLayers> layer_out, std::span<WeightMask, kMaxLayers / 4> mask_out,
+                                    int layers, double period_m, double x_m, double y_m, double mask_x_m, double mask_y_m,
+                                    double m_per_texel, int tile, int border, std::span<const Decal> decals) const {
   if (layers < 1 || layers > active_) throw InputError("produce scene", fmt::format("{} layers (1 to {} active)", layers, active_));
-  for (BrushLayer& l : layers_) l.period_m = period_m;
+  for (std::size_t l = 0; l < layer_out.size(); ++l) layer_out[l] = BrushLayer{layers_[l].cell, period_m};
   const int nmasks = (layers + 3) / 4;
   for (int m = 0; m < nmasks; ++m)
-    masks_[static_cast<std::size_t>(m)] =
+    mask_out[static_cast<std::size_t>(m)] =
         WeightMask{mask_side_, mask_side_, mask_texels_[static_cast<std::size_t>(m)].data(), mask_x_m, mask_y_m, mask_m_ / mask_side_};
   CompositeJob j;
   j.atlas = &atlas_;
-  j.layers = std::span<const BrushLayer>(layers_.data(), static_cast<std::size_t>(layers));
-  j.masks = std::span<const WeightMask>(masks_.data(), static_cast<std::size_t>(nmasks));
+  j.layers = std::span<const BrushLayer>(layer_out.data(), static_cast<std::size_t>(layers));
+  j.masks = std::span<const WeightMask>(mask_out.data(), static_cast<std::size_t>(nmasks));
   j.decals = decals;
   j.origin_x_m = x_m;
   j.origin_y_m = y_m;

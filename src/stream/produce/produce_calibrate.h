@@ -13,7 +13,8 @@
 //    samples vary the decals) by least squares on the relative error.
 //
 // Thread-safety: fit_produce_model is a pure function; ProduceScene::job() rewrites the scene's
-// layer and mask descriptors (one thread at a time; the job it returns points into the scene);
+// layer and mask descriptors (one thread at a time; the job it returns points into the scene), job_into
+// is const (any number of threads);
 // measure_compositor runs on the calling thread only.
 #include <cstdint>
 #include <functional>
@@ -61,6 +62,11 @@ class ProduceScene {
   // masks placed with their corner at (mask_x_m, mask_y_m).
   CompositeJob job(int layers, double period_m, double x_m, double y_m, double mask_x_m, double mask_y_m,
                    double m_per_texel, int tile, int border, std::span<const Decal> decals = {}) const;
+  // The same job with its layer and mask descriptors written to the caller's arrays (the job points
+  // into them and into the scene): const, so several threads may compose from one scene.
+  CompositeJob job_into(std::span<BrushLayer, kMaxLayers> layer_out, std::span<WeightMask, kMaxLayers / 4> mask_out, int layers,
+                        double period_m, double x_m, double y_m, double mask_x_m, double mask_y_m, double m_per_texel, int tile,
+                        int border, std::span<const Decal> decals = {}) const;
 
  private:
   Atlas atlas_;

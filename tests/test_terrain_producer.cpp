@@ -1,0 +1,221 @@
+// The terrain in the real clock (docs/produced.md, "The real clock"): the TerrainProducer composes
+// a tile to the same bytes on any thread, serves brush mips from its atlas, and a short real-clock
+// replay of a small terrain produces its tiles into the VRAM arena, byte-exact; the CLI runs it
+// without a store and names what it cannot run.
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cstring>
+#include <thread>
+
+#include "real_test_util.h"
+#include "sim/run/real_replay.h"
+#include "sim/trace/trace_gen.h"
+#include "sim/trace/trace_io.h"
+#include "sim/view/scene.h"
+#include "stream/exec/threaded_executor.h"
+#include "stream/produce/terrain_producer.h"
+#include "stream/system/terrain_system.h"
+
+// Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
+TEST_SUITE_BEGIN("threads");
+
+using namespace vtsim;
+
+namespace {
+
+// A small terrain: 4 × 4 sectors of 16 m at 64 texels/m (4096² texels, 13 levels), 64-texel tiles,
+// a 256² clipmap (4 stack levels over the pyramid), 4 brushes of 64² a sector (brush mip = level),
+// a 3-level brush quadtree.
+const std::vector<std::string> kSmallTerrain = {
+    "run.system=terrain",           "texture.width=4096",          "texture.height=4096",
+    "texture.texels_per_m=64",      "texture.tile_size=64",        "clipmap.clipsize=256",
+    "terrain.sectors_x=4",          "terrain.sectors_y=4",         "terrain.sector_m=16",
+    "terrain.brushes_per_sector=4", "terrain.brush_size=64",       "terrain.brush_tree_levels=3",
+    "terrain.mask_size=64",         "terrain.decals_static=16",    "terrain.decal_size_m=1",
+    "view.divisor=16",              "view.render_threads=0",       "produce.workers=2"};
+
+ReplayConfig small_terrain(const std::vector<std::string>& more = {}) {
+  ReplayConfig c;
+  for (const std::string& s : kSmallTerrain) apply_set(replay_config_table(), c, s);
+  for (const std::string& s : more) apply_set(replay_config_table(), c, s);
+  validate(c);
+  return c;
+}
+
+Trace small_walk(double seconds) {
+  TraceGenParams g = default_gen_params(TraceKind::walk);
+  g.start_m = {28.0, 32.0};
+  g.speed_mps = 4.0;
+  g.duration_s = seconds;
+  g.image_width = 640;
+  g.image_height = 360;
+  return generate_trace(g);
+}
+
+TileJob tile_job(const ReplayConfig& c, TileKey key) {
+  TileJob j;
+  j.key = key;
+  const std::int64_t lw = (c.texture.width + (std::int64_t{1} << key.level()) - 1) >> key.level();
+  const std::int64_t w = std::clamp<std::int64_t>(lw - static_cast<std::int64_t>(key.x()) * c.texture.tile_size, 0, c.texture.tile_size);
+  j.produce.texels = static_cast<std::uint64_t>(w * w);
+  j.produce.layers = static_cast<std::uint32_t>(c.terrain.brushes_per_sector);
+  return j;
+}
+
+}  // namespace
+
+TEST_CASE("terrain producer: a tile composes to the same bytes twice and on another thread, brush mips come from the atlas") {
+  const ReplayConfig c = small_terrain();
+  produce::TerrainProducerParams params = terrain_producer_params(c);
+  params.border = 2;  // the clipmap's borders are 0; the producer composes any (a VT page's)
+  produce::TerrainProducer p(params);
+  const TileJob job = tile_job(c, TileKey(0, 1, 5, 3));
+  TileData a, b, t;
+  p.produce(job, a);
+  p.produce(job, b);
+  std::thread th([&] { p.produce(job, t); });
+  th.join();
+  CHECK(a.side == 68);  // T + 2B
+  CHECK(a.channels == 4);
+  REQUIRE(a.bytes == 68u * 68u * 4u);
+  CHECK(std::memcmp(a.texels.get(), b.texels.get(), a.bytes) == 0);
+  CHECK(std::memcmp(a.texels.get(), t.texels.get(), a.bytes) == 0);
+  bool varied = false;
+  for (std::size_t i = 4; i < a.bytes; i += 4) varied |= a.texels[i] != a.texels[0];
+  CHECK(varied);  // brushes blended, not a flat fill
+  // Another place: other bytes.
+  TileData o;
+  p.produce(tile_job(c, TileKey(0, 1, 6, 3)), o);
+  CHECK(std::memcmp(a.texels.get(), o.texels.get(), a.bytes) != 0);
+
+  // The coarsest level is one texel: composed into the slot's payload corner, the rest zero.
+  TileData z;
+  p.produce(tile_job(c, TileKey(0, 12, 0, 0)), z);
+  REQUIRE(z.bytes == 68u * 68u * 4u);
+  CHECK(z.texels[(2 * 68 + 2) * 4 + 3] == 255);  // the payload's texel (alpha of opaque brushes)
+  CHECK(z.texels[3] == 0);                       // the border, not composed
+
+  // Brush mips: served (not read), 4 · side² bytes, the root carrying its tail; the atlas's texels.
+  TileJob bj;
+  bj.key = TileKey(TerrainSystem::kBrushLayer, 0, 5, 2);
+  CHECK(p.serves(bj));
+  CHECK_FALSE(p.serves(job));
+  TileData br;
+  p.produce(bj, br);
+  CHECK(br.bytes == 64u * 64u * 4u);
+  const produce::Atlas& atlas = p.scene().atlas();
+  CHECK(std::memcmp(br.texels.get() + 64 * 4 * 7, atlas.levels[0].texel(atlas.cols, 2, 0, 7), 64 * 4) == 0);
+  bj.key = TileKey(TerrainSystem::kBrushLayer, 2, 5, 3);
+  p.produce(bj, br);
+  CHECK(br.bytes == (16u * 16 + 8 * 8 + 4 * 4 + 2 * 2 + 1) * 4u);
+  CHECK(p.brush_bytes(2) == br.bytes);
+  CHECK(p.tiles() == 5);
+  CHECK(p.brushes() == 2);
+}
+
+TEST_CASE("threaded executor without a store: production only, a read job and a missing producer refused") {
+  ThreadedExecutorConfig xc;
+  xc.capacity = 4;
+  CHECK_THROWS_AS(ThreadedExecutor{xc}, std::invalid_argument);  // nothing could run
+  const ReplayConfig c = small_terrain();
+  produce::TerrainProducer p(terrain_producer_params(c));
+  xc.producer = &p;
+  xc.produce_workers = 2;
+  ThreadedExecutor exec(xc);
+  CHECK(exec.io_threads() == 0);
+  CHECK(exec.decode_workers() == 0);
+  CHECK_FALSE(exec.direct());
+  TileJob read;
+  read.id = 1;
+  read.key = TileKey(0, 0, 0, 0);  // not produced, not a brush: it would be read
+  CHECK_THROWS_AS(exec.submit(read), std::logic_error);
+  TileJob brush;
+  brush.id = 2;
+  brush.key = TileKey(TerrainSystem::kBrushLayer, 1, 0, 1);
+  brush.decoded_bytes = p.brush_bytes(1);
+  TileJob tile = tile_job(c, TileKey(0, 2, 1, 1));
+  tile.id = 3;
+  exec.submit(brush);
+  exec.submit(tile);
+  REQUIRE(exec.wait_for_results(2, std::chrono::seconds(20)));
+  std::vector<JobResult> out;
+  exec.collect(exec.now(), out);
+  REQUIRE(out.size() == 2);
+  for (const JobResult& r : out) {
+    CHECK(r.outcome == JobOutcome::ready);
+    CHECK(r.bytes_read == 0);
+    REQUIRE(r.data);
+    CHECK(r.data->bytes == (r.id == 2 ? p.brush_bytes(1) : 64u * 64u * 4u));
+  }
+  exec.shutdown();
+  CHECK(p.tiles() == 1);
+  CHECK(p.brushes() == 1);
+}
+
+TEST_CASE("real clock, terrain: a short walk produces its tiles on the production threads, byte-exact in the VRAM arena") {
+  const ReplayConfig c = small_terrain();
+  const Trace walk = small_walk(1.5);
+  auto scene = make_scene_from_config(c);
+  RealClockOptions o;
+  o.memory_limit_bytes = 1ULL << 30;
+  const RealRun run = run_real_replay(c, walk, *scene, o);
+  const nlohmann::json& s = run.result.summary;
+  const nlohmann::json& rc = s["real_clock"];
+  CHECK(s["clock"] == "real");
+  CHECK(rc["io_threads"] == 0);
+  CHECK(rc["decode_workers"] == 0);
+  CHECK(rc["uploads_without_data"] == 0);
+  CHECK(rc["failed_tiles"].empty());
+  const nlohmann::json& pr = rc["producer"];
+  CHECK(pr["produce_workers"] == 2);
+  CHECK(pr["tiles_composed"].get<std::uint64_t>() > 21);  // more than the pyramid's 16 + 4 + 1 of levels 4-6
+  CHECK(pr["brush_mips_served"].get<std::uint64_t>() > 0);
+  CHECK(pr["brush_commits"].get<std::uint64_t>() > 0);
+  CHECK(s["produce"]["produced"].get<std::uint64_t>() > 0);
+  CHECK(s["produce"]["production_ms"].get<double>() > 0);
+  CHECK(rc["vram_arena"]["uploads"].get<std::uint64_t>() > 0);
+  CHECK(s["resources"]["produce_ms_per_frame"]["max"].get<double>() > 0);
+
+  // The first pyramid level (level 4, 256² texels: 4 × 4 tiles) is produced at the start and never
+  // moves: each of its tiles in the arena is what the producer composes for that key.
+  produce::TerrainProducer p(terrain_producer_params(c));
+  int compared = 0;
+  for (std::uint32_t y = 0; y < 4; ++y)
+    for (std::uint32_t x = 0; x < 4; ++x) {
+      const TileKey k(0, 4, x, y);
+      const auto held = run.arena->peek(k);
+      REQUIRE(held.size() == 64u * 64u * 4u);
+      TileData d;
+      p.produce(tile_job(c, k), d);
+      CHECK(std::memcmp(held.data(), d.texels.get(), d.bytes) == 0);
+      ++compared;
+    }
+  CHECK(compared == 16);
+}
+
+TEST_CASE("vtsim replay --clock real, terrain: runs without a store, and names what it cannot run") {
+  test::RealScratch dir;
+  save_trace(small_walk(0.5), dir.file("t.csv"));
+  std::string sets;
+  for (const std::string& s : kSmallTerrain) sets += " --set " + s;
+  const std::string common = " --trace " + dir.file("t.csv") + sets;
+  auto r = test::run_cli(dir, "replay --clock real --json -q" + common);
+  REQUIRE(r.code == 0);
+  const auto j = nlohmann::json::parse(r.out);
+  CHECK(j["real_clock"]["producer"]["tiles_composed"].get<std::uint64_t>() > 0);
+  CHECK(j["produce"]["produced"].get<std::uint64_t>() > 0);
+
+  r = test::run_cli(dir, "replay --clock real --store " + dir.file("none.vts") + common);
+  CHECK(r.code == 2);
+  CHECK(r.err.find("--store") != std::string::npos);
+  CHECK(r.err.find("drop --store") != std::string::npos);
+  r = test::run_cli(dir, "replay --clock real" + common + " --set texture.layers=albedo:bc7");
+  CHECK(r.code == 2);
+  CHECK(r.err.find("field 'texture.layers'") != std::string::npos);
+  r = test::run_cli(dir, "replay --clock real" + common + " --set produce.workers=0");
+  CHECK(r.code == 2);
+  CHECK(r.err.find("field 'produce.workers'") != std::string::npos);
+}
+
+TEST_SUITE_END();
