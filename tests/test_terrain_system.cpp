@@ -1,10 +1,15 @@
 #include <doctest/doctest.h>
 
+#include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "core/error.h"
+#include "sim/run/replay.h"
 #include "sim/run/replay_config.h"
+#include "sim/trace/trace_gen.h"
+#include "sim/view/scene.h"
 #include "sim/run/systems.h"
 #include "stream/system/terrain_system.h"
 
@@ -191,4 +196,40 @@ TEST_CASE("terrain: bad configs name the field") {
   fails({"terrain.brush_period_m=3"}, "texture.texels_per_m");
   fails({"terrain.brush_tree_levels=12"}, "terrain.brush_tree_levels");
   fails({"texture.border=4"}, "texture.border");
+}
+
+// The throttle's service rate of a produced system is its production (SystemRun::service_Bps):
+// with one tile produced a frame the fine levels' backlog outruns the deadline and the clamp
+// engages naming the level; with free production nothing is clamped. Before, the terrain's rate
+// was the disk's, for tiles never read, and one tile a frame never clamped (docs/produced.md,
+// "Production per frame").
+TEST_CASE("terrain: the throttle reads the production rate and clamps the level that falls behind") {
+  const std::vector<std::string> small = {
+      "texture.width=4096",  "texture.height=4096", "texture.texels_per_m=64", "texture.tile_size=64",
+      "clipmap.clipsize=256", "terrain.sectors_x=4", "terrain.sectors_y=4",    "terrain.sector_m=16",
+      "terrain.brushes_per_sector=4", "terrain.brush_size=64", "terrain.brush_tree_levels=3",
+      "terrain.mask_size=64", "view.divisor=16", "throttle.policy=deadline"};
+  TraceGenParams g = default_gen_params(TraceKind::walk);
+  g.start_m = {28.0, 32.0};
+  g.speed_mps = 4.0;
+  g.duration_s = 3.0;
+  g.image_width = 640;
+  g.image_height = 360;
+  const Trace t = generate_trace(g);
+  auto run = [&](std::vector<std::string> extra) {
+    std::vector<std::string> sets = small;
+    sets.insert(sets.end(), extra.begin(), extra.end());
+    const ReplayConfig c = load_replay_config("", sets, "terrain");
+    const std::unique_ptr<IScene> scene = make_scene_from_config(c);
+    return run_replay(c, t, *scene).summary;
+  };
+  const nlohmann::json slow = run({"produce.workers=1", "produce.tiles_per_frame=1"});
+  REQUIRE(slow["throttle"]["frames_throttled"].get<int>() > 0);
+  const std::string reason = slow["throttle"]["lod_timeline"][0]["reason"].get<std::string>();
+  CHECK(reason.rfind("engage: backlog from level 0 needs ", 0) == 0);
+  CHECK(slow["throttle"]["lod_timeline"][0]["to"].get<int>() > 0);
+  const nlohmann::json quick = run({"produce.per_tile_us=0", "produce.per_texel_ns=0", "produce.per_layer_texel_ns=0",
+                                   "produce.per_decal_us=0"});
+  CHECK(quick["throttle"]["frames_throttled"].get<int>() == 0);
+  CHECK(quick["produce"]["produced"].get<int>() > 0);
 }

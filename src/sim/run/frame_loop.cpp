@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <limits>
 #include <glm/geometric.hpp>
 #include <glm/gtc/quaternion.hpp>
 
@@ -241,8 +242,21 @@ double SystemRun::service_Bps() const {
   }
   mean_disk /= static_cast<double>(layers.size());
   mean_dec /= static_cast<double>(layers.size());
-  double service = disk_throughput_Bps(disk_model(cfg_.disk), mean_disk) * (mean_dec / mean_disk);
-  service = std::min(service, decode_throughput_Bps(cfg_.decode, mean_dec));
+  double service;
+  ProduceWork full;
+  if (system_->full_tile_work(full)) {
+    // A produced system's tiles are rendered, not read: the production servers (and their
+    // per-frame budget) are its bottleneck, so a level whose backlog takes longer than the
+    // deadline to produce is clamped (issue 27: "the system says which level falls behind and
+    // the throttle clamps it"). Its brush mips' reads are small beside them and not counted.
+    const ProduceModel& m = cfg_.produce;
+    const double tile_s = produce_ns(m, full) * 1e-9;
+    service = m.workers > 0 && tile_s > 0 ? m.workers * mean_dec / tile_s : std::numeric_limits<double>::infinity();
+    if (m.tiles_per_frame > 0) service = std::min(service, m.tiles_per_frame * mean_dec / plan_.period_s);
+  } else {
+    service = disk_throughput_Bps(disk_model(cfg_.disk), mean_disk) * (mean_dec / mean_disk);
+    service = std::min(service, decode_throughput_Bps(cfg_.decode, mean_dec));
+  }
   if (budget_.bytes) service = std::min(service, static_cast<double>(budget_.bytes) / plan_.period_s);
   if (budget_.tiles) service = std::min(service, budget_.tiles * mean_dec / plan_.period_s);
   return std::isfinite(service) ? service : 0.0;  // 0: unlimited

@@ -71,6 +71,9 @@ class IStreamingSystem : public IResidency {
   // A produced tile (stream/exec/produce.h): true and its work when `key` is rendered by a
   // producer instead of read from the store. Systems that only stream return false.
   virtual bool produced(TileKey /*key*/, ProduceWork& /*work*/) const { return false; }
+  // A produced system: true and the work of one full tile of the finest level (decals aside:
+  // sparse), which sets the production stage's service rate for throttling (SystemRun::service_Bps).
+  virtual bool full_tile_work(ProduceWork& /*work*/) const { return false; }
   // A tile whose sizes the system sets itself instead of the texture's layers (the terrain's brush
   // mips, streamed from disk to render produced tiles): true and its disk and decoded bytes.
   virtual bool tile_sizes(TileKey /*key*/, std::uint64_t& /*disk_bytes*/, std::uint64_t& /*decoded_bytes*/) const {

@@ -319,6 +319,13 @@ bool TerrainSystem::produced(TileKey key, ProduceWork& work) const {
   return work.produced();
 }
 
+bool TerrainSystem::full_tile_work(ProduceWork& work) const {
+  work.texels = static_cast<std::uint64_t>(s_.tile_size) * static_cast<std::uint64_t>(s_.tile_size);
+  work.layers = static_cast<std::uint32_t>(t_.brushes_per_sector);
+  work.decals = 0;
+  return true;
+}
+
 bool TerrainSystem::tile_sizes(TileKey key, std::uint64_t& disk_bytes, std::uint64_t& decoded_bytes) const {
   if (key.layer() != kBrushLayer || static_cast<int>(key.level()) >= t_.brush_tree_levels) return false;
   decoded_bytes = brush_decoded(static_cast<int>(key.level()));

@@ -96,6 +96,7 @@ class TerrainSystem final : public IStreamingSystem {
   std::uint32_t throttled_needs() const override { return 0; }
   bool commit(TileKey key, int frame) override;
   bool produced(TileKey key, ProduceWork& work) const override;
+  bool full_tile_work(ProduceWork& work) const override;
   bool tile_sizes(TileKey key, std::uint64_t& disk_bytes, std::uint64_t& decoded_bytes) const override;
   void set_mark_sampled(bool on) override { cm_.set_mark_sampled(on); }
   std::vector<std::string> frame_counter_names() const override;
