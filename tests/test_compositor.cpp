@@ -188,3 +188,53 @@ TEST_CASE("compositor: every path gives the reference loop's bytes - borders 0 2
     }
   }
 }
+
+TEST_CASE("compositor: decals are drawn with their exact area coverage, alike on every path, and count_work counts what is drawn") {
+  const Atlas at = build_atlas({comp_solid(16, 200, 0, 0)}, {}, {.cols = 1, .border = 2});
+  const std::vector<std::uint8_t> mask = {255, 0, 0, 0};
+  const WeightMask wm{1, 1, mask.data(), 0.0, 0.0, 2.0};
+  const BrushLayer layer{0, 1.0};
+  // Texels of 0.25 m over [0, 2) m. A: the top 4 rows whole, opaque. B: row 6 over half of texel 0
+  // and half of texel 1 (coverage 1/2, alpha 200 -> a = 100). C: 0.2 m wide, under a texel: skipped.
+  const Decal d[3] = {{0.0, 0.0, 2.0, 1.0, {0, 0, 250, 255}}, {0.125, 1.5, 0.375, 1.75, {10, 20, 30, 200}}, {1.0, 1.0, 1.2, 1.5, {9, 9, 9, 255}}};
+  CompositeJob job;
+  job.atlas = &at;
+  job.layers = {&layer, 1};
+  job.masks = {&wm, 1};
+  job.m_per_texel = 0.25;
+  job.tile = 8;
+  job.decals = d;
+  CHECK(count_work(job).decals == 2);
+  std::vector<std::uint8_t> ref(8 * 8 * 4);
+  compose_reference(job, ref.data());
+  const auto px = [&](int x, int y) { return std::vector<int>(ref.begin() + (y * 8 + x) * 4, ref.begin() + (y * 8 + x) * 4 + 4); };
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 8; ++x) CHECK(px(x, y) == std::vector<int>{0, 0, 250, 255});
+  // (200 * 155 + 10 * 100 + 127) / 255 = 125, (20 * 100 + 127) / 255 = 8, (30 * 100 + 127) / 255 = 12.
+  CHECK(px(0, 6) == std::vector<int>{125, 8, 12, 255});
+  CHECK(px(1, 6) == std::vector<int>{125, 8, 12, 255});
+  CHECK(px(2, 6) == std::vector<int>{200, 0, 0, 255});
+  CHECK(px(4, 5) == std::vector<int>{200, 0, 0, 255});  // under C
+  Compositor c;
+  for (ComposePath p : {ComposePath::kAuto, ComposePath::kGeneric, ComposePath::kAvx2}) {
+    if (!compose_path_available(p)) continue;
+    std::vector<std::uint8_t> out(ref.size(), 7);
+    c.compose(job, out.data(), p);
+    CHECK(out == ref);
+  }
+  std::vector<std::uint8_t> exact(ref.size());
+  compose_exact(job, exact.data());
+  CHECK(exact == ref);  // one brush colour: no rounding between the two
+  // At 0.5 m texels a decal over [0.25, 0.75) x [1.75, 2.25) covers a quarter of texels (0, 3) and
+  // (1, 3), the mean of the finer texels' coverage: a = round(0.25 x 200) = 50.
+  job.m_per_texel = 0.5;
+  job.tile = 4;
+  CHECK(count_work(job).decals == 1);  // B is 0.25 m wide: under a 0.5 m texel, skipped; C too
+  const Decal big[1] = {{0.25, 1.75, 0.75, 2.25, {10, 20, 30, 200}}};
+  job.decals = big;
+  std::vector<std::uint8_t> coarse(4 * 4 * 4);
+  c.compose(job, coarse.data());
+  const int a = 50, r = (200 * (255 - a) + 10 * a + 127) / 255;
+  CHECK(static_cast<int>(coarse[(3 * 4 + 0) * 4]) == r);
+  CHECK(static_cast<int>(coarse[(3 * 4 + 1) * 4]) == r);
+}

@@ -5,6 +5,7 @@
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstring>
 #include <thread>
 
@@ -154,7 +155,8 @@ TEST_CASE("threaded executor without a store: production only, a read job and a 
 }
 
 TEST_CASE("real clock, terrain: a short walk produces its tiles on the production threads, byte-exact in the VRAM arena") {
-  const ReplayConfig c = small_terrain();
+  // No footprints: which of them a tile shows depends on when a thread composed it (by design).
+  const ReplayConfig c = small_terrain({"terrain.footprint_every_m=0"});
   const Trace walk = small_walk(1.5);
   auto scene = make_scene_from_config(c);
   RealClockOptions o;
@@ -172,26 +174,36 @@ TEST_CASE("real clock, terrain: a short walk produces its tiles on the productio
   CHECK(pr["tiles_composed"].get<std::uint64_t>() > 21);  // more than the pyramid's 16 + 4 + 1 of levels 4-6
   CHECK(pr["brush_mips_served"].get<std::uint64_t>() > 0);
   CHECK(pr["brush_commits"].get<std::uint64_t>() > 0);
+  CHECK(pr["decals_drawn"].get<std::uint64_t>() > 0);
   CHECK(s["produce"]["produced"].get<std::uint64_t>() > 0);
   CHECK(s["produce"]["production_ms"].get<double>() > 0);
   CHECK(rc["vram_arena"]["uploads"].get<std::uint64_t>() > 0);
   CHECK(s["resources"]["produce_ms_per_frame"]["max"].get<double>() > 0);
 
   // The first pyramid level (level 4, 256² texels: 4 × 4 tiles) is produced at the start and never
-  // moves: each of its tiles in the arena is what the producer composes for that key.
-  produce::TerrainProducer p(terrain_producer_params(c));
-  int compared = 0;
+  // moves: each of its tiles in the arena is what the producer composes for that key with the same
+  // static decals (16 of 1 m, drawn at this level's 0.25 m texels), and they show in some tiles.
+  produce::TerrainProducer p(terrain_producer_params(c)), bare(terrain_producer_params(c));
+  p.set_decals(std::make_shared<produce::DecalLayer>(produce::DecalLayerParams{
+      c.terrain.sectors_x, c.terrain.sectors_y, c.terrain.sector_m, c.terrain.decals_static, c.terrain.decal_size_m,
+      c.terrain.decal_seed, c.terrain.footprint_size_m}));
+  int compared = 0, with_decals = 0;
   for (std::uint32_t y = 0; y < 4; ++y)
     for (std::uint32_t x = 0; x < 4; ++x) {
       const TileKey k(0, 4, x, y);
       const auto held = run.arena->peek(k);
       REQUIRE(held.size() == 64u * 64u * 4u);
-      TileData d;
+      TileData d, b;
       p.produce(tile_job(c, k), d);
+      bare.produce(tile_job(c, k), b);
       CHECK(std::memcmp(held.data(), d.texels.get(), d.bytes) == 0);
+      with_decals += std::memcmp(d.texels.get(), b.texels.get(), d.bytes) != 0;
       ++compared;
     }
   CHECK(compared == 16);
+  CHECK(with_decals > 0);
+  CHECK(p.decals_drawn() > 0);
+  CHECK(bare.decals_drawn() == 0);
 }
 
 TEST_CASE("vtsim replay --clock real, terrain: runs without a store, and names what it cannot run") {
@@ -219,3 +231,37 @@ TEST_CASE("vtsim replay --clock real, terrain: runs without a store, and names w
 }
 
 TEST_SUITE_END();
+
+TEST_CASE("decal layer: footprints appended while threads read are seen as a growing prefix, counted and collected alike") {
+  produce::DecalLayer layer(produce::DecalLayerParams{4, 4, 16.0, 64, 1.0, 3, 0.5});
+  CHECK(layer.statics() == 64);
+  // Static decals only: count over the whole terrain at a fine texel is all of them.
+  CHECK(layer.count(0.01, 0, 0, 64, 64) == 64);
+  CHECK(layer.count(2.0, 0, 0, 64, 64) == 0);  // 1 m decals under a 2 m texel: not drawn
+  constexpr int kFootprints = 20000;
+  std::atomic<bool> stop{false};
+  std::atomic<int> bad{0};
+  const auto reader = [&] {
+    std::vector<produce::Decal> got;
+    std::uint32_t last = 0;
+    while (!stop.load(std::memory_order_acquire)) {
+      // Footprints at x = 0.5 + i mod 50, y = 40.25, all in the strip y in [40, 40.5).
+      const std::uint32_t n = layer.count(0.01, 0, 40.0, 64, 40.5);
+      got.clear();
+      layer.collect(0.01, 0, 40.0, 64, 40.5, got);
+      if (n < last || got.size() < n) ++bad;
+      for (const produce::Decal& d : got)  // a torn entry would not be a whole 0.5 m footprint or 1 m static decal
+        if (!(d.y1_m > 40.0 && d.y0_m < 40.5) || !(d.x1_m - d.x0_m == 0.5 || d.x1_m - d.x0_m == 1.0)) ++bad;
+      last = n;
+    }
+  };
+  std::thread r1(reader), r2(reader);
+  std::uint32_t static_in_strip = layer.count(0.01, 0, 40.0, 64, 40.5);
+  for (int i = 0; i < kFootprints; ++i) CHECK(layer.add_footprint(0.5 + i % 50, 40.25));
+  stop.store(true, std::memory_order_release);
+  r1.join();
+  r2.join();
+  CHECK(bad.load() == 0);
+  CHECK(layer.footprints() == kFootprints);
+  CHECK(layer.count(0.01, 0, 40.0, 64, 40.5) == static_in_strip + kFootprints);
+}

@@ -209,6 +209,7 @@ SystemRun::SystemRun(const ReplayConfig& cfg, const FramePlan& plan, const IScen
   }
   service_ = service_Bps();
   res_.metrics.set_system_columns(system_->frame_counter_names());
+  if (env_.on_start) env_.on_start(*system_);
 }
 
 SystemRun::~SystemRun() = default;

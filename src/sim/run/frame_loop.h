@@ -60,6 +60,9 @@ struct ReplayEnv {
   // Called after each uploaded tile with its VRAM slot (IStreamingSystem::vram_slot; real clock:
   // copy into the VRAM arena).
   std::function<void(const UploadItem&, std::int64_t slot)> on_upload;
+  // Called once with the system as constructed, before frame 0 (real clock: hand the terrain's
+  // decals to its producer).
+  std::function<void(IStreamingSystem&)> on_start;
   // Called once after the last frame with the system as it ended (real clock: check VRAM).
   std::function<void(const IStreamingSystem&)> on_finish;
   // Progress callback (frame, frames), called about once a second of wall time.

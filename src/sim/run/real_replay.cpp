@@ -218,6 +218,10 @@ RealRun run_real(const ReplayConfig& cfg, const Trace& trace, const IScene& scen
   env.executor = &exec;
   if (store) env.sizer = store_sizer(*store);  // the terrain: the config's layers size its tiles (as the simulated clock)
   env.clock_name = "real";
+  if (producer)
+    env.on_start = [&producer](IStreamingSystem& sys) {
+      if (const auto* terrain = dynamic_cast<const TerrainSystem*>(&sys)) producer->set_decals(terrain->decal_layer());
+    };
   env.progress = options.progress;
   // The frame loop's own cost: wall and CPU time (this thread) from one frame's start to the next
   // frame's pacing point. Wall well above CPU means the thread waited for a core.
@@ -318,6 +322,7 @@ RealRun run_real(const ReplayConfig& cfg, const Trace& trace, const IScene& scen
                       {"tiles_composed", producer->tiles()},
                       {"brush_mips_served", producer->brushes()},
                       {"brush_bytes_served", producer->brush_bytes_served()},
+                      {"decals_drawn", producer->decals_drawn()},
                       {"brush_commits", brush_uploads}};
   }
   run.result.summary["provenance"]["machine"] = machine_json();  // what the real-clock figures measured

@@ -62,9 +62,44 @@ ProduceWork count_work(const CompositeJob& job) {
   w.layers = static_cast<std::uint32_t>(std::popcount(active_layers(job)));
   const double x0 = job.origin_x_m - job.border * job.m_per_texel, x1 = job.origin_x_m + (job.tile + job.border) * job.m_per_texel;
   const double y0 = job.origin_y_m - job.border * job.m_per_texel, y1 = job.origin_y_m + (job.tile + job.border) * job.m_per_texel;
-  for (const Decal& d : job.decals)
-    if (d.x1_m > x0 && d.x0_m < x1 && d.y1_m > y0 && d.y0_m < y1) ++w.decals;
+  for (const Decal& d : job.decals) w.decals += decal_drawn(d, job.m_per_texel, x0, y0, x1, y1);
   return w;
+}
+
+bool decal_drawn(const Decal& d, double m_per_texel, double x0, double y0, double x1, double y1) {
+  return d.x1_m - d.x0_m >= m_per_texel && d.y1_m - d.y0_m >= m_per_texel && d.x1_m > x0 && d.x0_m < x1 && d.y1_m > y0 &&
+         d.y0_m < y1;
+}
+
+void draw_decals(const CompositeJob& job, std::uint8_t* out) {
+  if (job.decals.empty()) return;
+  const int n = job.tile + 2 * job.border;
+  const double t = job.m_per_texel;
+  const double x0 = job.origin_x_m - job.border * t, y0 = job.origin_y_m - job.border * t;
+  const double x1 = x0 + n * t, y1 = y0 + n * t;
+  std::vector<double> cx(static_cast<std::size_t>(n)), cy(static_cast<std::size_t>(n));
+  for (const Decal& d : job.decals) {
+    if (!decal_drawn(d, t, x0, y0, x1, y1)) continue;
+    // Coverage is separable for a rectangle: the overlap of each texel's column and row with it.
+    const auto cover = [&](double a, double b, double o, std::vector<double>& c) {
+      for (int i = 0; i < n; ++i) {
+        const double lo = o + i * t, hi = lo + t;
+        c[static_cast<std::size_t>(i)] = std::max(0.0, std::min(b, hi) - std::max(a, lo)) / t;
+      }
+    };
+    cover(d.x0_m, d.x1_m, x0, cx);
+    cover(d.y0_m, d.y1_m, y0, cy);
+    const int i0 = std::max(0, static_cast<int>(std::floor((d.x0_m - x0) / t))), i1 = std::min(n, static_cast<int>(std::ceil((d.x1_m - x0) / t)));
+    const int j0 = std::max(0, static_cast<int>(std::floor((d.y0_m - y0) / t))), j1 = std::min(n, static_cast<int>(std::ceil((d.y1_m - y0) / t)));
+    for (int j = j0; j < j1; ++j)
+      for (int i = i0; i < i1; ++i) {
+        const int a = static_cast<int>(std::floor(cx[static_cast<std::size_t>(i)] * cy[static_cast<std::size_t>(j)] * d.rgba[3] + 0.5));
+        if (a == 0) continue;
+        std::uint8_t* c = out + (static_cast<std::size_t>(j) * static_cast<std::size_t>(n) + static_cast<std::size_t>(i)) * 4;
+        for (std::size_t k = 0; k < 3; ++k) c[k] = static_cast<std::uint8_t>((c[k] * (255 - a) + d.rgba[k] * a + 127) / 255);
+        c[3] = static_cast<std::uint8_t>((c[3] * (255 - a) + 255 * a + 127) / 255);
+      }
+  }
 }
 
 namespace {
@@ -306,6 +341,7 @@ void compose_reference(const CompositeJob& job, std::uint8_t* out) {
     }
     blend_rgba8(lp, wp, na, un, out + static_cast<std::size_t>(j) * un * 4);
   }
+  draw_decals(job, out);
 }
 
 namespace {
@@ -610,6 +646,7 @@ void Compositor::compose(const CompositeJob& job, std::uint8_t* out, ComposePath
   t.acc = acc_.data();
   if (resolve(path) == ComposePath::kAvx2) rows_avx2(t, 0, n, out);
   else rows_generic(t, 0, n, out);
+  draw_decals(job, out);
 }
 
 void compose_exact(const CompositeJob& job, std::uint8_t* out) {
@@ -660,6 +697,7 @@ void compose_exact(const CompositeJob& job, std::uint8_t* out) {
         out[(static_cast<std::size_t>(j) * static_cast<std::size_t>(n) + static_cast<std::size_t>(i)) * 4 + static_cast<std::size_t>(k)] =
             static_cast<std::uint8_t>(std::clamp(std::floor(c[static_cast<std::size_t>(k)] + 0.5), 0.0, 255.0));
     }
+  draw_decals(job, out);
 }
 
 }  // namespace vtsim::produce

@@ -13,6 +13,7 @@
 //
 // Complexity: O(texels x active layers). Thread-safety: a Compositor holds scratch rows; use one
 // per thread. No allocation per texel, no virtual call in the inner loops.
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -40,8 +41,13 @@ struct WeightMask {
   double m_per_texel = 1;                  // m
 };
 
+// A decal (seed 002: footprints, damage) rendered over the blended brushes: a world rectangle of
+// one colour, drawn with its exact area coverage of each output texel (anti-aliased edges, and a
+// coarser level's texel is the mean of the finer ones it covers). A decal narrower than one output
+// texel on either side is neither rendered nor counted at that level (TerrainSystem counts alike).
 struct Decal {
-  double x0_m = 0, y0_m = 0, x1_m = 0, y1_m = 0;  // world rectangle, m (counted, not yet rendered)
+  double x0_m = 0, y0_m = 0, x1_m = 0, y1_m = 0;  // world rectangle, m
+  std::array<std::uint8_t, 4> rgba = {48, 40, 32, 192};  // colour; alpha = its opacity where it covers a texel whole
 };
 
 struct CompositeJob {
@@ -61,11 +67,19 @@ int select_level(const Atlas& atlas, double m_per_texel, double period_m);
 // lod of a uv derivative (brush repeats per output texel) for a brush of side s: log2(|du| s).
 double lod_from_derivative(double du_per_texel, int side);
 
+// Whether decal d is drawn into texels of m_per_texel over the rectangle [x0, x1) x [y0, y1), m:
+// it overlaps it and is at least a texel wide on both sides.
+bool decal_drawn(const Decal& d, double m_per_texel, double x0, double y0, double x1, double y1);
+// Draws the job's decals over `out` (the (T + 2B)^2 blended texels), in order: per texel and decal,
+// a = round(coverage x alpha), c = (c (255 - a) + decal a + 127) / 255. Every compose path, the
+// reference and compose_exact end with it, so decals never break their byte equality.
+void draw_decals(const CompositeJob& job, std::uint8_t* out);
+
 // The layers a job blends (bit i = layer i): those whose mask channel is non-zero somewhere under
 // the tile's bilinear footprint; layer 0 when none is.
 std::uint32_t active_layers(const CompositeJob& job);
-// What the job costs (exec/produce.h): texels with border, active layers, overlapping decals; the
-// compositor samples exactly these layers.
+// What the job costs (exec/produce.h): texels with border, active layers, the decals it draws; the
+// compositor samples exactly these layers and draws exactly these decals.
 ProduceWork count_work(const CompositeJob& job);
 
 // out[t] = (sum_l weights[l][t] * layers[l][4t+c] + 2^13) >> 14 for `texels` RGBA8 texels; the

@@ -223,7 +223,7 @@ std::vector<ProduceSample> measure_compositor(const ProduceMeasureOptions& o, co
       for (int layers : o.layers)
         for (int nd : o.decals) {
           if (progress) progress(fmt::format("compositor: tile {} border {} layers {} decals {}", tile, border, layers, nd));
-          // Decals spread over the tile (counted by count_work; the compositor does not render them yet).
+          // Decals spread over the tile, each tile/8 texels a side (drawn by the compositor, counted by count_work).
           const double span = tile * o.m_per_texel;
           std::vector<Decal> decals;
           for (int d = 0; d < nd; ++d) {
@@ -267,7 +267,7 @@ std::string produce_profile_toml(const ProduceFit& fit, const std::vector<Produc
   s += fmt::format("per_texel_ns = {:.4g}\n", fit.model.per_texel_ns);
   s += fmt::format("per_layer_texel_ns = {:.4g}\n", fit.model.per_layer_texel_ns);
   s += fmt::format("per_decal_us = {:.4g}{}\n", fit.model.per_decal_us,
-                   fit.decals_fitted ? "  # decals are counted, not yet rendered by the compositor" : "  # not measured: kept");
+                   fit.decals_fitted ? "" : "  # not measured: kept");
   s += fmt::format("workers = {}\n", fit.model.workers);
   return s;
 }

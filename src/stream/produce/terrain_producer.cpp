@@ -54,6 +54,7 @@ void TerrainProducer::compose_tile(const TileJob& job, TileData& out) const {
   thread_local std::vector<std::uint8_t> part;
   thread_local std::array<BrushLayer, kMaxLayers> layers;
   thread_local std::array<WeightMask, kMaxLayers / 4> masks;
+  thread_local std::vector<Decal> decals;
 
   const int l = static_cast<int>(job.key.level());
   const std::int64_t T = p_.tile, B = p_.border;
@@ -75,15 +76,29 @@ void TerrainProducer::compose_tile(const TileJob& job, TileData& out) const {
   out.channels = 4;
   out.bytes = side * side * 4;
   out.texels = std::make_unique<std::uint8_t[]>(out.bytes);  // zeroed: a partial tile's unused texels
+  // The decals over what is composed (border included): the layer's rule, the compositor re-checks.
+  const auto with_decals = [&](CompositeJob j) {
+    decals.clear();
+    if (decals_) {
+      const double x0 = x - j.border * texel_m, y0 = y - j.border * texel_m, n_m = (j.tile + 2 * j.border) * texel_m;
+      decals_->collect(texel_m, x0, y0, x0 + n_m, y0 + n_m, decals);
+      decals_drawn_ += static_cast<std::uint64_t>(
+          std::count_if(decals.begin(), decals.end(), [&](const Decal& d) { return decal_drawn(d, texel_m, x0, y0, x0 + n_m, y0 + n_m); }));
+    }
+    j.decals = decals;
+    return j;
+  };
   if (w == T && h == T) {
-    comp.compose(scene_.job_into(layers, masks, nl, p_.brush_period_m, x, y, sx, sy, texel_m, p_.tile, p_.border), out.texels.get());
+    comp.compose(with_decals(scene_.job_into(layers, masks, nl, p_.brush_period_m, x, y, sx, sy, texel_m, p_.tile, p_.border)),
+                 out.texels.get());
     return;
   }
   // A coarse level smaller than a tile: its payload only (square: the compositor's tiles are), at
   // the payload's place in the slot.
   const std::size_t s = static_cast<std::size_t>(std::max(w, h));
   part.resize(s * s * 4);
-  comp.compose(scene_.job_into(layers, masks, nl, p_.brush_period_m, x, y, sx, sy, texel_m, static_cast<int>(s), 0), part.data());
+  comp.compose(with_decals(scene_.job_into(layers, masks, nl, p_.brush_period_m, x, y, sx, sy, texel_m, static_cast<int>(s), 0)),
+               part.data());
   for (std::size_t r = 0; r < s; ++r)
     std::memcpy(out.texels.get() + ((static_cast<std::size_t>(B) + r) * side + static_cast<std::size_t>(B)) * 4, part.data() + r * s * 4, s * 4);
 }

@@ -15,7 +15,8 @@
 // A tile (layer < kBrushLayer, level l, x, y) is composed as bench_produce composes it: output
 // texel m_per_texel = 2^l / texels_per_m, payload texel (0, 0) at (x, y) · T · m_per_texel metres,
 // the masks at the corner of the sector holding that point, brush period brush_period_m,
-// work.layers layers, no decals (counted by the model, not rendered by the compositor). A full tile
+// work.layers layers, and the decals of the system's DecalLayer over it (set_decals; none when
+// unset) drawn over the blend. A full tile
 // is composed with the texture's border (T + 2B a side, what the VRAM arena's slot holds); a
 // coarse level's partial tile (its level smaller than a tile) composes only its payload texels, as
 // the model counts them, into the slot's top-left with the rest zero. Every layer is rgba8 (checked
@@ -27,11 +28,15 @@
 //
 // Thread-safety: produce() and serves() may run on any number of threads at once: the scene is
 // immutable after the constructor; each thread has its own Compositor and scratch (thread_local).
-// Counters are atomics.
+// Counters are atomics. set_decals must happen before the first produce() (the real replay calls
+// it from ReplayEnv::on_start, before frame 0); the layer itself takes appends while threads read.
+// A tile drawn later than its request may show footprints placed since: the freshest, as a game's.
 #include <atomic>
 #include <cstdint>
+#include <memory>
 
 #include "stream/exec/i_producer.h"
+#include "stream/produce/decal_layer.h"
 #include "stream/produce/produce_calibrate.h"
 
 namespace vtsim::produce {
@@ -56,6 +61,7 @@ class TerrainProducer final : public ITileProducer {
   explicit TerrainProducer(const TerrainProducerParams& p);
   void produce(const TileJob& job, TileData& out) override;
   bool serves(const TileJob& job) const override { return job.key.layer() == p_.brush_layer; }
+  void set_decals(std::shared_ptr<const DecalLayer> decals) { decals_ = std::move(decals); }
 
   // Decoded bytes of brush mip `mip` (the root's tail included), as TerrainSystem sizes it.
   std::uint64_t brush_bytes(int mip) const;
@@ -63,6 +69,7 @@ class TerrainProducer final : public ITileProducer {
   std::uint64_t tiles() const { return tiles_.load(std::memory_order_relaxed); }
   std::uint64_t brushes() const { return brushes_.load(std::memory_order_relaxed); }
   std::uint64_t brush_bytes_served() const { return brush_bytes_.load(std::memory_order_relaxed); }
+  std::uint64_t decals_drawn() const { return decals_drawn_.load(std::memory_order_relaxed); }  // summed over tiles
 
  private:
   void compose_tile(const TileJob& job, TileData& out) const;
@@ -70,6 +77,8 @@ class TerrainProducer final : public ITileProducer {
 
   TerrainProducerParams p_;
   ProduceScene scene_;
+  std::shared_ptr<const DecalLayer> decals_;
+  mutable std::atomic<std::uint64_t> decals_drawn_{0};
   std::atomic<std::uint64_t> tiles_{0}, brushes_{0}, brush_bytes_{0};
 };
 

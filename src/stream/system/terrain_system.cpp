@@ -100,16 +100,8 @@ TerrainSystem::TerrainSystem(const SystemSetup& s, const ClipmapConfig& cc, cons
   needed_.assign(n, 0);
   emitted_frame_.assign(n, -1);
   produced_.assign(static_cast<std::size_t>(cm_.num_levels()), 0);
-  bucket_.resize(static_cast<std::size_t>(sectors_));
-  const double w_m = static_cast<double>(t.sectors_x) * t.sector_m, h_m = static_cast<double>(t.sectors_y) * t.sector_m;
-  for (int i = 0; i < t.decals_static; ++i) {
-    const std::uint64_t h1 = mix64(static_cast<std::uint64_t>(t.decal_seed) * 0x9E3779B97F4A7C15ULL + 2 * static_cast<std::uint64_t>(i));
-    const std::uint64_t h2 = mix64(h1 ^ 0xD1B54A32D192ED03ULL);
-    const double x = static_cast<double>(h1 >> 11) * 0x1p-53 * w_m, y = static_cast<double>(h2 >> 11) * 0x1p-53 * h_m;
-    const int sx = std::min(t.sectors_x - 1, static_cast<int>(x / t.sector_m)), sy = std::min(t.sectors_y - 1, static_cast<int>(y / t.sector_m));
-    bucket_[static_cast<std::size_t>(sy * t.sectors_x + sx)].push_back(static_cast<std::uint32_t>(decals_.size()));
-    decals_.push_back({x, y, t.decal_size_m / 2});
-  }
+  decals_ = std::make_shared<produce::DecalLayer>(produce::DecalLayerParams{t.sectors_x, t.sectors_y, t.sector_m, t.decals_static,
+                                                                             t.decal_size_m, t.decal_seed, t.footprint_size_m});
 }
 
 int TerrainSystem::brush_mip(int level) const { return std::min(level + mip_offset_, t_.brush_tree_levels - 1); }
@@ -127,7 +119,7 @@ void TerrainSystem::tile_sectors(int level, std::int64_t tx, std::int64_t ty, in
 }
 
 void TerrainSystem::add_footprint(double x_m, double y_m) {
-  footprints_.push_back({x_m, y_m, t_.footprint_size_m / 2});
+  if (!decals_->add_footprint(x_m, y_m)) ++footprints_dropped_;
   const double tpm = s_.texels_per_m;
   const std::int64_t u0 = static_cast<std::int64_t>(std::floor((x_m - t_.footprint_size_m / 2) * tpm));
   const std::int64_t u1 = static_cast<std::int64_t>(std::floor((x_m + t_.footprint_size_m / 2) * tpm));
@@ -290,18 +282,7 @@ std::uint32_t TerrainSystem::count_decals(int level, std::int64_t tx, std::int64
   const double texel_m = std::exp2(level) / tpm;
   const double span_m = static_cast<double>(static_cast<std::int64_t>(s_.tile_size) << level) / tpm;
   const double x0 = static_cast<double>(tx) * span_m, y0 = static_cast<double>(ty) * span_m;
-  const double x1 = x0 + span_m, y1 = y0 + span_m;
-  std::uint32_t n = 0;
-  const auto overlaps = [&](const Decal& d) {
-    return 2 * d.half >= texel_m && d.x + d.half > x0 && d.x - d.half < x1 && d.y + d.half > y0 && d.y - d.half < y1;
-  };
-  int sx0, sx1, sy0, sy1;
-  tile_sectors(level, tx, ty, sx0, sx1, sy0, sy1);
-  for (int sy = std::max(0, sy0 - 1); sy <= std::min(t_.sectors_y - 1, sy1 + 1); ++sy)
-    for (int sx = std::max(0, sx0 - 1); sx <= std::min(t_.sectors_x - 1, sx1 + 1); ++sx)
-      for (std::uint32_t i : bucket_[static_cast<std::size_t>(sy * t_.sectors_x + sx)]) n += overlaps(decals_[i]);
-  for (const Decal& d : footprints_) n += overlaps(d);
-  return n;
+  return decals_->count(texel_m, x0, y0, x0 + span_m, y0 + span_m);
 }
 
 bool TerrainSystem::produced(TileKey key, ProduceWork& work) const {
@@ -345,7 +326,7 @@ void TerrainSystem::frame_counters(SystemCounters& out) const {
   out[2] = frame_brush_loads_;
   out[3] = frame_releases_;
   out[4] = frame_gated_;
-  out[5] = static_cast<double>(decals_.size() + footprints_.size());
+  out[5] = static_cast<double>(decals_->statics() + decals_->footprints());
   out[6] = static_cast<double>(invalidations_);
 }
 
@@ -374,8 +355,9 @@ nlohmann::json TerrainSystem::stats_json() const {
           {"brush_releases", brush_releases_},
           {"stale_brush_commits", stale_brush_commits_},
           {"gated_needs", gated_},
-          {"decals_static", decals_.size()},
-          {"footprints", footprints_.size()},
+          {"decals_static", decals_->statics()},
+          {"footprints", decals_->footprints()},
+          {"footprints_dropped", footprints_dropped_},
           {"invalidations", invalidations_}};
 }
 

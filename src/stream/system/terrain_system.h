@@ -20,11 +20,13 @@
 // Complexity: emit_needs O(missing window tiles × sectors per tile × brushes); the brush needed-set
 // is recomputed only when a window moved or a pyramid level completed, O(brush mips × sectors ×
 // brushes). Single-threaded.
+#include <memory>
 #include <unordered_map>
 #include <unordered_set>
 
 #include "cache/clipmap.h"
 #include "cache/vram_arena.h"
+#include "stream/produce/decal_layer.h"
 #include "stream/system/feedback.h"
 #include "stream/system/i_system.h"
 
@@ -116,16 +118,15 @@ class TerrainSystem final : public IStreamingSystem {
   std::uint64_t brush_loads() const { return brush_loads_; }
   std::uint64_t brush_releases() const { return brush_releases_; }
   std::uint64_t invalidations() const { return invalidations_; }
-  std::uint64_t footprints() const { return footprints_.size(); }
+  std::uint64_t footprints() const { return decals_->footprints(); }
   std::uint64_t produced_tiles(int level) const { return produced_[static_cast<std::size_t>(level)]; }
   std::uint64_t gated_needs() const { return gated_; }
   // Places a footprint decal at a world position now (what begin_frame does every footprint_every_m).
   void add_footprint(double x_m, double y_m);
+  // The decals, for the real clock's producer to draw what this system counts (thread-safe reads).
+  std::shared_ptr<const produce::DecalLayer> decal_layer() const { return decals_; }
 
  private:
-  struct Decal {
-    double x, y, half;  // centre relative to the texture origin, half side, m
-  };
   std::size_t idx(int mip, int sector, int brush) const {
     return (static_cast<std::size_t>(mip) * static_cast<std::size_t>(sectors_) + static_cast<std::size_t>(sector)) * kMaxBrushes +
            static_cast<std::size_t>(brush);
@@ -148,9 +149,8 @@ class TerrainSystem final : public IStreamingSystem {
   bool needed_dirty_ = true;
   std::vector<std::uint8_t> resident_, needed_;
   std::vector<int> emitted_frame_;
-  std::vector<Decal> decals_;
-  std::vector<std::vector<std::uint32_t>> bucket_;  // per sector: decals whose centre lies in it
-  std::vector<Decal> footprints_;
+  std::shared_ptr<produce::DecalLayer> decals_;  // static decals and footprints (shared with the real clock's producer)
+  std::uint64_t footprints_dropped_ = 0;         // footprints past DecalLayer::kMaxFootprints
   bool have_last_ = false;
   double last_x_ = 0, last_y_ = 0, travel_ = 0;
   std::unordered_set<std::uint64_t> dirty_;  // resident tile keys a footprint invalidated
