@@ -19,3 +19,11 @@ elseif(VTSIM_SANITIZE STREQUAL "fuzz")
 elseif(NOT VTSIM_SANITIZE STREQUAL "")
   message(FATAL_ERROR "VTSIM_SANITIZE must be '', 'address', 'thread' or 'fuzz' (got '${VTSIM_SANITIZE}')")
 endif()
+
+# Every executable of the ASan and fuzz builds carries the runtime's default options
+# (cmake/sanitizer_options.cpp: why LeakSanitizer needs intercept_tls_get_addr=0 here).
+function(vtsim_sanitizer_defaults target)
+  if(VTSIM_SANITIZE STREQUAL "address" OR VTSIM_SANITIZE STREQUAL "fuzz")
+    target_sources(${target} PRIVATE ${PROJECT_SOURCE_DIR}/cmake/sanitizer_options.cpp)
+  endif()
+endfunction()

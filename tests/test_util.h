@@ -47,22 +47,11 @@ inline void cut_file(const std::string& path, double fraction) {
       << bytes.substr(0, static_cast<std::size_t>(static_cast<double>(bytes.size()) * fraction));
 }
 
-// LeakSanitizer's own stop-the-world tracer can crash at a child's exit, after the child did all
-// its work ("Tracer caught signal 11", google/sanitizers#1353): a fault of the tool, not a leak
-// report. A child that printed this is run once more, aloud; a second crash fails the test.
-inline bool lsan_tool_crashed(const std::string& output) {
-  return output.find("LeakSanitizer has encountered a fatal error") != std::string::npos;
-}
-
 // Runs `cmdline` through the shell with stdout and stderr into `log`; the exit code, or −1 when
 // the command did not exit normally.
 inline int run_shell(const std::string& cmdline, const std::string& log) {
   const std::string cmd = cmdline + " >" + log + " 2>&1";
-  int rc = std::system(cmd.c_str());
-  if (rc != 0 && lsan_tool_crashed(slurp(log))) {
-    MESSAGE("LeakSanitizer's tracer crashed at exit; running once more: " << cmdline);
-    rc = std::system(cmd.c_str());
-  }
+  const int rc = std::system(cmd.c_str());
   return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
 }
 
@@ -80,21 +69,16 @@ struct CliRun {
 // through a pipe, stderr through the file err_path (removed first, so it is a fresh file).
 inline CliRun run_vtsim_capture(const std::string& args, const std::string& err_path) {
   const std::string cmd = std::string(VTSIM_CLI) + " " + args + " 2>" + err_path;
+  std::filesystem::remove(err_path);
   CliRun r;
-  for (int attempt = 0; attempt < 2; ++attempt) {
-    std::filesystem::remove(err_path);
-    r = CliRun{};
-    FILE* p = popen(cmd.c_str(), "r");
-    REQUIRE(p != nullptr);
-    char buf[4096];
-    std::size_t n;
-    while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-    const int status = pclose(p);
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.err = slurp(err_path);
-    if (r.code == 0 || !lsan_tool_crashed(r.err)) break;
-    if (attempt == 0) MESSAGE("LeakSanitizer's tracer crashed at exit; running once more: vtsim " << args);
-  }
+  FILE* p = popen(cmd.c_str(), "r");
+  REQUIRE(p != nullptr);
+  char buf[4096];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+  const int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.err = slurp(err_path);
   return r;
 }
 

@@ -99,10 +99,9 @@ Module open_module(const std::string& path, const std::string& how) {
   }
   m.api = api;
   // libopenvdb (a dependency of OpenImageIO's plugins) links log4cplus 2, whose initializer starts
-  // a pool of 4 threads for asynchronous appenders; OpenImageIO configures none. Left idle, those
-  // threads are torn down inside exit(), concurrently with LeakSanitizer's stop-the-world scan in
-  // the sanitizer builds, whose tracer then crashed on CI ("Tracer caught signal 11", exit 134;
-  // google/sanitizers#1353). Joining them here removes the race and four idle threads per process.
+  // a pool of 4 threads for asynchronous appenders; OpenImageIO configures none. Joined here, every
+  // process that reads an image has 4 idle foreign threads fewer to carry until exit (the sanitizer
+  // builds' tracer crash at exit had another cause: cmake/sanitizer_options.cpp).
   // dlsym on the handle searches the module's whole dependency tree; absent library: nothing to do.
   if (void* stop = dlsym(handle, "_ZN9log4cplus18shutdownThreadPoolEv")) reinterpret_cast<void (*)()>(stop)();
   return m;
