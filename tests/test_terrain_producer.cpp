@@ -5,6 +5,7 @@
 #include <doctest/doctest.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cstring>
 #include <thread>
@@ -16,6 +17,7 @@
 #include "sim/view/scene.h"
 #include "stream/exec/threaded_executor.h"
 #include "stream/produce/terrain_producer.h"
+#include "stream/store/store_builder.h"
 #include "stream/system/terrain_system.h"
 
 // Threaded code: also run by the TSan variant of scripts/test.sh (ctest -L threads).
@@ -113,6 +115,84 @@ TEST_CASE("terrain producer: a tile composes to the same bytes twice and on anot
   CHECK(p.brush_bytes(2) == br.bytes);
   CHECK(p.tiles() == 5);
   CHECK(p.brushes() == 2);
+}
+
+// terrain.brush_files: the producer blends the images it names. Four solid brushes with no green:
+// every composed texel has green 0 and opaque alpha, and varies with the masks (value noise has
+// green everywhere); a brush mip is the file's texels. Files that do not fit are named.
+TEST_CASE("terrain producer: brushes from image files (terrain.brush_files) are what it blends, and bad files are named") {
+  test::RealScratch dir;
+  const std::array<std::array<std::uint8_t, 3>, 4> colours = {{{255, 0, 0}, {0, 0, 255}, {128, 0, 128}, {200, 0, 50}}};
+  const auto solid = [](int side, std::array<std::uint8_t, 3> rgb) {
+    Image8 im;
+    im.width = im.height = static_cast<std::uint64_t>(side);
+    im.channels = 3;
+    for (int t = 0; t < side * side; ++t) im.texels.insert(im.texels.end(), rgb.begin(), rgb.end());
+    return im;
+  };
+  for (int i = 0; i < 4; ++i) write_image8(dir.file("b" + std::to_string(i) + ".png"), solid(64, colours[static_cast<std::size_t>(i)]));
+  const ReplayConfig c = small_terrain({"terrain.brush_files=" + dir.file("b*.png")});
+  const produce::TerrainProducerParams params = terrain_producer_params(c);
+  REQUIRE(params.brush_files.size() == 1);
+  produce::TerrainProducer p(params);
+  TileData a;
+  p.produce(tile_job(c, TileKey(0, 1, 5, 3)), a);
+  REQUIRE(a.bytes == 64u * 64u * 4u);
+  bool green = false, opaque = true, varied = false;
+  for (std::size_t i = 0; i < a.bytes; i += 4) {
+    green |= a.texels[i + 1] != 0;
+    opaque &= a.texels[i + 3] == 255;
+    varied |= a.texels[i] != a.texels[0];
+  }
+  CHECK_FALSE(green);
+  CHECK(opaque);
+  CHECK(varied);
+  // The procedural brushes do have green: the files were used.
+  produce::TerrainProducer noise(terrain_producer_params(small_terrain()));
+  TileData n;
+  noise.produce(tile_job(c, TileKey(0, 1, 5, 3)), n);
+  bool noise_green = false;
+  for (std::size_t i = 0; i < n.bytes; i += 4) noise_green |= n.texels[i + 1] != 0;
+  CHECK(noise_green);
+  // Brush 2's mip 1 (32², box-filtered from a solid image): its colour throughout.
+  TileJob bj;
+  bj.key = TileKey(TerrainSystem::kBrushLayer, 1, 0, 2);
+  TileData br;
+  p.produce(bj, br);
+  REQUIRE(br.bytes == 32u * 32u * 4u);
+  for (std::size_t i = 0; i < br.bytes; i += 4) {
+    CHECK(br.texels[i] == 128);
+    CHECK(br.texels[i + 1] == 0);
+    CHECK(br.texels[i + 2] == 128);
+    if (br.texels[i] != 128) break;
+  }
+
+  const auto refused = [&](const std::string& files, const std::string& what) {
+    try {
+      produce::TerrainProducer bad(terrain_producer_params(small_terrain({"terrain.brush_files=" + files})));
+      FAIL("expected InputError");
+    } catch (const InputError& e) {
+      CAPTURE(e.what());
+      CHECK(test::contains(e.what(), what));
+    }
+  };
+  // Three images for four brushes a sector.
+  refused(dir.file("b0.png") + ", " + dir.file("b1.png") + "," + dir.file("b2.png"),
+          "field 'terrain.brush_files': 3 brush images for terrain.brushes_per_sector = 4");
+  // A brush of another size than terrain.brush_size.
+  write_image8(dir.file("small.png"), solid(32, colours[0]));
+  refused(dir.file("b0.png") + "," + dir.file("b1.png") + "," + dir.file("b2.png") + "," + dir.file("small.png"),
+          dir.file("small.png") + ": brush is 32×32; terrain.brush_size is 64");
+  // Not square: named by the atlas builder before the size check.
+  Image8 wide = solid(64, colours[0]);
+  wide.height = 32;
+  wide.texels.resize(64 * 32 * 3);
+  write_image8(dir.file("wide.png"), wide);
+  refused(dir.file("b0.png") + "," + dir.file("b1.png") + "," + dir.file("b2.png") + "," + dir.file("wide.png"), dir.file("wide.png"));
+  // A missing file, a pattern that matches nothing, an empty name.
+  refused(dir.file("b0.png") + "," + dir.file("b1.png") + "," + dir.file("b2.png") + "," + dir.file("gone.png"), dir.file("gone.png"));
+  refused(dir.file("z*.png"), dir.file("z*.png") + ": no brush image matches this pattern");
+  refused(dir.file("b0.png") + ",," + dir.file("b1.png"), "field 'terrain.brush_files': an empty name");
 }
 
 TEST_CASE("threaded executor without a store: production only, a read job and a missing producer refused") {
@@ -228,6 +308,18 @@ TEST_CASE("vtsim replay --clock real, terrain: runs without a store, and names w
   r = test::run_cli(dir, "replay --clock real" + common + " --set produce.workers=0");
   CHECK(r.code == 2);
   CHECK(r.err.find("field 'produce.workers'") != std::string::npos);
+  // Brush images from files (four 64² brushes, one a sector); a size that does not fit: exit 2, named.
+  Image8 im;
+  im.width = im.height = 64;
+  im.channels = 4;
+  im.texels.assign(64 * 64 * 4, 200);
+  for (int i = 0; i < 4; ++i) write_image8(dir.file("brush" + std::to_string(i) + ".png"), im);
+  r = test::run_cli(dir, "replay --clock real --json -q" + common + " --set terrain.brush_files=" + dir.file("brush*.png"));
+  REQUIRE(r.code == 0);
+  CHECK(nlohmann::json::parse(r.out)["real_clock"]["producer"]["tiles_composed"].get<std::uint64_t>() > 0);
+  r = test::run_cli(dir, "replay --clock real" + common + " --set terrain.brush_files=" + dir.file("brush*.png") + " --set terrain.brush_size=128");
+  CHECK(r.code == 2);
+  CHECK(r.err.find(dir.file("brush0.png") + ": brush is 64×64; terrain.brush_size is 128") != std::string::npos);
 }
 
 TEST_SUITE_END();

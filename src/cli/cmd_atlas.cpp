@@ -1,7 +1,6 @@
 // vtsim atlas build: brush images packed into a texture atlas (seed 004, stream/produce/atlas.h),
 // each kept level written as an image plus a JSON manifest (docs/produced.md, "vtsim atlas build").
 #include <fmt/format.h>
-#include <fnmatch.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -14,6 +13,7 @@
 #include "cli/commands.h"
 #include "core/error.h"
 #include "stream/produce/atlas.h"
+#include "stream/produce/brush_images.h"
 #include "stream/store/store_builder.h"
 
 namespace vtsim::cli {
@@ -28,61 +28,16 @@ struct AtlasBuildArgs {
   bool quiet = false;
 };
 
-bool atlas_is_pattern(const std::string& s) { return s.find_first_of("*?[") != std::string::npos; }
-
-// Files matching a pattern in its file name (the directory part taken literally), sorted.
-std::vector<std::string> atlas_expand(const std::string& pattern) {
-  namespace fs = std::filesystem;
-  const fs::path p(pattern);
-  const fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
-  const std::string name = p.filename().string();
-  std::vector<std::string> out;
-  std::error_code ec;
-  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec))
-    if (it->is_regular_file(ec) && fnmatch(name.c_str(), it->path().filename().c_str(), FNM_PERIOD) == 0)
-      out.push_back(p.has_parent_path() ? (dir / it->path().filename()).string() : it->path().filename().string());
-  if (out.empty()) throw InputError(pattern, "no brush image matches this pattern");
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
-produce::Rgba8 atlas_read_brush(const std::string& path) {
-  const Image8 im = read_image8(path, store::Transfer::linear);
-  produce::Rgba8 b;
-  b.width = static_cast<int>(im.width);
-  b.height = static_cast<int>(im.height);
-  b.texels.resize(static_cast<std::size_t>(im.width) * static_cast<std::size_t>(im.height) * 4);
-  for (std::size_t t = 0; t < b.texels.size() / 4; ++t) {
-    const std::uint8_t* s = &im.texels[t * im.channels];
-    std::uint8_t* d = &b.texels[t * 4];
-    switch (im.channels) {  // grey, grey + alpha, RGB, RGBA
-      case 1: d[0] = d[1] = d[2] = s[0], d[3] = 255; break;
-      case 2: d[0] = d[1] = d[2] = s[0], d[3] = s[1]; break;
-      case 3: d[0] = s[0], d[1] = s[1], d[2] = s[2], d[3] = 255; break;
-      default: std::copy_n(s, 4, d);
-    }
-  }
-  return b;
-}
-
 void run_atlas_build(const AtlasBuildArgs& a) {
   namespace fs = std::filesystem;
   if (a.ext != "png" && a.ext != "tif")
     throw InputError("--format", fmt::format("'{}': give png or tif", a.ext));
-  std::vector<std::string> files;
-  for (const std::string& b : a.brushes) {
-    if (atlas_is_pattern(b) && !fs::exists(b)) {
-      const auto m = atlas_expand(b);
-      files.insert(files.end(), m.begin(), m.end());
-    } else {
-      files.push_back(b);
-    }
-  }
+  const std::vector<std::string> files = produce::expand_brush_files(a.brushes);
   if (files.empty()) throw InputError("brushes", "no brush image given");
   std::vector<produce::Rgba8> brushes;
   for (const std::string& f : files) {
     check_input("brushes", f);
-    brushes.push_back(atlas_read_brush(f));
+    brushes.push_back(produce::read_brush(f));
   }
   const produce::Atlas at = produce::build_atlas(brushes, files, a.params);
   std::error_code ec;  // created only once the brushes made an atlas

@@ -145,6 +145,15 @@ produce::TerrainProducerParams terrain_producer_params(const ReplayConfig& cfg) 
   p.mask_size = cfg.terrain.mask_size;
   p.sector_m = cfg.terrain.sector_m;
   p.brush_layer = TerrainSystem::kBrushLayer;
+  for (std::size_t at = 0; !cfg.terrain.brush_files.empty() && at <= cfg.terrain.brush_files.size();) {
+    const std::size_t comma = std::min(cfg.terrain.brush_files.find(',', at), cfg.terrain.brush_files.size());
+    std::string f = cfg.terrain.brush_files.substr(at, comma - at);
+    f.erase(0, f.find_first_not_of(" \t"));
+    f.erase(f.find_last_not_of(" \t") + 1);
+    if (f.empty()) throw InputError("config", fmt::format("field 'terrain.brush_files': an empty name in '{}'", cfg.terrain.brush_files));
+    p.brush_files.push_back(std::move(f));
+    at = comma + 1;
+  }
   return p;
 }
 

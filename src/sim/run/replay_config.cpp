@@ -163,6 +163,9 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
                              "terrain: brush quadtree levels (leaves mip 0, each level up one mip coarser)"))
         .add(cfg::real<C>("terrain.brush_compression", at(&C::terrain, &TerrainConfig::brush_compression), 1e-3, 1e3,
                           "terrain: decoded / disk bytes of a brush mip (1 = raw)"))
+        .add(cfg::text<C>("terrain.brush_files", at(&C::terrain, &TerrainConfig::brush_files), nullptr,
+                          "terrain, real clock: brush images, one per brush (files or patterns such as 'b/*.png', comma-separated); "
+                          "empty = value noise"))
         .add(cfg::integer<C>("terrain.mask_size", at(&C::terrain, &TerrainConfig::mask_size), 1, 1 << 16, "terrain: mask texels a side per sector (divides the sector's texels)"))
         .add(cfg::integer<C>("terrain.decals_static", at(&C::terrain, &TerrainConfig::decals_static), 0, 1 << 24, "terrain: seeded static decals over the terrain"))
         .add(cfg::real<C>("terrain.decal_size_m", at(&C::terrain, &TerrainConfig::decal_size_m), 0.0, 1e6, "terrain: static decal side, m"))

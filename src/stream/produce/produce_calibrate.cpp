@@ -151,15 +151,27 @@ ProduceFit fit_produce_model(const std::vector<ProduceSample>& samples, const Pr
   return fit;
 }
 
-ProduceScene::ProduceScene(int brushes, int brush_side, int active, int mask_side, double mask_m, std::uint64_t seed)
-    : active_(active), mask_side_(mask_side), mask_m_(mask_m) {
+namespace {
+std::vector<Rgba8> pcal_brushes(int brushes, int brush_side, std::uint64_t seed) {
   if (brushes < 1 || brushes > kMaxLayers) throw InputError("produce scene", fmt::format("{} brushes (1 to {})", brushes, kMaxLayers));
-  if (active < 1 || active > kMaxLayers) throw InputError("produce scene", fmt::format("{} active layers (1 to {})", active, kMaxLayers));
   std::vector<Rgba8> b;
   for (int i = 0; i < brushes; ++i) b.push_back(pcal_brush(brush_side, seed * 977 + static_cast<std::uint64_t>(i)));
+  return b;
+}
+}  // namespace
+
+ProduceScene::ProduceScene(int brushes, int brush_side, int active, int mask_side, double mask_m, std::uint64_t seed)
+    : ProduceScene(pcal_brushes(brushes, brush_side, seed), {}, active, mask_side, mask_m, seed) {}
+
+ProduceScene::ProduceScene(const std::vector<Rgba8>& b, const std::vector<std::string>& names, int active, int mask_side, double mask_m,
+                           std::uint64_t seed)
+    : active_(active), mask_side_(mask_side), mask_m_(mask_m) {
+  const int brushes = static_cast<int>(b.size());
+  if (brushes < 1 || brushes > kMaxLayers) throw InputError("produce scene", fmt::format("{} brushes (1 to {})", brushes, kMaxLayers));
+  if (active < 1 || active > kMaxLayers) throw InputError("produce scene", fmt::format("{} active layers (1 to {})", active, kMaxLayers));
   // constant_border: every level covered, so a coarse clipmap level samples a coarse brush mip as the
   // terrain does (terrain_system.h, brush_mip), not level 0's neighbourhood with a long stride.
-  atlas_ = build_atlas(b, {}, AtlasParams{.cols = 4, .border = 4, .constant_border = true});
+  atlas_ = build_atlas(b, names, AtlasParams{.cols = 4, .border = 4, .constant_border = true});
   const std::size_t n = static_cast<std::size_t>(mask_side) * static_cast<std::size_t>(mask_side);
   for (int m = 0; m < kMaxLayers / 4; ++m) {
     std::vector<std::uint8_t> t(n * 4, 0);
@@ -223,18 +235,23 @@ std::vector<ProduceSample> measure_compositor(const ProduceMeasureOptions& o, co
       for (int layers : o.layers)
         for (int nd : o.decals) {
           if (progress) progress(fmt::format("compositor: tile {} border {} layers {} decals {}", tile, border, layers, nd));
-          // Decals spread over the tile, each tile/8 texels a side (drawn by the compositor, counted by count_work).
+          // Decals spread over the tile, each tile/8 texels a side (drawn by the compositor, counted
+          // by count_work), placed relative to the tile: every repetition draws all of them.
           const double span = tile * o.m_per_texel;
           std::vector<Decal> decals;
-          for (int d = 0; d < nd; ++d) {
-            const double f = (d + 0.5) / nd;
-            decals.push_back(Decal{100 + f * span, 100 + f * span, 100 + f * span + span / 8, 100 + f * span + span / 8});
-          }
+          const auto place = [&](double x, double y) {
+            decals.clear();
+            for (int d = 0; d < nd; ++d) {
+              const double f = (d + 0.5) / nd;
+              decals.push_back(Decal{x + f * span, y + f * span, x + f * span + span / 8, y + f * span + span / 8});
+            }
+          };
           std::vector<double> ns;
           const int reps = o.repeats + 1;  // the first call warms the caches and the scratch rows
           for (int r = 0; r < reps; ++r) {
             // Each repetition at another place of the sector: a different part of the brushes and masks.
             const double x = 100 + 37.0 * r, y = 100 + 53.0 * r;
+            place(x, y);
             const CompositeJob j = scene.job(layers, 1.0, x, y, 0.0, 0.0, o.m_per_texel, tile, border, decals);
             const auto t0 = Clock::now();
             const std::int64_t c0 = thread_cpu_ns();
@@ -245,7 +262,10 @@ std::vector<ProduceSample> measure_compositor(const ProduceMeasureOptions& o, co
             if (r > 0) ns.push_back(o.cpu_time ? static_cast<double>(c1 - c0) : wall);
           }
           std::sort(ns.begin(), ns.end());
+          place(100, 100);
           const ProduceWork w = count_work(scene.job(layers, 1.0, 100, 100, 0, 0, o.m_per_texel, tile, border, decals));
+          if (w.decals != static_cast<std::uint32_t>(nd))
+            throw std::logic_error(fmt::format("produce calibration: {} of {} decals over the tile", w.decals, nd));
           samples.push_back(ProduceSample{w.texels, w.layers, w.decals, ns[ns.size() / 2], tile, border});
         }
     }

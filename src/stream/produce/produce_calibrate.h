@@ -55,7 +55,12 @@ ProduceFit fit_produce_model(const std::vector<ProduceSample>& samples, const Pr
 // channels 0..active-1 (over the 16) are in [16, 255] at every texel, the rest 0.
 class ProduceScene {
  public:
+  // `brushes` value-noise brushes of brush_side² (seeded).
   ProduceScene(int brushes, int brush_side, int active, int mask_side, double mask_m, std::uint64_t seed);
+  // The given brushes (names[i] names brush i in errors: its file), in the same atlas; the masks as
+  // above. InputError from build_atlas (a side not a power of two, sizes that differ, ...).
+  ProduceScene(const std::vector<Rgba8>& brushes, const std::vector<std::string>& names, int active, int mask_side, double mask_m,
+               std::uint64_t seed);
   const Atlas& atlas() const { return atlas_; }
   int active() const { return active_; }
   // A job of `layers` (<= active) brush layers of period_m, payload texel (0, 0) at (x_m, y_m), the

@@ -10,11 +10,33 @@
 #include <fmt/format.h>
 
 #include "core/error.h"
+#include "stream/produce/brush_images.h"
 
 namespace vtsim::produce {
 
-TerrainProducer::TerrainProducer(const TerrainProducerParams& p)
-    : p_(p), scene_(p.brushes_per_sector, p.brush_size, p.brushes_per_sector, p.mask_size, p.sector_m, p.seed) {
+namespace {
+
+ProduceScene terrain_scene(const TerrainProducerParams& p) {
+  if (p.brush_files.empty()) return ProduceScene(p.brushes_per_sector, p.brush_size, p.brushes_per_sector, p.mask_size, p.sector_m, p.seed);
+  const std::vector<std::string> files = expand_brush_files(p.brush_files);
+  if (static_cast<int>(files.size()) != p.brushes_per_sector)
+    throw InputError("config", fmt::format("field 'terrain.brush_files': {} brush image{} for terrain.brushes_per_sector = {} (one per "
+                                           "brush a sector blends)",
+                                           files.size(), files.size() == 1 ? "" : "s", p.brushes_per_sector));
+  std::vector<Rgba8> brushes;
+  for (const std::string& f : files) {
+    brushes.push_back(read_brush(f));
+    const Rgba8& b = brushes.back();
+    if (b.width != p.brush_size || b.height != p.brush_size)
+      throw InputError(f, fmt::format("brush is {}×{}; terrain.brush_size is {} (the brush mips the terrain streams are that size)",
+                                      b.width, b.height, p.brush_size));
+  }
+  return ProduceScene(brushes, files, p.brushes_per_sector, p.mask_size, p.sector_m, p.seed);
+}
+
+}  // namespace
+
+TerrainProducer::TerrainProducer(const TerrainProducerParams& p) : p_(p), scene_(terrain_scene(p)) {
   if (p.tile < 1 || p.border < 0 || p.width == 0 || p.height == 0 || !(p.texels_per_m > 0) || !(p.sector_m > 0))
     throw InputError("terrain producer", fmt::format("texture {}×{}, tile {}, border {}, {} texels/m, sector {} m", p.width, p.height,
                                                      p.tile, p.border, p.texels_per_m, p.sector_m));

@@ -4,13 +4,14 @@
 // executor's production threads, and serves the terrain's brush mips (TerrainSystem::kBrushLayer
 // keys) from memory.
 //
-// Content: the procedural scene bench_produce composes (ProduceScene: value-noise brushes in a
-// constant-border atlas, 4 RGBA8 masks whose first brushes_per_sector channels are non-zero
-// everywhere), built once from the replay's [terrain] figures and a fixed seed, so a run is
-// reproducible: brushes_per_sector brushes of brush_size², one mask set of mask_size² texels over
-// a sector, placed at every sector's corner. Every sector blends the same brushes (the terrain's
-// brush keys name a sector's brush; its texels are the atlas's cell `brush`). No atlas file: the
-// terrain's config names none, and the work (texels × layers) is what the cost model counts.
+// Content: the scene bench_produce composes (ProduceScene: brushes in a constant-border atlas, 4
+// RGBA8 masks whose first brushes_per_sector channels are non-zero everywhere), built once from the
+// replay's [terrain] figures and a fixed seed, so a run is reproducible: brushes_per_sector brushes
+// of brush_size², one mask set of mask_size² texels over a sector, placed at every sector's corner.
+// The brushes are value noise, or the images terrain.brush_files names (any format OpenImageIO
+// reads; one per brush, each brush_size² — refused otherwise, naming the file and the field).
+// Every sector blends the same brushes (the terrain's brush keys name a sector's brush; its texels
+// are the atlas's cell `brush`); the work (texels × layers) is what the cost model counts.
 //
 // A tile (layer < kBrushLayer, level l, x, y) is composed as bench_produce composes it: output
 // texel m_per_texel = 2^l / texels_per_m, payload texel (0, 0) at (x, y) · T · m_per_texel metres,
@@ -34,6 +35,8 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "stream/exec/i_producer.h"
 #include "stream/produce/decal_layer.h"
@@ -53,11 +56,13 @@ struct TerrainProducerParams {
   double sector_m = 512;
   std::uint32_t brush_layer = 15;       // TerrainSystem::kBrushLayer
   std::uint64_t seed = 7;               // the scene's content (bench_produce's)
+  std::vector<std::string> brush_files;  // terrain.brush_files, split at commas: files or patterns; empty = value noise
 };
 
 class TerrainProducer final : public ITileProducer {
  public:
-  // Builds the scene (~brushes_per_sector × brush_size² × 4/3 × a few ns). InputError on bad figures.
+  // Builds the scene (~brushes_per_sector × brush_size² × 4/3 × a few ns, plus reading the brush
+  // files). InputError on bad figures or brush files, naming the file and the field.
   explicit TerrainProducer(const TerrainProducerParams& p);
   void produce(const TileJob& job, TileData& out) override;
   bool serves(const TileJob& job) const override { return job.key.layer() == p_.brush_layer; }

@@ -42,6 +42,7 @@ struct TerrainConfig {
   double brush_period_m = 1.0;      // ground covered by one brush tile, m (1024/m ≈ 10 texels/cm)
   int brush_tree_levels = 5;        // brush quadtree levels: leaves hold mip 0, each level up one mip coarser
   double brush_compression = 1.0;   // decoded / disk bytes of a brush mip (1 = raw on disk)
+  std::string brush_files;          // real clock: brush images (comma-separated files or patterns); empty = value noise
   int mask_size = 512;              // mask texels a side per sector (RGBA: 4 brush weights each)
   int decals_static = 4096;         // seeded static decals over the whole terrain
   double decal_size_m = 4.0;        // static decal side, m
