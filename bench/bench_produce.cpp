@@ -99,7 +99,8 @@ FrameFigures replay_and_produce(const Trace& walk, const ProduceModel& model, in
       "texture.tile_size=256", "clipmap.clipsize=2048", "terrain.brushes_per_sector=8", "view.render_threads=0",
       fmt::format("produce.per_tile_us={:.17g}", model.per_tile_us), fmt::format("produce.per_texel_ns={:.17g}", model.per_texel_ns),
       fmt::format("produce.per_layer_texel_ns={:.17g}", model.per_layer_texel_ns),
-      fmt::format("produce.per_decal_us={:.17g}", model.per_decal_us), "produce.workers=1",
+      fmt::format("produce.per_decal_us={:.17g}", model.per_decal_us),
+      fmt::format("produce.per_decal_texel_ns={:.17g}", model.per_decal_texel_ns), "produce.workers=1",
       fmt::format("produce.tiles_per_frame={}", tiles_per_frame)};
   const ReplayConfig cfg = load_replay_config("", sets);
   auto scene3d = make_scene_from_config(cfg);
@@ -275,6 +276,7 @@ int main(int argc, char** argv) {
                   {"per_texel_ns", fit.model.per_texel_ns},
                   {"per_layer_texel_ns", fit.model.per_layer_texel_ns},
                   {"per_decal_us", fit.model.per_decal_us},
+                  {"per_decal_texel_ns", fit.model.per_decal_texel_ns},
                   {"median_rel_error", fit.median_rel_error},
                   {"max_rel_error", fit.max_rel_error},
                   {"points", samples.size()}});

@@ -205,6 +205,7 @@ TEST_CASE("compositor: decals are drawn with their exact area coverage, alike on
   job.tile = 8;
   job.decals = d;
   CHECK(count_work(job).decals == 2);
+  CHECK(count_work(job).decal_texels == 8 * 4 + 2);  // A: 8 columns x 4 rows; B: texels 0 and 1 of row 6
   std::vector<std::uint8_t> ref(8 * 8 * 4);
   compose_reference(job, ref.data());
   const auto px = [&](int x, int y) { return std::vector<int>(ref.begin() + (y * 8 + x) * 4, ref.begin() + (y * 8 + x) * 4 + 4); };
@@ -230,8 +231,10 @@ TEST_CASE("compositor: decals are drawn with their exact area coverage, alike on
   job.m_per_texel = 0.5;
   job.tile = 4;
   CHECK(count_work(job).decals == 1);  // B is 0.25 m wide: under a 0.5 m texel, skipped; C too
+  CHECK(count_work(job).decal_texels == 4 * 2);
   const Decal big[1] = {{0.25, 1.75, 0.75, 2.25, {10, 20, 30, 200}}};
   job.decals = big;
+  CHECK(count_work(job).decal_texels == 2);  // columns 0-1 of row 3 (the rows below the tile are cut)
   std::vector<std::uint8_t> coarse(4 * 4 * 4);
   c.compose(job, coarse.data());
   const int a = 50, r = (200 * (255 - a) + 10 * a + 127) / 255;

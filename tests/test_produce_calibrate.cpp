@@ -14,14 +14,17 @@ using namespace vtsim::produce;
 
 namespace {
 
-std::vector<ProduceSample> pcal_synthetic(const ProduceModel& m, bool decals) {
+// decal_side: each decal touches decal_side(tile)² texels (0: the samples count no decal texels).
+std::vector<ProduceSample> pcal_synthetic(const ProduceModel& m, bool decals, int (*decal_side)(int) = nullptr) {
   std::vector<ProduceSample> s;
   for (int tile : {64, 128, 256, 512})
     for (int border : {0, 4})
       for (std::uint32_t layers : {1u, 2u, 8u, 16u})
         for (std::uint32_t d : decals ? std::vector<std::uint32_t>{0, 5} : std::vector<std::uint32_t>{0}) {
           const std::uint64_t texels = static_cast<std::uint64_t>(tile + 2 * border) * static_cast<std::uint64_t>(tile + 2 * border);
-          s.push_back({texels, layers, d, produce_ns(m, ProduceWork{texels, layers, d}), tile, border});
+          const std::uint64_t side = decal_side ? static_cast<std::uint64_t>(decal_side(tile)) : 0;
+          const ProduceWork w{texels, layers, d, d * side * side};
+          s.push_back({texels, layers, d, produce_ns(m, w), tile, border, w.decal_texels});
         }
   return s;
 }
@@ -53,6 +56,25 @@ TEST_CASE("produce calibration: the fit recovers an exact model") {
     CHECK(f.decals_fitted);
     CHECK(f.model.per_tile_us == doctest::Approx(7.5).epsilon(1e-9));
     CHECK(f.model.per_decal_us == doctest::Approx(3.0).epsilon(1e-9));
+    CHECK(f.model.per_decal_texel_ns == 0);
+    CHECK(f.max_rel_error < 1e-9);
+  }
+  SUBCASE("five terms: decals of tile/8 a side, so the texels per decal differ between tile sizes") {
+    truth.per_decal_texel_ns = 2.5;
+    const ProduceFit f = fit_produce_model(pcal_synthetic(truth, true, [](int tile) { return tile / 8; }), base);
+    CHECK(f.decals_fitted);
+    CHECK(f.model.per_layer_texel_ns == doctest::Approx(1.625).epsilon(1e-9));
+    CHECK(f.model.per_decal_us == doctest::Approx(3.0).epsilon(1e-9));
+    CHECK(f.model.per_decal_texel_ns == doctest::Approx(2.5).epsilon(1e-9));
+    CHECK(f.max_rel_error < 1e-9);
+  }
+  SUBCASE("decals of one size everywhere: per decal and per decal texel are one column, the texels fitted alone") {
+    truth.per_decal_us = 0;
+    truth.per_decal_texel_ns = 2.5;
+    const ProduceFit f = fit_produce_model(pcal_synthetic(truth, true, [](int) { return 16; }), base);
+    CHECK(f.decals_fitted);
+    CHECK(f.model.per_decal_us == 0);
+    CHECK(f.model.per_decal_texel_ns == doctest::Approx(2.5).epsilon(1e-9));
     CHECK(f.max_rel_error < 1e-9);
   }
 }
@@ -129,4 +151,9 @@ TEST_CASE("vtsim calibrate --produce: a quick run writes the [produce] keys, a c
   r = test::run_cli(dir, "calibrate --produce --store x.vts -q");
   CHECK(r.code == 2);
   CHECK(r.err.find("--produce measures the compositor") != std::string::npos);
+  r = test::run_cli(dir, "calibrate --produce --quick -q --produce-texel-m 0");
+  CHECK(r.code == 2);
+  CHECK(r.err.find("--produce-texel-m: 0 (an output texel in metres, > 0)") != std::string::npos);
+  // The profile names the decal keys (not measured by --quick, which draws no decals: kept).
+  CHECK(prof.find("per_decal_texel_ns = 2.4  # not measured: kept") != std::string::npos);
 }

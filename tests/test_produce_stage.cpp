@@ -52,6 +52,9 @@ PipelineConfig pcfg(int budget) {
 TEST_CASE("produce stage: the model's cost, and the boundary one tick before production ends") {
   CHECK(SimExecutor::produce_ticks(model(1), ProduceWork{1000, 2, 0}) == 13'000);
   CHECK(SimExecutor::produce_ticks(model(1), ProduceWork{1000, 2, 3}) == 19'000);
+  ProduceModel per_texel = model(1);
+  per_texel.per_decal_texel_ns = 1.5;  // + 3 decals over 2000 texels: 3000 ns
+  CHECK(SimExecutor::produce_ticks(per_texel, ProduceWork{1000, 2, 3, 2000}) == 22'000);
   SimExecutor ex(DiskModel{1000.0, 0.0, 1}, DecodeModel{}, 64, {}, model(1));
   Pipeline p(PipelineConfig{}, ex, produce_sizer());
   CHECK(pframe(p, 0, 0, {pneed(100)}).empty());

@@ -356,4 +356,13 @@ TEST_CASE("decal layer: footprints appended while threads read are seen as a gro
   CHECK(bad.load() == 0);
   CHECK(layer.footprints() == kFootprints);
   CHECK(layer.count(0.01, 0, 40.0, 64, 40.5) == static_in_strip + kFootprints);
+  // The texels they touch: what decal_span gives for each decal collected, summed (the strip is
+  // 6400 x 50 texels of 1 cm; a footprint touches 50 x 50 of them, a static decal 100 x its rows).
+  std::uint64_t texels = 0, expect = 0;
+  CHECK(layer.count(0.01, 0, 40.0, 64, 40.5, texels) == static_in_strip + kFootprints);
+  std::vector<produce::Decal> all;
+  layer.collect(0.01, 0, 40.0, 64, 40.5, all);
+  for (const produce::Decal& d : all) expect += produce::decal_span(d, 0.01, 0, 40.0, 6400, 50).texels();
+  CHECK(texels == expect);
+  CHECK(texels >= std::uint64_t{kFootprints} * 50 * 50);
 }

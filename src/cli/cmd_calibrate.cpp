@@ -26,6 +26,7 @@ struct CalibrateArgs {
   double seconds = 0.4;
   bool buffered = false, quick = false, quiet = false, json = false, produce = false;
   int produce_workers = 2;
+  double produce_texel_m = 1.0 / 1024;  // output texel the compositor is timed at (level 0 of the seed-002 terrain)
   std::uint64_t seed = 1;
 };
 
@@ -41,8 +42,11 @@ void run_calibrate_produce(const CalibrateArgs& a) {
   check_output("--output", a.out);
   if (a.json && a.out == "-") throw InputError("--output", "--json already prints to stdout: give a file or drop --json");
   if (a.produce_workers < 0) throw InputError("--produce-workers", fmt::format("{} (must be >= 0)", a.produce_workers));
+  if (!(a.produce_texel_m > 0) || !(a.produce_texel_m <= 1e6))
+    throw InputError("--produce-texel-m", fmt::format("{} (an output texel in metres, > 0)", a.produce_texel_m));
   produce::ProduceMeasureOptions o;
   o.seed = a.seed;
+  o.m_per_texel = a.produce_texel_m;
   if (a.quick) {
     o.tiles = {64, 128};
     o.borders = {0, 4};
@@ -63,9 +67,10 @@ void run_calibrate_produce(const CalibrateArgs& a) {
     nlohmann::json j;
     for (const auto& p : samples)
       j["compositor"].push_back({{"tile", p.tile}, {"border", p.border}, {"texels", p.texels}, {"layers", p.layers},
-                                 {"decals", p.decals}, {"us", p.ns / 1000}});
+                                 {"decals", p.decals}, {"decal_texels", p.decal_texels}, {"us", p.ns / 1000}});
     j["profile"] = {{"produce.per_tile_us", fit.model.per_tile_us}, {"produce.per_texel_ns", fit.model.per_texel_ns},
                     {"produce.per_layer_texel_ns", fit.model.per_layer_texel_ns}, {"produce.per_decal_us", fit.model.per_decal_us},
+                    {"produce.per_decal_texel_ns", fit.model.per_decal_texel_ns},
                     {"produce.workers", fit.model.workers}};
     j["median_rel_error"] = fit.median_rel_error;
     j["max_rel_error"] = fit.max_rel_error;
@@ -135,6 +140,9 @@ void register_calibrate_commands(CLI::App& app) {
   c->add_option("--store,-s", a->store, "tile store (.vts) to measure on (required unless --produce)");
   c->add_flag("--produce", a->produce, "time the CPU compositor on one thread and fit the [produce] keys instead (no store)");
   c->add_option("--produce-workers", a->produce_workers, "production workers the profile is for (produce.workers)")->capture_default_str();
+  c->add_option("--produce-texel-m", a->produce_texel_m,
+                "output texel the compositor is timed at, m (1/1024: the terrain's level 0; a coarser level's texel is 2^level times it)")
+      ->capture_default_str();
   c->add_option("--output,-o", a->out, "write the profile (TOML config keys) here (- for stdout); default: print it");
   c->add_option("--io-threads", a->io_threads, "IO pool threads the profile is for (io.threads)")->capture_default_str();
   c->add_option("--decode-workers", a->decode_workers, "decode workers the profile is for (decode.workers)")->capture_default_str();

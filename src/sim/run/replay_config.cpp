@@ -229,6 +229,8 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
                           "produced tile: cost per output texel per blended brush layer (seed 002), ns"))
         .add(cfg::real<C>("produce.per_decal_us", at(&C::produce, &ProduceModel::per_decal_us), 0.0, 1e9,
                           "produced tile: cost per decal rendered over it, us"))
+        .add(cfg::real<C>("produce.per_decal_texel_ns", at(&C::produce, &ProduceModel::per_decal_texel_ns), 0.0, 1e9,
+                          "produced tile: cost per output texel a decal touches (one alpha blend), ns"))
         .add(cfg::integer<C>("produce.workers", at(&C::produce, &ProduceModel::workers), 0, 1024,
                              "production servers (real clock: the decode workers); 0 = unlimited"))
         .add(cfg::integer<C>("produce.tiles_per_frame", at(&C::produce, &ProduceModel::tiles_per_frame), 0, 1 << 20,

@@ -62,8 +62,20 @@ ProduceWork count_work(const CompositeJob& job) {
   w.layers = static_cast<std::uint32_t>(std::popcount(active_layers(job)));
   const double x0 = job.origin_x_m - job.border * job.m_per_texel, x1 = job.origin_x_m + (job.tile + job.border) * job.m_per_texel;
   const double y0 = job.origin_y_m - job.border * job.m_per_texel, y1 = job.origin_y_m + (job.tile + job.border) * job.m_per_texel;
-  for (const Decal& d : job.decals) w.decals += decal_drawn(d, job.m_per_texel, x0, y0, x1, y1);
+  for (const Decal& d : job.decals)
+    if (decal_drawn(d, job.m_per_texel, x0, y0, x1, y1)) {
+      ++w.decals;
+      w.decal_texels += decal_span(d, job.m_per_texel, x0, y0, static_cast<int>(side), static_cast<int>(side)).texels();
+    }
   return w;
+}
+
+DecalSpan decal_span(const Decal& d, double m_per_texel, double x0, double y0, int nx, int ny) {
+  const double t = m_per_texel;
+  // Clamped in double first: a decal far off the tile must not overflow the int conversion.
+  const auto lo = [&](double v, int n) { return static_cast<int>(std::clamp(std::floor(v / t), 0.0, static_cast<double>(n))); };
+  const auto hi = [&](double v, int n) { return static_cast<int>(std::clamp(std::ceil(v / t), 0.0, static_cast<double>(n))); };
+  return DecalSpan{lo(d.x0_m - x0, nx), hi(d.x1_m - x0, nx), lo(d.y0_m - y0, ny), hi(d.y1_m - y0, ny)};
 }
 
 bool decal_drawn(const Decal& d, double m_per_texel, double x0, double y0, double x1, double y1) {
@@ -89,16 +101,23 @@ void draw_decals(const CompositeJob& job, std::uint8_t* out) {
     };
     cover(d.x0_m, d.x1_m, x0, cx);
     cover(d.y0_m, d.y1_m, y0, cy);
-    const int i0 = std::max(0, static_cast<int>(std::floor((d.x0_m - x0) / t))), i1 = std::min(n, static_cast<int>(std::ceil((d.x1_m - x0) / t)));
-    const int j0 = std::max(0, static_cast<int>(std::floor((d.y0_m - y0) / t))), j1 = std::min(n, static_cast<int>(std::ceil((d.y1_m - y0) / t)));
-    for (int j = j0; j < j1; ++j)
-      for (int i = i0; i < i1; ++i) {
-        const int a = static_cast<int>(std::floor(cx[static_cast<std::size_t>(i)] * cy[static_cast<std::size_t>(j)] * d.rgba[3] + 0.5));
-        if (a == 0) continue;
-        std::uint8_t* c = out + (static_cast<std::size_t>(j) * static_cast<std::size_t>(n) + static_cast<std::size_t>(i)) * 4;
-        for (std::size_t k = 0; k < 3; ++k) c[k] = static_cast<std::uint8_t>((c[k] * (255 - a) + d.rgba[k] * a + 127) / 255);
-        c[3] = static_cast<std::uint8_t>((c[3] * (255 - a) + 255 * a + 127) / 255);
+    const DecalSpan sp = decal_span(d, t, x0, y0, n, n);
+    // Branch-free per texel: a = 0 leaves c as it was ((255 c + 127) / 255 = c). Coverage ≥ 0, so
+    // truncating x + 0.5 rounds; v / 255 for v ≤ 65152 is exactly ((v + 1) + ((v + 1) >> 8)) >> 8.
+    const auto div255 = [](std::uint32_t v) { return static_cast<std::uint8_t>(((v + 1) + ((v + 1) >> 8)) >> 8); };
+    const std::uint32_t r = d.rgba[0], g = d.rgba[1], b = d.rgba[2];
+    for (int j = sp.j0; j < sp.j1; ++j) {
+      const double row_alpha = cy[static_cast<std::size_t>(j)] * d.rgba[3];
+      std::uint8_t* row = out + static_cast<std::size_t>(j) * static_cast<std::size_t>(n) * 4;
+      for (int i = sp.i0; i < sp.i1; ++i) {
+        const std::uint32_t a = static_cast<std::uint32_t>(cx[static_cast<std::size_t>(i)] * row_alpha + 0.5), na = 255 - a;
+        std::uint8_t* c = row + static_cast<std::size_t>(i) * 4;
+        c[0] = div255(c[0] * na + r * a + 127);
+        c[1] = div255(c[1] * na + g * a + 127);
+        c[2] = div255(c[2] * na + b * a + 127);
+        c[3] = div255(c[3] * na + 255 * a + 127);
       }
+    }
   }
 }
 

@@ -70,6 +70,16 @@ double lod_from_derivative(double du_per_texel, int side);
 // Whether decal d is drawn into texels of m_per_texel over the rectangle [x0, x1) x [y0, y1), m:
 // it overlaps it and is at least a texel wide on both sides.
 bool decal_drawn(const Decal& d, double m_per_texel, double x0, double y0, double x1, double y1);
+// The texels decal d touches in an nx × ny output whose texel (0, 0) starts at (x0, y0) m: columns
+// [i0, i1), rows [j0, j1) (empty outside). What draw_decals blends, and what the cost model counts
+// (ProduceWork::decal_texels).
+struct DecalSpan {
+  int i0 = 0, i1 = 0, j0 = 0, j1 = 0;
+  std::uint64_t texels() const {
+    return i1 > i0 && j1 > j0 ? static_cast<std::uint64_t>(i1 - i0) * static_cast<std::uint64_t>(j1 - j0) : 0;
+  }
+};
+DecalSpan decal_span(const Decal& d, double m_per_texel, double x0, double y0, int nx, int ny);
 // Draws the job's decals over `out` (the (T + 2B)^2 blended texels), in order: per texel and decal,
 // a = round(coverage x alpha), c = (c (255 - a) + decal a + 127) / 255. Every compose path, the
 // reference and compose_exact end with it, so decals never break their byte equality.

@@ -66,6 +66,17 @@ std::uint32_t DecalLayer::count(double texel_m, double x0, double y0, double x1,
   return n;
 }
 
+std::uint32_t DecalLayer::count(double texel_m, double x0, double y0, double x1, double y1, std::uint64_t& texels) const {
+  const int nx = static_cast<int>(std::llround((x1 - x0) / texel_m)), ny = static_cast<int>(std::llround((y1 - y0) / texel_m));
+  std::uint32_t k = 0;
+  texels = 0;
+  for_each(texel_m, x0, y0, x1, y1, [&](const Entry& d) {
+    ++k;
+    texels += decal_span(Decal{d.x - d.half, d.y - d.half, d.x + d.half, d.y + d.half, d.rgba}, texel_m, x0, y0, nx, ny).texels();
+  });
+  return k;
+}
+
 void DecalLayer::collect(double texel_m, double x0, double y0, double x1, double y1, std::vector<Decal>& out) const {
   for_each(texel_m, x0, y0, x1, y1, [&](const Entry& d) { out.push_back(Decal{d.x - d.half, d.y - d.half, d.x + d.half, d.y + d.half, d.rgba}); });
 }

@@ -49,6 +49,9 @@ class DecalLayer {
   // Decals drawn into texels of texel_m over the rectangle [x0, x1) × [y0, y1), m: at least a
   // texel wide and overlapping it (TerrainSystem's rule, on centre ± half side).
   std::uint32_t count(double texel_m, double x0, double y0, double x1, double y1) const;
+  // The same count, and the texels they touch summed over them (decal_span over the rectangle's
+  // texels, as count_work counts them for the compositor).
+  std::uint32_t count(double texel_m, double x0, double y0, double x1, double y1, std::uint64_t& texels) const;
   // The same decals as rectangles with their colours appended to `out` (statics by sector, then
   // footprints in the order placed): what the compositor draws, in that order.
   void collect(double texel_m, double x0, double y0, double x1, double y1, std::vector<Decal>& out) const;

@@ -22,12 +22,12 @@ std::uint64_t pcal_mix(std::uint64_t x) {  // splitmix64's finaliser
   return x ^ (x >> 31);
 }
 
-constexpr int kPcalUnknowns = 4;  // per_tile_us, per_texel_ns, per_layer_texel_ns, per_decal_us
+constexpr int kPcalUnknowns = 5;  // per_tile_us, per_texel_ns, per_layer_texel_ns, per_decal_us, per_decal_texel_ns
 
 // The model's terms of one sample, in ns per unit of each unknown.
 std::array<double, kPcalUnknowns> pcal_terms(const ProduceSample& s) {
   const double t = static_cast<double>(s.texels);
-  return {1000.0, t, t * static_cast<double>(s.layers), 1000.0 * static_cast<double>(s.decals)};
+  return {1000.0, t, t * static_cast<double>(s.layers), 1000.0 * static_cast<double>(s.decals), static_cast<double>(s.decal_texels)};
 }
 
 // Weighted least squares over the unknowns in `use` (others fixed at 0); false when singular.
@@ -107,19 +107,30 @@ std::int64_t thread_cpu_ns() {
 }
 
 ProduceFit fit_produce_model(const std::vector<ProduceSample>& samples, const ProduceModel& base) {
-  std::array<bool, kPcalUnknowns> use = {true, true, true, false};
+  std::array<bool, kPcalUnknowns> use = {true, true, true, false, false};
+  bool vary = false, texels_seen = false, ratio_varies = false;
+  double ratio = -1;  // decal texels per decal
   for (const ProduceSample& s : samples) {
     if (!(s.ns > 0)) throw InputError("produce samples", fmt::format("a sample of {} texels took {} ns (must be > 0)", s.texels, s.ns));
-    if (s.decals != samples.front().decals) use[3] = true;
+    vary |= s.decals != samples.front().decals;
+    texels_seen |= s.decal_texels > 0;
+    if (s.decals > 0) {
+      const double r = static_cast<double>(s.decal_texels) / s.decals;
+      if (ratio < 0) ratio = r;
+      ratio_varies |= std::fabs(r - ratio) > 1e-9 * std::max(1.0, ratio);
+    }
   }
+  use[3] = vary && (!texels_seen || ratio_varies);
+  use[4] = vary && texels_seen;
   ProduceFit fit;
   fit.model = base;
-  fit.decals_fitted = use[3];
+  fit.decals_fitted = use[3] || use[4];
   const int unknowns = static_cast<int>(std::count(use.begin(), use.end(), true));
   if (static_cast<int>(samples.size()) < unknowns)
     throw InputError("produce samples", fmt::format("{} samples for {} unknowns", samples.size(), unknowns));
   std::array<double, kPcalUnknowns> x{};
-  static constexpr const char* kNames[kPcalUnknowns] = {"per_tile_us", "per_texel_ns", "per_layer_texel_ns", "per_decal_us"};
+  static constexpr const char* kNames[kPcalUnknowns] = {"per_tile_us", "per_texel_ns", "per_layer_texel_ns", "per_decal_us",
+                                                         "per_decal_texel_ns"};
   for (int round = 0; round < kPcalUnknowns; ++round) {
     if (!pcal_solve(samples, use, x)) {
       fit.notes.push_back("the samples do not separate the terms (singular); vary texels and layers");
@@ -137,10 +148,13 @@ ProduceFit fit_produce_model(const std::vector<ProduceSample>& samples, const Pr
   fit.model.per_tile_us = x[0];
   fit.model.per_texel_ns = x[1];
   fit.model.per_layer_texel_ns = x[2];
-  if (fit.decals_fitted) fit.model.per_decal_us = x[3];
+  if (fit.decals_fitted) {
+    fit.model.per_decal_us = x[3];
+    fit.model.per_decal_texel_ns = x[4];
+  }
   std::vector<double> rel;
   for (const ProduceSample& s : samples) {
-    const double m = produce_ns(fit.model, ProduceWork{s.texels, s.layers, s.decals});
+    const double m = produce_ns(fit.model, ProduceWork{s.texels, s.layers, s.decals, s.decal_texels});
     rel.push_back(std::fabs(m - s.ns) / s.ns);
   }
   std::sort(rel.begin(), rel.end());
@@ -266,7 +280,7 @@ std::vector<ProduceSample> measure_compositor(const ProduceMeasureOptions& o, co
           const ProduceWork w = count_work(scene.job(layers, 1.0, 100, 100, 0, 0, o.m_per_texel, tile, border, decals));
           if (w.decals != static_cast<std::uint32_t>(nd))
             throw std::logic_error(fmt::format("produce calibration: {} of {} decals over the tile", w.decals, nd));
-          samples.push_back(ProduceSample{w.texels, w.layers, w.decals, ns[ns.size() / 2], tile, border});
+          samples.push_back(ProduceSample{w.texels, w.layers, w.decals, ns[ns.size() / 2], tile, border, w.decal_texels});
         }
     }
   return samples;
@@ -278,16 +292,16 @@ std::string produce_profile_toml(const ProduceFit& fit, const std::vector<Produc
   s += fmt::format("# {} points, median relative error {:.1f} %, max {:.1f} %\n", samples.size(), 100 * fit.median_rel_error,
                    100 * fit.max_rel_error);
   for (const std::string& n : fit.notes) s += "# note: " + n + "\n";
-  s += "#   tile border layers decals   measured_us   model_us\n";
+  s += "#   tile border layers decals decal_texels   measured_us   model_us\n";
   for (const ProduceSample& p : samples)
-    s += fmt::format("#   {:4} {:6} {:6} {:6}   {:11.1f}   {:8.1f}\n", p.tile, p.border, p.layers, p.decals, p.ns / 1000,
-                     produce_ns(fit.model, ProduceWork{p.texels, p.layers, p.decals}) / 1000);
+    s += fmt::format("#   {:4} {:6} {:6} {:6} {:12}   {:11.1f}   {:8.1f}\n", p.tile, p.border, p.layers, p.decals, p.decal_texels, p.ns / 1000,
+                     produce_ns(fit.model, ProduceWork{p.texels, p.layers, p.decals, p.decal_texels}) / 1000);
   s += "[produce]\n";
   s += fmt::format("per_tile_us = {:.4g}\n", fit.model.per_tile_us);
   s += fmt::format("per_texel_ns = {:.4g}\n", fit.model.per_texel_ns);
   s += fmt::format("per_layer_texel_ns = {:.4g}\n", fit.model.per_layer_texel_ns);
-  s += fmt::format("per_decal_us = {:.4g}{}\n", fit.model.per_decal_us,
-                   fit.decals_fitted ? "" : "  # not measured: kept");
+  s += fmt::format("per_decal_us = {:.4g}{}\n", fit.model.per_decal_us, fit.decals_fitted ? "" : "  # not measured: kept");
+  s += fmt::format("per_decal_texel_ns = {:.4g}{}\n", fit.model.per_decal_texel_ns, fit.decals_fitted ? "" : "  # not measured: kept");
   s += fmt::format("workers = {}\n", fit.model.workers);
   return s;
 }

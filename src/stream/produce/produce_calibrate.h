@@ -34,18 +34,21 @@ struct ProduceSample {
   std::uint32_t decals = 0;  // decals overlapping the tile
   double ns = 0;             // median wall time of one compose(), ns
   int tile = 0, border = 0;  // the job's T and B (for reports)
+  std::uint64_t decal_texels = 0;  // output texels the decals touch, summed over them
 };
 
 struct ProduceFit {
   ProduceModel model;             // base model with the fitted fields replaced
-  bool decals_fitted = false;     // false: no decal variation in the samples; per_decal_us kept from the base
+  bool decals_fitted = false;     // false: no decal variation in the samples; per_decal_us and per_decal_texel_ns kept from the base
   double median_rel_error = 0;    // |model - measured| / measured over the samples
   double max_rel_error = 0;
   std::vector<std::string> notes;  // dropped (negative) coefficients, degenerate columns
 };
 
 // Minimises sum(((model(s) - s.ns) / s.ns)^2) over per_tile_us, per_texel_ns, per_layer_texel_ns
-// (and per_decal_us when decals vary); a coefficient that would be negative is fixed at 0 and the
+// and, when decals vary, per_decal_texel_ns (when the samples count decal texels) and per_decal_us
+// (when they count none, or the texels per decal differ between samples: else the two columns are
+// proportional and the texels, the cost that grows with a decal, are fitted alone); a coefficient that would be negative is fixed at 0 and the
 // rest refitted. workers and tiles_per_frame come from `base`. Throws InputError on fewer samples
 // than unknowns, or samples with ns <= 0. O(samples).
 ProduceFit fit_produce_model(const std::vector<ProduceSample>& samples, const ProduceModel& base = {});

@@ -277,12 +277,12 @@ bool TerrainSystem::commit(TileKey key, int) {
   return true;
 }
 
-std::uint32_t TerrainSystem::count_decals(int level, std::int64_t tx, std::int64_t ty) const {
+std::uint32_t TerrainSystem::count_decals(int level, std::int64_t tx, std::int64_t ty, std::uint64_t& texels) const {
   const double tpm = s_.texels_per_m;
   const double texel_m = std::exp2(level) / tpm;
   const double span_m = static_cast<double>(static_cast<std::int64_t>(s_.tile_size) << level) / tpm;
   const double x0 = static_cast<double>(tx) * span_m, y0 = static_cast<double>(ty) * span_m;
-  return decals_->count(texel_m, x0, y0, x0 + span_m, y0 + span_m);
+  return decals_->count(texel_m, x0, y0, x0 + span_m, y0 + span_m, texels);
 }
 
 bool TerrainSystem::produced(TileKey key, ProduceWork& work) const {
@@ -296,7 +296,7 @@ bool TerrainSystem::produced(TileKey key, ProduceWork& work) const {
   // Every texel blends the brushes of its own sector: area-weighted, brushes_per_sector everywhere
   // (sectors share a count); the sum over sectors is what the brush needs count (docs/produced.md).
   work.layers = static_cast<std::uint32_t>(t_.brushes_per_sector);
-  work.decals = count_decals(l, key.x(), key.y());
+  work.decals = count_decals(l, key.x(), key.y(), work.decal_texels);
   return work.produced();
 }
 
@@ -304,6 +304,7 @@ bool TerrainSystem::full_tile_work(ProduceWork& work) const {
   work.texels = static_cast<std::uint64_t>(s_.tile_size) * static_cast<std::uint64_t>(s_.tile_size);
   work.layers = static_cast<std::uint32_t>(t_.brushes_per_sector);
   work.decals = 0;
+  work.decal_texels = 0;
   return true;
 }
 

@@ -134,7 +134,7 @@ class TerrainSystem final : public IStreamingSystem {
   }
   std::uint64_t brush_decoded(int mip) const;
   void recompute_needed();
-  std::uint32_t count_decals(int level, std::int64_t tx, std::int64_t ty) const;
+  std::uint32_t count_decals(int level, std::int64_t tx, std::int64_t ty, std::uint64_t& texels) const;  // texels: those they touch
   void gate(const Need& n, std::vector<Need>& out, bool prefetch);
 
   SystemSetup s_;
