@@ -7,6 +7,10 @@
 # and prints the table. Extra replay options: VTSIM_SETS="--set k=v ...".
 # VTSIM_SYSTEM=clipmap (default): no border, the standard walk and drive traces (§6).
 # VTSIM_SYSTEM=vt: pages with a 4-texel border, the town walk at 1× and 4× (§7a).
+# VTSIM_SYSTEM=terrain: the seed-002 terrain (docs/examples/terrain.toml), no store: the [produce]
+# keys fitted to the tiles of a real-clock calibration walk (another walk than the one compared),
+# then production per frame and per tile on traces/walk.csv (docs/produced.md, "Calibrating from
+# the replay's own tiles").
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 vtsim=$here/build/vtsim
@@ -19,8 +23,46 @@ system=${VTSIM_SYSTEM:-clipmap}
 case $system in
   clipmap) border=0 ;;
   vt) border=4 ;;
-  *) echo "sim_vs_real: VTSIM_SYSTEM must be clipmap or vt" >&2; exit 2 ;;
+  terrain) border=0 ;;
+  *) echo "sim_vs_real: VTSIM_SYSTEM must be clipmap, vt or terrain" >&2; exit 2 ;;
 esac
+if [ "$system" = terrain ]; then
+  # shellcheck disable=SC2206  # VTSIM_SETS is a word list
+  common=(--config "$here/docs/examples/terrain.toml" -q ${VTSIM_SETS:-})
+  # The calibration walk: 20 s from another start and heading than traces/walk.csv (the default
+  # walk: east from the terrain's centre), so the fit is not checked on the tiles it was made from.
+  "$vtsim" trace gen walk --start 2000,6000 --heading 120 --duration 20 -o "$out/calib_walk.csv"
+  "$vtsim" replay --clock real --trace "$out/calib_walk.csv" "${common[@]}" --produce-samples "$out/calib_tiles.csv" \
+    --summary "$out/calib.real.json"
+  "$vtsim" calibrate --samples "$out/calib_tiles.csv" -o "$out/profile.toml" -q
+  # The profile's [produce] keys as --set (the terrain's own config is the --config).
+  fitted=()
+  while IFS= read -r kv; do fitted+=(--set "produce.$kv"); done < <(sed -n '/^\[produce\]/,$p' "$out/profile.toml" |
+    sed -n 's/^\([a-z_]*\) = \([0-9.eE+-]*\).*/\1=\2/p')
+  "$vtsim" replay --clock sim --trace "$here/traces/walk.csv" "${common[@]}" "${fitted[@]}" --summary "$out/walk.sim.json"
+  for i in $(seq 1 "$runs"); do
+    "$vtsim" replay --clock real --trace "$here/traces/walk.csv" "${common[@]}" --summary "$out/walk.real.$i.json"
+  done
+  python3 - "$out" "$runs" <<'PY'
+import json, statistics, sys
+out, runs = sys.argv[1], int(sys.argv[2])
+def get(d):
+    p = d["resources"]["produce_ms_per_frame"]
+    return p["mean"], p["p95"], d["produce"]["mean_ms_per_tile"], d["produce"]["produced"]
+sim = get(json.load(open(f"{out}/walk.sim.json")))
+real = [get(json.load(open(f"{out}/walk.real.{i}.json"))) for i in range(1, runs + 1)]
+print(f"{'metric':22} {'simulated':>10} {'real (median of %d)' % runs:>20} {'real runs':>26} {'error':>7}")
+worst = 0
+for k, name in enumerate(("produce ms/frame mean", "produce ms/frame p95", "produce ms/tile", "tiles produced")):
+    vals = [r[k] for r in real]
+    med = statistics.median(vals)
+    err = (sim[k] - med) / med if med else 0.0
+    if k < 3: worst = max(worst, abs(err))
+    print(f"{name:22} {sim[k]:10.3f} {med:20.3f} {' '.join(f'{v:.3f}' for v in vals):>26} {100*err:+6.1f}%")
+print(f"worst error {100*worst:.1f}% (target 15%; production per frame and per tile)")
+PY
+  exit 0
+fi
 store=$out/terrain16k-b$border.vts
 if [ ! -f "$store" ]; then
   "$vtsim" store gen -o "$store" --size 16384x16384 --tile 128 --border $border --layers albedo:zstd,normal:lz4 --seed 1

@@ -20,17 +20,8 @@ vtsim::test::CliRun conv_sh(const std::string& script) {
   // One file per process: ctest runs the test cases as parallel processes.
   const std::string err =
       (std::filesystem::temp_directory_path() / ("vtsim_conv_err_" + std::to_string(getpid()) + ".txt")).string();
-  const std::string cmd = "V=" + std::string(VTSIM_CLI) + " SRC=" + std::string(VTSIM_SOURCE_DIR) + " sh -c '" + script + "' 2>" + err;
-  vtsim::test::CliRun r;
-  FILE* p = popen(cmd.c_str(), "r");
-  REQUIRE(p != nullptr);
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.err = vtsim::test::slurp(err);
-  return r;
+  return vtsim::test::run_capture("V=" + std::string(VTSIM_CLI) + " SRC=" + std::string(VTSIM_SOURCE_DIR) + " sh -c '" + script + "' 2>" + err,
+                                  err);
 }
 
 std::string conv_tmp(const std::string& name) {
@@ -96,7 +87,7 @@ TEST_CASE("cli: '-' is stdout for --frames and --summary, stdin for --trace and 
   // Two outputs on stdout are refused up front.
   const auto two = conv_sh("$V replay --trace $SRC/traces/static.csv --frames - --summary -");
   CHECK(two.code == 2);
-  CHECK(vtsim::test::contains(two.err, "only one of --json, --summary -, --frames -, --report - can write to stdout"));
+  CHECK(vtsim::test::contains(two.err, "only one of --json, --summary -, --frames -, --report -, --produce-samples - can write to stdout"));
   // trace info from stdin; an error names "-", not a temporary file.
   const auto info = conv_sh("$V trace info - < $SRC/traces/walk.csv");
   CHECK(info.code == 0);

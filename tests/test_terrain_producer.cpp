@@ -322,6 +322,46 @@ TEST_CASE("vtsim replay --clock real, terrain: runs without a store, and names w
   CHECK(r.err.find(dir.file("brush0.png") + ": brush is 64×64; terrain.brush_size is 128") != std::string::npos);
 }
 
+TEST_CASE("vtsim replay --produce-samples, then vtsim calibrate --samples: the replay's own tiles fit the [produce] keys") {
+  test::RealScratch dir;
+  save_trace(small_walk(0.5), dir.file("t.csv"));
+  std::string sets;
+  for (const std::string& s : kSmallTerrain) sets += " --set " + s;
+  const std::string common = " --trace " + dir.file("t.csv") + sets;
+  auto r = test::run_cli(dir, "replay --clock real --json -q --produce-samples " + dir.file("tiles.csv") + common);
+  REQUIRE(r.code == 0);
+  const std::uint64_t composed = nlohmann::json::parse(r.out)["real_clock"]["producer"]["tiles_composed"].get<std::uint64_t>();
+  const std::vector<produce::ProducedTile> tiles = produce::read_produced_tiles_csv(dir.file("tiles.csv"));
+  CHECK(tiles.size() == composed);  // one row a composed tile, none lost
+  for (const produce::ProducedTile& t : tiles) {
+    CHECK(t.work.layers == 4);  // kSmallTerrain's brushes_per_sector
+    CHECK(t.wall_ns > 0);
+  }
+  r = test::run_cli(dir, "calibrate --samples " + dir.file("tiles.csv") + " --produce-workers 2 -o " + dir.file("p.toml"));
+  REQUIRE(r.code == 0);
+  const std::string prof = test::slurp(dir.file("p.toml"));
+  CHECK(prof.find("every sample blends 4 layers: per_texel_ns folded") != std::string::npos);
+  CHECK(prof.find("[produce]\nper_tile_us = ") != std::string::npos);
+  CHECK(prof.find("per_texel_ns = 0\n") != std::string::npos);
+  r = test::run_cli(dir, "replay --config " + dir.file("p.toml") + common + " -q");
+  CHECK(r.code == 0);  // a config the simulated clock takes
+
+  // What it cannot do, each named: exit 2.
+  r = test::run_cli(dir, "replay -q --produce-samples " + dir.file("x.csv") + common);
+  CHECK(r.code == 2);
+  CHECK(r.err.find("--produce-samples: records the tiles the terrain's compositor makes in the real clock: needs --clock real") !=
+        std::string::npos);
+  r = test::run_cli(dir, "calibrate --samples " + dir.file("tiles.csv") + " --store x.vts");
+  CHECK(r.code == 2);
+  CHECK(r.err.find("--samples: fits the [produce] keys") != std::string::npos);
+  r = test::run_cli(dir, "calibrate --produce --quick --cpu-time");
+  CHECK(r.code == 2);
+  CHECK(r.err.find("--cpu-time: applies to --samples") != std::string::npos);
+  r = test::run_cli(dir, "calibrate --samples " + dir.file("t.csv"));
+  CHECK(r.code == 2);
+  CHECK(r.err.find(dir.file("t.csv") + ":1: header") != std::string::npos);
+}
+
 TEST_SUITE_END();
 
 TEST_CASE("decal layer: footprints appended while threads read are seen as a growing prefix, counted and collected alike") {

@@ -65,10 +65,9 @@ struct CliRun {
   std::string out, err;
 };
 
-// Runs `vtsim ARGS` through the shell (test-controlled arguments without spaces): stdout captured
-// through a pipe, stderr through the file err_path (removed first, so it is a fresh file).
-inline CliRun run_vtsim_capture(const std::string& args, const std::string& err_path) {
-  const std::string cmd = std::string(VTSIM_CLI) + " " + args + " 2>" + err_path;
+// Runs the shell command `cmd`, whose stderr the command itself sends to err_path: stdout captured
+// through a pipe, stderr read back from err_path (removed first, so it is a fresh file).
+inline CliRun run_capture(const std::string& cmd, const std::string& err_path) {
   std::filesystem::remove(err_path);
   CliRun r;
   FILE* p = popen(cmd.c_str(), "r");
@@ -80,6 +79,11 @@ inline CliRun run_vtsim_capture(const std::string& args, const std::string& err_
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   r.err = slurp(err_path);
   return r;
+}
+
+// Runs `vtsim ARGS` through the shell (test-controlled arguments without spaces), as run_capture.
+inline CliRun run_vtsim_capture(const std::string& args, const std::string& err_path) {
+  return run_capture(std::string(VTSIM_CLI) + " " + args + " 2>" + err_path, err_path);
 }
 
 inline const std::string kData = VTSIM_TEST_DATA;  // tests/data

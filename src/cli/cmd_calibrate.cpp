@@ -27,6 +27,8 @@ struct CalibrateArgs {
   bool buffered = false, quick = false, quiet = false, json = false, produce = false;
   int produce_workers = 2;
   double produce_texel_m = 1.0 / 1024;  // output texel the compositor is timed at (level 0 of the seed-002 terrain)
+  std::vector<std::string> samples;      // produced-tiles CSVs of real-clock replays: fit to those instead of timing
+  bool cpu_time = false;                 // with samples: fit their thread CPU time, not their wall time
   std::uint64_t seed = 1;
 };
 
@@ -56,11 +58,23 @@ void run_calibrate_produce(const CalibrateArgs& a) {
     o.brush_side = 256;
   }
   const bool tty = isatty(fileno(stderr)) != 0;
-  const std::vector<produce::ProduceSample> samples = produce::measure_compositor(o, calibrate_progress(a.quiet, tty));
-  if (!a.quiet && tty) fmt::print(stderr, "\r{:60}\r", "");
+  std::vector<produce::ProduceSample> samples;
+  if (a.samples.empty()) {
+    samples = produce::measure_compositor(o, calibrate_progress(a.quiet, tty));
+    if (!a.quiet && tty) fmt::print(stderr, "\r{:60}\r", "");
+  } else {
+    // The replay's own tiles (docs/produced.md, "Calibrating from the replay's own tiles").
+    for (const std::string& f : a.samples) {
+      const std::vector<produce::ProducedTile> tiles = produce::read_produced_tiles_csv(f);
+      if (tiles.empty()) throw InputError(f, "no tiles (the replay composed none: a longer trace, or one that moves)");
+      const std::vector<produce::ProduceSample> s = produce::samples_from_tiles(tiles, a.cpu_time);
+      samples.insert(samples.end(), s.begin(), s.end());
+    }
+  }
   ProduceModel base;
   base.workers = a.produce_workers;
-  const produce::ProduceFit fit = produce::fit_produce_model(samples, base);
+  // A replay's tiles: least squares on the absolute error, so the model's sum is theirs (produce_calibrate.h).
+  const produce::ProduceFit fit = produce::fit_produce_model(samples, base, a.samples.empty());
   const std::string toml = produce::produce_profile_toml(fit, samples);
   if (!a.out.empty()) write_output(a.out, toml);
   if (a.json) {
@@ -72,6 +86,9 @@ void run_calibrate_produce(const CalibrateArgs& a) {
                     {"produce.per_layer_texel_ns", fit.model.per_layer_texel_ns}, {"produce.per_decal_us", fit.model.per_decal_us},
                     {"produce.per_decal_texel_ns", fit.model.per_decal_texel_ns},
                     {"produce.workers", fit.model.workers}};
+    j["source"] = a.samples.empty() ? "compositor" : "samples";
+    j["measured_ms"] = fit.measured_ms;
+    j["model_ms"] = fit.model_ms;
     j["median_rel_error"] = fit.median_rel_error;
     j["max_rel_error"] = fit.max_rel_error;
     j["notes"] = fit.notes;
@@ -85,7 +102,10 @@ void run_calibrate_produce(const CalibrateArgs& a) {
 }
 
 void run_calibrate(const CalibrateArgs& a) {
-  if (a.produce) {
+  if (!a.samples.empty() && !a.store.empty())
+    throw InputError("--samples", "fits the [produce] keys to a replay's composed tiles, not a store: drop --store");
+  if (a.cpu_time && a.samples.empty()) throw InputError("--cpu-time", "applies to --samples (the compositor's own timing is CPU time already)");
+  if (a.produce || !a.samples.empty()) {
     if (!a.store.empty()) throw InputError("--store", "--produce measures the compositor, not a store: give one or the other");
     return run_calibrate_produce(a);
   }
@@ -143,6 +163,10 @@ void register_calibrate_commands(CLI::App& app) {
   c->add_option("--produce-texel-m", a->produce_texel_m,
                 "output texel the compositor is timed at, m (1/1024: the terrain's level 0; a coarser level's texel is 2^level times it)")
       ->capture_default_str();
+  c->add_option("--samples", a->samples,
+                "fit the [produce] keys to these real-clock replays' composed tiles (CSV from `vtsim replay --clock real "
+                "--produce-samples`; repeatable) instead of timing the compositor; implies --produce");
+  c->add_flag("--cpu-time", a->cpu_time, "with --samples: fit each tile's production-thread CPU time instead of its wall time");
   c->add_option("--output,-o", a->out, "write the profile (TOML config keys) here (- for stdout); default: print it");
   c->add_option("--io-threads", a->io_threads, "IO pool threads the profile is for (io.threads)")->capture_default_str();
   c->add_option("--decode-workers", a->decode_workers, "decode workers the profile is for (decode.workers)")->capture_default_str();

@@ -33,6 +33,7 @@ struct ReplayArgs {
   std::string store;
   double speed = 1.0;
   std::string summary, frames, report;
+  std::string produce_samples;  // the terrain in the real clock: each composed tile's work and time (CSV)
   bool print_config = false, quiet = false, json = false, progress = false, opt = false;
   bool allow_repairs = false;
 };
@@ -170,11 +171,16 @@ void run_replay_command(const ReplayArgs& a) {
   check_output("--summary", a.summary);
   check_output("--frames", a.frames);
   check_output("--report", a.report);
+  check_output("--produce-samples", a.produce_samples);
+  if (!a.produce_samples.empty() && (a.clock != "real" || !produced_system(cfg)))
+    throw InputError("--produce-samples", fmt::format("records the tiles the terrain's compositor makes in the real clock: needs --clock real "
+                                                      "and run.system = \"terrain\" (here --clock {}, run.system = \"{}\")",
+                                                      a.clock, cfg.run.system));
   int to_stdout = a.json ? 1 : 0;
-  for (const std::string* o : {&a.summary, &a.frames, &a.report}) to_stdout += *o == "-" ? 1 : 0;
+  for (const std::string* o : {&a.summary, &a.frames, &a.report, &a.produce_samples}) to_stdout += *o == "-" ? 1 : 0;
   if (to_stdout > 1)
-    throw InputError(a.json ? "--json" : "--summary/--frames/--report",
-                     "only one of --json, --summary -, --frames -, --report - can write to stdout");
+    throw InputError(a.json ? "--json" : "--summary/--frames/--report/--produce-samples",
+                     "only one of --json, --summary -, --frames -, --report -, --produce-samples - can write to stdout");
   if (a.clock != "sim" && a.clock != "real")
     throw InputError("--clock", "'" + a.clock + "' is not one of: sim (device models), real (threads and files)");
   if (a.clock == "real") check_real_clock_system(cfg, !a.store.empty());  // the terrain: no store, a producer
@@ -196,9 +202,11 @@ void run_replay_command(const ReplayArgs& a) {
     progress = [](int f, int n) { fmt::print(stderr, "\rframe {}/{} ({:.0f}%)", f, n, 100.0 * f / n); };
   ReplayResult r;
   if (a.clock == "real") {
-    RealRun run = store ? run_real_replay(cfg, trace, *scene, *store, RealClockOptions{progress})
-                        : run_real_replay(cfg, trace, *scene, RealClockOptions{progress});
+    RealClockOptions ro{progress};
+    ro.record_produced_tiles = !a.produce_samples.empty();
+    RealRun run = store ? run_real_replay(cfg, trace, *scene, *store, ro) : run_real_replay(cfg, trace, *scene, ro);
     r = std::move(run.result);
+    if (!a.produce_samples.empty()) write_output(a.produce_samples, produce::produced_tiles_csv(run.produced_tiles));
     const nlohmann::json& rc = r.summary["real_clock"];
     const std::string warning = rc["o_direct_warning"].get<std::string>();
     if (!warning.empty()) warn(warning);
@@ -250,6 +258,8 @@ void register_replay_commands(CLI::App& app) {
   c->add_option("--summary", a->summary, "write the summary JSON here (- for stdout)");
   c->add_option("--frames", a->frames, "write one CSV row per frame here (- for stdout)");
   c->add_option("--report", a->report, "write an HTML report with charts here (- for stdout)");
+  c->add_option("--produce-samples", a->produce_samples,
+                "the terrain in the real clock: write each composed tile's work and time here (CSV, for `vtsim calibrate --samples`)");
   c->add_flag("--json", a->json, "print the summary JSON instead of the human summary");
   c->add_flag("--quiet,-q", a->quiet, "print no information (files are still written; warnings still are: --werror makes them fail the run)");
   c->add_flag("--allow-repairs", a->allow_repairs, kAllowRepairsHelp);

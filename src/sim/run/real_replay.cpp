@@ -207,6 +207,7 @@ RealRun run_real(const ReplayConfig& cfg, const Trace& trace, const IScene& scen
   std::unique_ptr<produce::TerrainProducer> producer;
   if (!store) {
     producer = std::make_unique<produce::TerrainProducer>(terrain_producer_params(cfg));
+    producer->record_tiles(options.record_produced_tiles);
     xc.producer = producer.get();
     xc.produce_workers = cfg.produce.workers;
   }
@@ -333,6 +334,7 @@ RealRun run_real(const ReplayConfig& cfg, const Trace& trace, const IScene& scen
                       {"brush_bytes_served", producer->brush_bytes_served()},
                       {"decals_drawn", producer->decals_drawn()},
                       {"brush_commits", brush_uploads}};
+    run.produced_tiles = producer->recorded_tiles();
   }
   run.result.summary["provenance"]["machine"] = machine_json();  // what the real-clock figures measured
   return run;

@@ -36,6 +36,9 @@ struct RealClockOptions {
   // Bytes of host memory the RAM cache's buffers and the VRAM arena may take together; 0: what
   // this process may use (usable_memory_bytes). Tests set a small one.
   std::uint64_t memory_limit_bytes = 0;
+  // The terrain: keep every composed tile's work and time (RealRun::produced_tiles), for
+  // `vtsim calibrate --samples` (docs/produced.md, "Calibrating from the replay's own tiles").
+  bool record_produced_tiles = false;
 };
 
 struct RealRun {
@@ -44,6 +47,8 @@ struct RealRun {
   // Virtual texturing: the pages complete in the pool when the replay ended, with their slots
   // (what the page table maps, so what sampling would read from the arena).
   std::vector<std::pair<TileKey, std::uint32_t>> pool_pages;
+  // The terrain with RealClockOptions::record_produced_tiles: every tile composed, in completion order.
+  std::vector<produce::ProducedTile> produced_tiles;
 };
 
 // Runs the trace in the real clock: IO and decode threads (io.threads, decode.workers,

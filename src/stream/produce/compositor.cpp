@@ -45,11 +45,18 @@ std::uint32_t active_layers(const CompositeJob& job) {
     const auto lo = [&](double w, double o) { return static_cast<int>(std::floor((w - o) / m.m_per_texel - 0.5)); };
     const int mx0 = std::clamp(lo(x0, m.origin_x_m), 0, m.width - 1), mx1 = std::clamp(lo(x1, m.origin_x_m) + 1, 0, m.width - 1);
     const int my0 = std::clamp(lo(y0, m.origin_y_m), 0, m.height - 1), my1 = std::clamp(lo(y1, m.origin_y_m) + 1, 0, m.height - 1);
-    for (int y = my0; y <= my1; ++y)
-      for (int x = mx0; x <= mx1; ++x)
+    // Stop at the first texel that completes the channels this mask weights: a coarse level's tile
+    // covers the whole mask (512² x 4 bytes), and scanning all of it cost ~1.7 ms a tile.
+    std::uint32_t want = 0;
+    for (std::size_t c = 0; c < 4; ++c)
+      if (4 * i + c < job.layers.size()) want |= 1u << c;
+    std::uint32_t found = 0;
+    for (int y = my0; y <= my1 && found != want; ++y)
+      for (int x = mx0; x <= mx1 && found != want; ++x)
         for (int c = 0; c < 4; ++c)
           if (m.rgba[(static_cast<std::size_t>(y) * static_cast<std::size_t>(m.width) + static_cast<std::size_t>(x)) * 4 + static_cast<std::size_t>(c)])
-            act |= 1u << (4 * i + static_cast<std::size_t>(c));
+            found |= 1u << c;
+    act |= (found & want) << (4 * i);
   }
   act &= job.layers.size() >= 32 ? ~0u : ((1u << job.layers.size()) - 1u);
   return act ? act : 1u;

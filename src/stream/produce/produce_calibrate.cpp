@@ -2,14 +2,19 @@
 
 #include <algorithm>
 #include <array>
+#include <charconv>
+#include <map>
 #include <chrono>
 #include <cmath>
+#include <string_view>
+#include <system_error>
 
 #include <time.h>
 
 #include <fmt/format.h>
 
 #include "core/error.h"
+#include "core/input_file.h"
 
 namespace vtsim::produce {
 
@@ -31,7 +36,7 @@ std::array<double, kPcalUnknowns> pcal_terms(const ProduceSample& s) {
 }
 
 // Weighted least squares over the unknowns in `use` (others fixed at 0); false when singular.
-bool pcal_solve(const std::vector<ProduceSample>& samples, const std::array<bool, kPcalUnknowns>& use,
+bool pcal_solve(const std::vector<ProduceSample>& samples, const std::array<bool, kPcalUnknowns>& use, bool relative,
                 std::array<double, kPcalUnknowns>& x) {
   std::vector<int> cols;
   for (int i = 0; i < kPcalUnknowns; ++i)
@@ -40,7 +45,7 @@ bool pcal_solve(const std::vector<ProduceSample>& samples, const std::array<bool
   std::vector<double> a(n * (n + 1), 0.0);  // augmented normal equations
   for (const ProduceSample& s : samples) {
     const auto t = pcal_terms(s);
-    const double w = 1.0 / (s.ns * s.ns);  // relative error
+    const double w = relative ? 1.0 / (s.ns * s.ns) : 1e-6;  // relative error, or absolute (scaled: the normal equations are rescaled below)
     for (std::size_t r = 0; r < n; ++r) {
       const double tr = t[static_cast<std::size_t>(cols[r])];
       for (std::size_t c = 0; c < n; ++c) a[r * (n + 1) + c] += w * tr * t[static_cast<std::size_t>(cols[c])];
@@ -106,7 +111,7 @@ std::int64_t thread_cpu_ns() {
   return static_cast<std::int64_t>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
 }
 
-ProduceFit fit_produce_model(const std::vector<ProduceSample>& samples, const ProduceModel& base) {
+ProduceFit fit_produce_model(const std::vector<ProduceSample>& samples, const ProduceModel& base, bool relative) {
   std::array<bool, kPcalUnknowns> use = {true, true, true, false, false};
   bool vary = false, texels_seen = false, ratio_varies = false;
   double ratio = -1;  // decal texels per decal
@@ -124,7 +129,27 @@ ProduceFit fit_produce_model(const std::vector<ProduceSample>& samples, const Pr
   use[4] = vary && texels_seen;
   ProduceFit fit;
   fit.model = base;
+  fit.relative = relative;
   fit.decals_fitted = use[3] || use[4];
+  // A replay's own tiles (samples_from_tiles) may all blend the same layers, or all be full tiles:
+  // a column is then proportional to another and the pair cannot be told apart. The cost is folded
+  // into the term that stays (exact for these samples; per_layer_texel_ns then holds for this layer
+  // count only), and said.
+  bool layers_vary = false, texels_vary = false;
+  for (const ProduceSample& s : samples) {
+    layers_vary |= s.layers != samples.front().layers;
+    texels_vary |= s.texels != samples.front().texels;
+  }
+  if (!samples.empty() && !layers_vary && samples.front().layers > 0) {
+    use[1] = false;
+    fit.notes.push_back(fmt::format("every sample blends {} layers: per_texel_ns folded into per_layer_texel_ns (fixed at 0; the fit holds "
+                                    "for {} layers)",
+                                    samples.front().layers, samples.front().layers));
+  }
+  if (!samples.empty() && !texels_vary) {
+    use[0] = false;
+    fit.notes.push_back(fmt::format("every sample is {} texels: per_tile_us folded into the per-texel terms (fixed at 0)", samples.front().texels));
+  }
   const int unknowns = static_cast<int>(std::count(use.begin(), use.end(), true));
   if (static_cast<int>(samples.size()) < unknowns)
     throw InputError("produce samples", fmt::format("{} samples for {} unknowns", samples.size(), unknowns));
@@ -132,7 +157,7 @@ ProduceFit fit_produce_model(const std::vector<ProduceSample>& samples, const Pr
   static constexpr const char* kNames[kPcalUnknowns] = {"per_tile_us", "per_texel_ns", "per_layer_texel_ns", "per_decal_us",
                                                          "per_decal_texel_ns"};
   for (int round = 0; round < kPcalUnknowns; ++round) {
-    if (!pcal_solve(samples, use, x)) {
+    if (!pcal_solve(samples, use, relative, x)) {
       fit.notes.push_back("the samples do not separate the terms (singular); vary texels and layers");
       throw InputError("produce samples", fit.notes.back());
     }
@@ -145,7 +170,7 @@ ProduceFit fit_produce_model(const std::vector<ProduceSample>& samples, const Pr
     fit.notes.push_back(fmt::format("{} fitted {:.4g} < 0: fixed at 0, the rest refitted", kNames[worst], x[static_cast<std::size_t>(worst)]));
     use[static_cast<std::size_t>(worst)] = false;
   }
-  fit.model.per_tile_us = x[0];
+  fit.model.per_tile_us = x[0];  // 0 when not fitted (folded or dropped, above)
   fit.model.per_texel_ns = x[1];
   fit.model.per_layer_texel_ns = x[2];
   if (fit.decals_fitted) {
@@ -156,6 +181,10 @@ ProduceFit fit_produce_model(const std::vector<ProduceSample>& samples, const Pr
   for (const ProduceSample& s : samples) {
     const double m = produce_ns(fit.model, ProduceWork{s.texels, s.layers, s.decals, s.decal_texels});
     rel.push_back(std::fabs(m - s.ns) / s.ns);
+  }
+  for (const ProduceSample& s : samples) {
+    fit.measured_ms += s.ns * 1e-6;
+    fit.model_ms += produce_ns(fit.model, ProduceWork{s.texels, s.layers, s.decals, s.decal_texels}) * 1e-6;
   }
   std::sort(rel.begin(), rel.end());
   if (!rel.empty()) {
@@ -286,16 +315,125 @@ std::vector<ProduceSample> measure_compositor(const ProduceMeasureOptions& o, co
   return samples;
 }
 
+namespace {
+
+constexpr std::string_view kProducedTilesHeader = "level,texels,layers,decals,decal_texels,wall_us,cpu_us";
+
+std::string_view ptile_trim(std::string_view s) {
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
+  return s;
+}
+
+template <typename T>
+bool ptile_number(std::string_view t, T& v) {
+  const auto [p, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
+  return !t.empty() && ec == std::errc() && p == t.data() + t.size();
+}
+
+}  // namespace
+
+std::string produced_tiles_csv(const std::vector<ProducedTile>& tiles) {
+  std::string s(kProducedTilesHeader);
+  s += '\n';
+  for (const ProducedTile& t : tiles)
+    s += fmt::format("{},{},{},{},{},{:.3f},{:.3f}\n", t.level, t.work.texels, t.work.layers, t.work.decals, t.work.decal_texels,
+                     t.wall_ns / 1000, t.cpu_ns / 1000);
+  return s;
+}
+
+std::vector<ProducedTile> read_produced_tiles_csv(const std::string& path) {
+  // 64 bytes a row at most in practice: 1 GiB is ~16 M tiles, hours of production.
+  const std::string text = read_regular_file(path, std::uint64_t{1} << 30, "not a produced-tiles CSV");
+  std::vector<ProducedTile> tiles;
+  std::string_view rest = text;
+  long long line_no = 0;
+  static constexpr const char* kCols[] = {"level", "texels", "layers", "decals", "decal_texels", "wall_us", "cpu_us"};
+  while (!rest.empty()) {
+    const std::size_t nl = rest.find('\n');
+    const std::string_view line = ptile_trim(rest.substr(0, nl));
+    rest.remove_prefix(nl == std::string_view::npos ? rest.size() : nl + 1);
+    ++line_no;
+    if (line_no == 1) {
+      if (line != kProducedTilesHeader)
+        throw InputError(at_line(path, 1), fmt::format("header '{}' is not '{}' (write the file with `vtsim replay --clock real "
+                                                       "--produce-samples`)",
+                                                       line.substr(0, 80), kProducedTilesHeader));
+      continue;
+    }
+    if (line.empty()) continue;
+    std::array<std::string_view, 7> f;
+    std::size_t n = 0, at = 0;
+    for (; n < f.size() + 1 && at <= line.size(); ++n) {
+      const std::size_t comma = std::min(line.find(',', at), line.size());
+      if (n < f.size()) f[n] = ptile_trim(line.substr(at, comma - at));
+      at = comma + 1;
+    }
+    if (n != f.size()) throw InputError(at_line(path, line_no), fmt::format("{} fields, expected {} ({})", n, f.size(), kProducedTilesHeader));
+    ProducedTile t;
+    double wall_us = 0, cpu_us = 0;
+    const auto bad = [&](int col, const char* want) {
+      return InputError(at_line(path, line_no), fmt::format("column '{}': '{}' is not {}", kCols[col], f[static_cast<std::size_t>(col)].substr(0, 40), want));
+    };
+    if (!ptile_number(f[0], t.level) || t.level > 63) throw bad(0, "a level 0 to 63");
+    if (!ptile_number(f[1], t.work.texels) || t.work.texels == 0) throw bad(1, "a texel count >= 1");
+    if (!ptile_number(f[2], t.work.layers) || t.work.layers > 1024) throw bad(2, "a layer count 0 to 1024");
+    if (!ptile_number(f[3], t.work.decals)) throw bad(3, "a decal count");
+    if (!ptile_number(f[4], t.work.decal_texels)) throw bad(4, "a texel count");
+    if (!ptile_number(f[5], wall_us) || !std::isfinite(wall_us) || !(wall_us > 0)) throw bad(5, "a time > 0, us");
+    if (!ptile_number(f[6], cpu_us) || !std::isfinite(cpu_us) || cpu_us < 0) throw bad(6, "a time >= 0, us");
+    t.wall_ns = wall_us * 1000;
+    t.cpu_ns = cpu_us * 1000;
+    tiles.push_back(t);
+  }
+  if (line_no == 0) throw InputError(path, fmt::format("empty: expected the header '{}'", kProducedTilesHeader));
+  return tiles;
+}
+
+std::vector<ProduceSample> samples_from_tiles(const std::vector<ProducedTile>& tiles, bool cpu_time) {
+  std::vector<ProduceSample> out;
+  out.reserve(tiles.size());
+  for (const ProducedTile& t : tiles) {
+    const int side = static_cast<int>(std::lround(std::sqrt(static_cast<double>(t.work.texels))));
+    out.push_back(ProduceSample{t.work.texels, t.work.layers, t.work.decals, cpu_time ? t.cpu_ns : t.wall_ns, side, 0, t.work.decal_texels});
+  }
+  return out;
+}
+
 std::string produce_profile_toml(const ProduceFit& fit, const std::vector<ProduceSample>& samples) {
-  std::string s = "# The produce stage's cost model, fitted by `vtsim calibrate --produce` to the CPU compositor on\n"
-                  "# one thread of this machine (docs/produced.md, \"Calibration\").\n";
+  std::string s = fit.relative ? "# The produce stage's cost model, fitted by `vtsim calibrate --produce` to the CPU compositor on\n"
+                                 "# one thread of this machine (docs/produced.md, \"Calibration\").\n"
+                               : "# The produce stage's cost model, fitted by `vtsim calibrate --samples` to the tiles real-clock\n"
+                                 "# replays composed, least squares on the absolute error (docs/produced.md, \"Calibrating from\n"
+                                 "# the replay's own tiles\").\n";
   s += fmt::format("# {} points, median relative error {:.1f} %, max {:.1f} %\n", samples.size(), 100 * fit.median_rel_error,
                    100 * fit.max_rel_error);
   for (const std::string& n : fit.notes) s += "# note: " + n + "\n";
-  s += "#   tile border layers decals decal_texels   measured_us   model_us\n";
-  for (const ProduceSample& p : samples)
-    s += fmt::format("#   {:4} {:6} {:6} {:6} {:12}   {:11.1f}   {:8.1f}\n", p.tile, p.border, p.layers, p.decals, p.decal_texels, p.ns / 1000,
-                     produce_ns(fit.model, ProduceWork{p.texels, p.layers, p.decals, p.decal_texels}) / 1000);
+  s += fmt::format("# all samples together: measured {:.1f} ms, model {:.1f} ms ({:+.1f} %)\n", fit.measured_ms, fit.model_ms,
+                   fit.measured_ms > 0 ? 100 * (fit.model_ms / fit.measured_ms - 1) : 0.0);
+  constexpr std::size_t kListed = 100;  // a calibration's points are listed; a replay's tiles (thousands) grouped
+  if (samples.size() <= kListed) {
+    s += "#   tile border layers decals decal_texels   measured_us   model_us\n";
+    for (const ProduceSample& p : samples)
+      s += fmt::format("#   {:4} {:6} {:6} {:6} {:12}   {:11.1f}   {:8.1f}\n", p.tile, p.border, p.layers, p.decals, p.decal_texels, p.ns / 1000,
+                       produce_ns(fit.model, ProduceWork{p.texels, p.layers, p.decals, p.decal_texels}) / 1000);
+  } else {
+    struct Group {
+      std::size_t n = 0;
+      double measured = 0, model = 0;
+    };
+    std::map<std::pair<std::uint64_t, std::uint32_t>, Group> groups;  // (texels, layers), in order
+    for (const ProduceSample& p : samples) {
+      Group& g = groups[{p.texels, p.layers}];
+      ++g.n;
+      g.measured += p.ns;
+      g.model += produce_ns(fit.model, ProduceWork{p.texels, p.layers, p.decals, p.decal_texels});
+    }
+    s += "#   texels layers  tiles   measured_us (mean)   model_us (mean)\n";
+    for (const auto& [k, g] : groups)
+      s += fmt::format("#   {:6} {:6} {:6}   {:18.1f}   {:15.1f}\n", k.first, k.second, g.n, g.measured / static_cast<double>(g.n) / 1000,
+                       g.model / static_cast<double>(g.n) / 1000);
+  }
   s += "[produce]\n";
   s += fmt::format("per_tile_us = {:.4g}\n", fit.model.per_tile_us);
   s += fmt::format("per_texel_ns = {:.4g}\n", fit.model.per_texel_ns);

@@ -37,11 +37,35 @@ struct ProduceSample {
   std::uint64_t decal_texels = 0;  // output texels the decals touch, summed over them
 };
 
+// One tile a real-clock replay composed (TerrainProducer::record_tiles): its level, the work the
+// system counted for it at submission (what the simulated clock's ProduceModel multiplies) and the
+// time the composition took on its production thread — wall (steady clock: what the real clock's
+// produce_ms counts, the executor's decode_start to decode_end less the queue hand-off) and that
+// thread's CPU. `vtsim calibrate --samples` fits the [produce] keys to these (docs/produced.md,
+// "Calibrating from the replay's own tiles").
+struct ProducedTile {
+  std::uint32_t level = 0;
+  ProduceWork work;
+  double wall_ns = 0, cpu_ns = 0;
+};
+
+// The CSV `vtsim replay --clock real --produce-samples` writes: a header line
+// "level,texels,layers,decals,decal_texels,wall_us,cpu_us", then one row per tile.
+std::string produced_tiles_csv(const std::vector<ProducedTile>& tiles);
+// Reads that CSV. InputError naming the file, line and column on anything else: a missing or other
+// header, a wrong field count, a field that is not a number, texels = 0, a time <= 0 or not finite.
+std::vector<ProducedTile> read_produced_tiles_csv(const std::string& path);
+// The tiles as fit samples, timed by their wall time (what the real clock's produce_ms counts) or
+// their production thread's CPU time.
+std::vector<ProduceSample> samples_from_tiles(const std::vector<ProducedTile>& tiles, bool cpu_time);
+
 struct ProduceFit {
   ProduceModel model;             // base model with the fitted fields replaced
   bool decals_fitted = false;     // false: no decal variation in the samples; per_decal_us and per_decal_texel_ns kept from the base
   double median_rel_error = 0;    // |model - measured| / measured over the samples
   double max_rel_error = 0;
+  bool relative = true;           // fitted on the relative error (the compositor's points) or the absolute one (a replay's tiles)
+  double measured_ms = 0, model_ms = 0;  // the samples' sum and the model's for them (a replay's total production)
   std::vector<std::string> notes;  // dropped (negative) coefficients, degenerate columns
 };
 
@@ -51,7 +75,11 @@ struct ProduceFit {
 // proportional and the texels, the cost that grows with a decal, are fitted alone); a coefficient that would be negative is fixed at 0 and the
 // rest refitted. workers and tiles_per_frame come from `base`. Throws InputError on fewer samples
 // than unknowns, or samples with ns <= 0. O(samples).
-ProduceFit fit_produce_model(const std::vector<ProduceSample>& samples, const ProduceModel& base = {});
+// relative = false: the squared absolute error instead (ordinary least squares), for a replay's
+// own tiles: their costs are noisy and skewed, and the relative fit then under-predicts their sum
+// (−13 % on a walk's 1,870 tiles) where the absolute one, with its intercept, matches it exactly —
+// and the sum is what production per frame adds up.
+ProduceFit fit_produce_model(const std::vector<ProduceSample>& samples, const ProduceModel& base = {}, bool relative = true);
 
 // Procedural content for the compositor: `brushes` value-noise brushes of side brush_side in an
 // atlas (border 4 at every level: constant_border, 4 columns), and 4 masks of mask_side² RGBA8 texels covering mask_m metres whose

@@ -29,12 +29,14 @@
 //
 // Thread-safety: produce() and serves() may run on any number of threads at once: the scene is
 // immutable after the constructor; each thread has its own Compositor and scratch (thread_local).
-// Counters are atomics. set_decals must happen before the first produce() (the real replay calls
+// Counters are atomics; recorded tiles are appended under a mutex (once a tile: ~1 ms of work
+// each, so never contended). set_decals and record_tiles must happen before the first produce() (the real replay calls
 // it from ReplayEnv::on_start, before frame 0); the layer itself takes appends while threads read.
 // A tile drawn later than its request may show footprints placed since: the freshest, as a game's.
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -59,6 +61,7 @@ struct TerrainProducerParams {
   std::vector<std::string> brush_files;  // terrain.brush_files, split at commas: files or patterns; empty = value noise
 };
 
+
 class TerrainProducer final : public ITileProducer {
  public:
   // Builds the scene (~brushes_per_sector × brush_size² × 4/3 × a few ns, plus reading the brush
@@ -67,6 +70,10 @@ class TerrainProducer final : public ITileProducer {
   void produce(const TileJob& job, TileData& out) override;
   bool serves(const TileJob& job) const override { return job.key.layer() == p_.brush_layer; }
   void set_decals(std::shared_ptr<const DecalLayer> decals) { decals_ = std::move(decals); }
+  // Keep a ProducedTile for every composed tile (not brush mips), in completion order; before the
+  // first produce(). ~48 bytes a tile.
+  void record_tiles(bool on) { record_ = on; }
+  std::vector<ProducedTile> recorded_tiles() const;
 
   // Decoded bytes of brush mip `mip` (the root's tail included), as TerrainSystem sizes it.
   std::uint64_t brush_bytes(int mip) const;
@@ -85,6 +92,9 @@ class TerrainProducer final : public ITileProducer {
   std::shared_ptr<const DecalLayer> decals_;
   mutable std::atomic<std::uint64_t> decals_drawn_{0};
   std::atomic<std::uint64_t> tiles_{0}, brushes_{0}, brush_bytes_{0};
+  bool record_ = false;
+  mutable std::mutex record_mutex_;
+  std::vector<ProducedTile> recorded_;  // guarded by record_mutex_
 };
 
 }  // namespace vtsim::produce
