@@ -1,7 +1,6 @@
 // vtsim trace …: generate, import, export, resample and inspect camera traces (docs/traces.md).
 #include <fmt/core.h>
 
-#include <charconv>
 #include <cmath>
 #include <filesystem>
 #include <memory>
@@ -15,6 +14,7 @@
 #include "cli/commands.h"
 #include "cli/trace_load.h"
 #include "core/error.h"
+#include "core/text.h"
 #include "sim/trace/trace_export.h"
 #include "sim/trace/trace_format.h"
 #include "sim/trace/trace_gen.h"
@@ -40,8 +40,7 @@ std::vector<double> parse_list(const std::string& s, std::size_t n, char sep, co
     const std::size_t e = s.find(sep, b);
     const std::string tok = s.substr(b, e == std::string::npos ? std::string::npos : e - b);
     double x = 0.0;
-    const auto [p, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), x);
-    if (tok.empty() || ec != std::errc() || p != tok.data() + tok.size() || !std::isfinite(x))
+    if (!text::parse_whole(tok, x) || !std::isfinite(x))
       throw InputError(opt, fmt::format("'{}' is not {} finite numbers separated by '{}'", s, n, sep));
     v.push_back(x);
     if (e == std::string::npos) break;

@@ -3,10 +3,10 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <charconv>
 #include <vector>
 
 #include "core/input_file.h"
+#include "core/text.h"
 
 namespace vtsim {
 
@@ -41,8 +41,7 @@ std::string unescape(std::string_view s) {
 std::uint64_t parse_limit(std::string_view text) {
   while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.remove_suffix(1);
   std::uint64_t v = 0;
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
-  if (ec != std::errc() || end != text.data() + text.size() || text.empty()) return UINT64_MAX;
+  if (!text::parse_whole(text, v)) return UINT64_MAX;
   return v;
 }
 

@@ -2,16 +2,15 @@
 
 #include <fmt/format.h>
 
-#include <charconv>
 #include <fstream>
 #include <stdexcept>
 #include <string>
 #include <string_view>
-#include <system_error>
 
 #include "cache/policy/i_replacement.h"
 #include "core/error.h"
 #include "core/input_file.h"
+#include "core/text.h"
 
 namespace vtsim {
 
@@ -20,15 +19,9 @@ namespace {
 // Access sizes above 2^40 are refused: miss-ratio curves sum them (cache/policy/mrc.h).
 constexpr std::uint64_t kAccessMaxSize = std::uint64_t{1} << 40;
 
-std::string_view access_trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
-  return s;
-}
-
 // The next whitespace-separated token of s (consumed), empty at the end.
 std::string_view access_token(std::string_view& s) {
-  s = access_trim(s);
+  s = text::trim_line(s);
   std::size_t e = 0;
   while (e < s.size() && s[e] != ' ' && s[e] != '\t') ++e;
   const std::string_view t = s.substr(0, e);
@@ -42,8 +35,7 @@ bool access_number(std::string_view t, std::uint64_t& v) {
     t.remove_prefix(2);
     base = 16;
   }
-  const auto [p, ec] = std::from_chars(t.data(), t.data() + t.size(), v, base);
-  return !t.empty() && ec == std::errc() && p == t.data() + t.size();
+  return text::parse_whole(t, v, base);
 }
 
 std::string access_shown(std::string_view t) {
@@ -76,8 +68,7 @@ AccessLog parse_accesses(std::string_view text, const std::string& name) {
     const std::string_view size_tok = access_token(line);
     if (!size_tok.empty()) {
       std::uint64_t s = 0;
-      const auto [p, ec] = std::from_chars(size_tok.data(), size_tok.data() + size_tok.size(), s);
-      if (ec != std::errc() || p != size_tok.data() + size_tok.size() || s < 1 || s > kAccessMaxSize)
+      if (!text::parse_whole(size_tok, s) || s < 1 || s > kAccessMaxSize)
         throw InputError(at_line(name, line_no),
                          fmt::format("size '{}' is not a decimal integer in [1, 2^40]", access_shown(size_tok)));
       a.size = s;

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "core/build_info.h"
+#include "core/text.h"
 
 namespace vtsim {
 
@@ -73,12 +74,12 @@ nlohmann::json provenance_config_value(ConfigType type, const std::string& v) {
     case ConfigType::boolean: return v == "true";
     case ConfigType::integer: {
       std::int64_t i = 0;
-      if (auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), i); ec == std::errc() && p == v.data() + v.size()) return i;
+      if (text::parse_whole(v, i)) return i;
       break;
     }
     case ConfigType::real: {
       double d = 0;
-      if (auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), d); ec == std::errc() && p == v.data() + v.size()) return d;
+      if (text::parse_whole(v, d)) return d;
       break;
     }
     case ConfigType::text:

@@ -3,7 +3,6 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -12,6 +11,7 @@
 #include <utility>
 
 #include "core/error.h"
+#include "core/text.h"
 #include "sim/run/report_html.h"
 #include "sim/run/svg_chart.h"
 
@@ -116,8 +116,7 @@ RunFrames read_run_frames(const std::string& path) {
       if (col[k] >= cells.size()) throw InputError(at_line(path, n), std::string("no value in column '") + wanted[k] + "'");
       double v = 0;
       const std::string_view c = cells[col[k]];
-      const auto [p, ec] = std::from_chars(c.data(), c.data() + c.size(), v);
-      if (ec != std::errc() || p != c.data() + c.size() || !std::isfinite(v))
+      if (!text::parse_whole(c, v) || !std::isfinite(v))
         throw InputError(at_line(path, n), std::string("column '") + wanted[k] + "': '" + std::string(c.substr(0, 40)) + "' is not a number");
       dest[k]->push_back(v);
     }

@@ -8,7 +8,6 @@
 
 #include <algorithm>
 #include <cctype>
-#include <charconv>
 #include <cstdint>
 #include <cmath>
 #include <limits>
@@ -17,6 +16,7 @@
 #include <string_view>
 #include <tuple>
 
+#include "core/text.h"
 #include "sim/run/report_html.h"
 #include "sim/run/svg_chart.h"
 #include "sim/sweep/sweep_spec.h"
@@ -93,8 +93,7 @@ Opt toml_number(const std::string& toml) {
     if (c != '_') t += c;  // TOML digit separators
   if (!t.empty() && t.front() == '+') t.erase(0, 1);
   double v = 0;
-  const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
-  if (t.empty() || ec != std::errc() || end != t.data() + t.size() || !std::isfinite(v)) return std::nullopt;
+  if (!text::parse_whole(t, v) || !std::isfinite(v)) return std::nullopt;
   return v;
 }
 

@@ -4,7 +4,6 @@
 #include <glob.h>
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -14,6 +13,7 @@
 
 #include "core/error.h"
 #include "core/input_file.h"
+#include "core/text.h"
 #include "core/toml_text.h"
 #include "sim/trace/trace_gen.h"
 #include "sim/trace/trace_import.h"
@@ -112,8 +112,7 @@ const nlohmann::json* summary_path(const nlohmann::json& summary, std::string_vi
       p = &*it;
     } else if (p->is_array()) {
       std::size_t i = 0;
-      const auto [end, ec] = std::from_chars(part.data(), part.data() + part.size(), i);
-      if (ec != std::errc() || end != part.data() + part.size() || i >= p->size()) return nullptr;
+      if (!text::parse_whole(part, i) || i >= p->size()) return nullptr;
       p = &(*p)[i];
     } else {
       return nullptr;
@@ -320,8 +319,7 @@ TuneConstraint parse_tune_constraint(const std::string& text, const std::string&
   if (op != std::string::npos) {
     c.metric = trim(text.substr(0, op));
     const std::string v = trim(text.substr(op + 2));
-    const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), c.bound);
-    if (!c.metric.empty() && !v.empty() && ec == std::errc() && p == v.data() + v.size() && std::isfinite(c.bound)) return c;
+    if (!c.metric.empty() && text::parse_whole(v, c.bound) && std::isfinite(c.bound)) return c;
   }
   throw InputError(where, "tune constraint '" + text + "' is not 'metric <= number' or 'metric >= number' "
                           "(e.g. \"popin.blurry_fraction_p99 <= 0.02\")");

@@ -132,12 +132,6 @@ void TextFileOut::close() {
   if (!stdout_ && std::fclose(f) != 0) throw InputError(where_, fmt::format("write failed: {}", std::strerror(errno)));
 }
 
-std::string_view trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
-  return s;
-}
-
 bool is_blank(std::string_view s) { return trim(s).empty(); }
 
 bool is_comment(std::string_view s) {
@@ -258,8 +252,7 @@ int parse_int(std::string_view tok, int lo, int hi, const std::string& where,
   std::string_view s = tok;
   if (!s.empty() && s.front() == '+') s.remove_prefix(1);
   long long v = 0;
-  const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-  if (s.empty() || ec != std::errc() || p != s.data() + s.size())
+  if (!text::parse_whole(s, v))
     bad_field(where, field, tok, "is not an integer");
   if (v < lo || v > hi) bad_field(where, field, tok, fmt::format("is outside [{}, {}]", lo, hi));
   return static_cast<int>(v);

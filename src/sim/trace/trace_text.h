@@ -13,6 +13,7 @@
 #include <glm/gtc/quaternion.hpp>
 
 #include "core/error.h"
+#include "core/text.h"
 #include "sim/trace/trace_io.h"
 
 namespace vtsim::trace_text {
@@ -77,7 +78,7 @@ class TextFileOut {
   std::string where_;
 };
 
-std::string_view trim(std::string_view s);  // spaces and tabs at both ends
+using text::trim;  // spaces and tabs at both ends (core/text.h)
 bool is_blank(std::string_view s);
 bool is_comment(std::string_view s);        // first non-blank character is '#'
 

@@ -2,7 +2,6 @@
 
 #include <fmt/core.h>
 
-#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -11,6 +10,7 @@
 
 #include "core/error.h"
 #include "core/input_file.h"
+#include "core/text.h"
 
 namespace vtsim {
 
@@ -31,8 +31,7 @@ bool q3e_is_space(char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\
 
 double q3e_number(std::string_view s, const std::string& where, const std::string& key) {
   double x = 0.0;
-  const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), x);
-  if (s.empty() || ec != std::errc() || p != s.data() + s.size() || !std::isfinite(x))
+  if (!text::parse_whole(s, x) || !std::isfinite(x))
     throw InputError(where, fmt::format("\"{}\" \"{}\": not a finite number", key, s));
   return x;
 }

@@ -2,12 +2,10 @@
 
 #include <algorithm>
 #include <array>
-#include <charconv>
 #include <map>
 #include <chrono>
 #include <cmath>
 #include <string_view>
-#include <system_error>
 
 #include <time.h>
 
@@ -15,6 +13,7 @@
 
 #include "core/error.h"
 #include "core/input_file.h"
+#include "core/text.h"
 
 namespace vtsim::produce {
 
@@ -319,18 +318,6 @@ namespace {
 
 constexpr std::string_view kProducedTilesHeader = "level,texels,layers,decals,decal_texels,wall_us,cpu_us";
 
-std::string_view ptile_trim(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
-  return s;
-}
-
-template <typename T>
-bool ptile_number(std::string_view t, T& v) {
-  const auto [p, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
-  return !t.empty() && ec == std::errc() && p == t.data() + t.size();
-}
-
 }  // namespace
 
 std::string produced_tiles_csv(const std::vector<ProducedTile>& tiles) {
@@ -351,7 +338,7 @@ std::vector<ProducedTile> read_produced_tiles_csv(const std::string& path) {
   static constexpr const char* kCols[] = {"level", "texels", "layers", "decals", "decal_texels", "wall_us", "cpu_us"};
   while (!rest.empty()) {
     const std::size_t nl = rest.find('\n');
-    const std::string_view line = ptile_trim(rest.substr(0, nl));
+    const std::string_view line = text::trim_line(rest.substr(0, nl));
     rest.remove_prefix(nl == std::string_view::npos ? rest.size() : nl + 1);
     ++line_no;
     if (line_no == 1) {
@@ -366,7 +353,7 @@ std::vector<ProducedTile> read_produced_tiles_csv(const std::string& path) {
     std::size_t n = 0, at = 0;
     for (; n < f.size() + 1 && at <= line.size(); ++n) {
       const std::size_t comma = std::min(line.find(',', at), line.size());
-      if (n < f.size()) f[n] = ptile_trim(line.substr(at, comma - at));
+      if (n < f.size()) f[n] = text::trim_line(line.substr(at, comma - at));
       at = comma + 1;
     }
     if (n != f.size()) throw InputError(at_line(path, line_no), fmt::format("{} fields, expected {} ({})", n, f.size(), kProducedTilesHeader));
@@ -375,13 +362,13 @@ std::vector<ProducedTile> read_produced_tiles_csv(const std::string& path) {
     const auto bad = [&](int col, const char* want) {
       return InputError(at_line(path, line_no), fmt::format("column '{}': '{}' is not {}", kCols[col], f[static_cast<std::size_t>(col)].substr(0, 40), want));
     };
-    if (!ptile_number(f[0], t.level) || t.level > 63) throw bad(0, "a level 0 to 63");
-    if (!ptile_number(f[1], t.work.texels) || t.work.texels == 0) throw bad(1, "a texel count >= 1");
-    if (!ptile_number(f[2], t.work.layers) || t.work.layers > 1024) throw bad(2, "a layer count 0 to 1024");
-    if (!ptile_number(f[3], t.work.decals)) throw bad(3, "a decal count");
-    if (!ptile_number(f[4], t.work.decal_texels)) throw bad(4, "a texel count");
-    if (!ptile_number(f[5], wall_us) || !std::isfinite(wall_us) || !(wall_us > 0)) throw bad(5, "a time > 0, us");
-    if (!ptile_number(f[6], cpu_us) || !std::isfinite(cpu_us) || cpu_us < 0) throw bad(6, "a time >= 0, us");
+    if (!text::parse_whole(f[0], t.level) || t.level > 63) throw bad(0, "a level 0 to 63");
+    if (!text::parse_whole(f[1], t.work.texels) || t.work.texels == 0) throw bad(1, "a texel count >= 1");
+    if (!text::parse_whole(f[2], t.work.layers) || t.work.layers > 1024) throw bad(2, "a layer count 0 to 1024");
+    if (!text::parse_whole(f[3], t.work.decals)) throw bad(3, "a decal count");
+    if (!text::parse_whole(f[4], t.work.decal_texels)) throw bad(4, "a texel count");
+    if (!text::parse_whole(f[5], wall_us) || !std::isfinite(wall_us) || !(wall_us > 0)) throw bad(5, "a time > 0, us");
+    if (!text::parse_whole(f[6], cpu_us) || !std::isfinite(cpu_us) || cpu_us < 0) throw bad(6, "a time >= 0, us");
     t.wall_ns = wall_us * 1000;
     t.cpu_ns = cpu_us * 1000;
     tiles.push_back(t);
