@@ -67,14 +67,17 @@ int main(int argc, char** argv) {
     const bench::Side alone{"separate_replays", {}, [&] {
                               for (std::size_t i = 0; i < cfgs.size(); ++i) {
                                 ReplayResult r = run_replay(cfgs[i], trace, *scene);
-                                r.summary.erase("run");
+                                r.summary.erase("run");  // as run_lockstep's rows: no cost, no build
+                                r.summary.erase("provenance");
                                 separate[i] = std::move(r.summary);
                               }
                             }};
     const auto check = [&](const char* what) {
       for (std::size_t i = 0; i < cfgs.size() && !separate[i].is_null(); ++i)
         if (!swept[i].ok || swept[i].summary != separate[i]) {
-          fmt::print(stderr, "bench_sweep: {} config {}: the sweep's row differs from its replay alone\n", what, i);
+          const nlohmann::json d = nlohmann::json::diff(separate[i], swept[i].summary);
+          fmt::print(stderr, "bench_sweep: {} config {}: the sweep's row differs from its replay alone{}{}\n", what, i,
+                     swept[i].ok ? ": " : ": " + swept[i].error, swept[i].ok && !d.empty() ? d[0].dump() : "");
           status = 1;
         }
     };

@@ -1,5 +1,6 @@
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -233,4 +234,69 @@ TEST_CASE("clipmap memory: the Yao 2007 §2-3 formula 4^m (n - m + 4/3) - 1/3, a
   const ClipmapMemory odd = clipmap_memory({100'000, 70'001}, 128, 1024);
   CHECK(odd.stack_levels == 7);  // 100000 .. 1563 exceed 1024
   CHECK(odd.stack_texels == 7u * 1024u * 1024u);
+}
+
+TEST_CASE("clipmap: the fingerprint follows the state lookups read, not the order that built it") {
+  Clipmap a(small()), b(small());
+  ResidencyFingerprint fa, fb;
+  REQUIRE(a.fingerprint(fa));
+  REQUIRE(b.fingerprint(fb));
+  CHECK(fa == fb);
+  a.update_windows(4096, 4096, 0);
+  b.update_windows(4096, 4096, 0);
+  std::vector<Need> needs;
+  a.emit_needs(0, [](int, std::int64_t, std::int64_t) { return 0u; }, needs);
+  REQUIRE(needs.size() > 4);
+  // The same tiles committed in opposite orders: the same state, the same fingerprint.
+  for (const Need& n : needs) REQUIRE(a.commit(n.key));
+  for (auto it = needs.rbegin(); it != needs.rend(); ++it) REQUIRE(b.commit(it->key));
+  a.fingerprint(fa);
+  b.fingerprint(fb);
+  CHECK(fa == fb);
+  // Each part of the state changes it: the clamp, a window, parameters.
+  b.set_clamp(2);
+  b.fingerprint(fb);
+  CHECK_FALSE(fa == fb);
+  b.set_clamp(0);
+  b.fingerprint(fb);
+  CHECK(fa == fb);
+  b.update_windows(4096 + 4 * 128, 4096, 0);
+  b.fingerprint(fb);
+  CHECK_FALSE(fa == fb);
+  ClipmapParams p = small();
+  p.filter_margin_texels = 2;
+  Clipmap c(p);
+  ResidencyFingerprint fc;
+  c.fingerprint(fc);
+  Clipmap d(small());
+  d.fingerprint(fb);
+  CHECK_FALSE(fc == fb);
+  // Sampled flags are not state the lookups read: marking leaves the fingerprint.
+  a.set_mark_sampled(true);
+  CHECK(a.resident_level(4096, 4096, 0) == 0);
+  ResidencyFingerprint fa2;
+  a.fingerprint(fa2);
+  CHECK(fa2 == fa);
+}
+
+TEST_CASE("clipmap: recorded marks, applied to a clipmap in the same state, leave the same sampled tiles") {
+  Clipmap a(small()), b(small());
+  settle(a, 4096, 4096);
+  settle(b, 4096, 4096);
+  std::vector<ViewSample> s;
+  for (std::int64_t u = 3000; u < 5200; u += 97) s.push_back(ViewSample{u, 4100, 0.0f});
+  std::vector<std::int8_t> out(s.size());
+  std::vector<std::uint64_t> marks;
+  a.set_mark_sampled(true);
+  a.record_marks(&marks);
+  a.resident_levels(s.data(), s.size(), out.data());
+  a.record_marks(nullptr);
+  REQUIRE(!marks.empty());
+  std::vector<std::uint64_t> sorted = marks;
+  std::sort(sorted.begin(), sorted.end());
+  CHECK(std::adjacent_find(sorted.begin(), sorted.end()) == sorted.end());  // each slot once
+  CHECK(b.resident_unsampled() > a.resident_unsampled());
+  b.apply_marks(marks);
+  CHECK(b.resident_unsampled() == a.resident_unsampled());
+  CHECK_THROWS_AS(b.apply_marks({std::uint64_t{99} << 40}), std::invalid_argument);
 }

@@ -18,6 +18,18 @@ inline std::int64_t floor_div(std::int64_t a, std::int64_t b) {
 inline std::int64_t floor_mod(std::int64_t a, std::int64_t b) { return a - floor_div(a, b) * b; }
 inline std::int64_t ceil_div(std::int64_t a, std::int64_t b) { return (a + b - 1) / b; }
 
+// Fingerprint lanes (IResidency::fingerprint): values chained through SplitMix64's finaliser
+// (Steele, Lea & Flood 2014), one seed per lane.
+constexpr std::uint64_t kFpSeed[2] = {0x6a09e667f3bcc908ULL, 0xbb67ae8584caa73bULL};
+inline std::uint64_t fp_chain(std::uint64_t h, std::uint64_t v) {
+  std::uint64_t x = h ^ v;
+  x += 0x9e3779b97f4a7c15ULL;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+inline std::uint64_t fp_bits(std::int64_t v) { return static_cast<std::uint64_t>(v); }
+
 }  // namespace
 
 ClipmapMemory clipmap_memory(TextureExtent e, int tile_size, int clipsize) {
@@ -80,6 +92,54 @@ Clipmap::Clipmap(const ClipmapParams& p) : p_(p) {
     h = (h + 1) / 2;
   }
   if (levels_.size() > TileKey::kMaxLevels) throw std::invalid_argument("clipmap: too many levels");
+  for (int k = 0; k < 2; ++k) {
+    std::uint64_t fp = kFpSeed[k];
+    for (const std::int64_t v : {p.extent.width, p.extent.height, std::int64_t{p.tile_size}, std::int64_t{p.layers},
+                                 std::int64_t{p.clipsize}, std::int64_t{p.invalid_border_tiles}, std::int64_t{p.filter_margin_texels},
+                                 std::bit_cast<std::int64_t>(p.update_threshold_tiles)})
+      fp = fp_chain(fp, fp_bits(v));
+    param_fp_[k] = fp;
+    for (std::size_t l = 0; l < levels_.size(); ++l) window_fp_[k] ^= window_term(kFpSeed[k], static_cast<int>(l), levels_[l]);
+  }
+}
+
+std::uint64_t Clipmap::window_term(std::uint64_t seed, int level, const Level& L) {
+  if (!L.placed) return 0;
+  return fp_chain(fp_chain(fp_chain(seed, static_cast<std::uint64_t>(level) | std::uint64_t{1} << 32), fp_bits(L.ox)), fp_bits(L.oy));
+}
+
+std::uint64_t Clipmap::slot_term(std::uint64_t seed, int level, std::size_t slot, const Slot& s) {
+  if (s.mask == 0) return 0;
+  std::uint64_t h = fp_chain(seed, static_cast<std::uint64_t>(level) << 40 | slot);
+  h = fp_chain(h, fp_bits(s.tx));
+  h = fp_chain(h, fp_bits(s.ty));
+  return fp_chain(h, s.mask);
+}
+
+bool Clipmap::fingerprint(ResidencyFingerprint& out) const {
+  std::uint64_t h[2];
+  for (int k = 0; k < 2; ++k)
+    h[k] = fp_chain(fp_chain(fp_chain(param_fp_[k], slot_fp_[k]), window_fp_[k]), static_cast<std::uint64_t>(clamp_));
+  out = {h[0], h[1]};
+  return true;
+}
+
+void Clipmap::record_marks(std::vector<std::uint64_t>* out) const {
+  marks_ = out;
+  if (!out) return;
+  if (++mark_epoch_ == 0) {  // the epochs wrapped: forget every slot's
+    for (const Level& L : levels_)
+      for (const Slot& sl : L.slots) sl.marked = 0;
+    mark_epoch_ = 1;
+  }
+}
+
+void Clipmap::apply_marks(const std::vector<std::uint64_t>& marks) const {
+  for (const std::uint64_t m : marks) {
+    const std::size_t l = static_cast<std::size_t>(m >> 40), slot = static_cast<std::size_t>(m & ((std::uint64_t{1} << 40) - 1));
+    if (l >= levels_.size() || slot >= levels_[l].slots.size()) throw std::invalid_argument("clipmap: apply_marks: no such slot");
+    mark(levels_[l], static_cast<int>(l), slot);
+  }
 }
 
 std::size_t Clipmap::slot_index(const Level& L, std::int64_t tx, std::int64_t ty) const {
@@ -160,8 +220,10 @@ int Clipmap::update_windows(std::int64_t gu, std::int64_t gv, int finest_active)
     L.cx = cx;
     L.cy = cy;
     if (!L.placed || ox != L.ox || oy != L.oy) {
+      for (int k = 0; k < 2; ++k) window_fp_[k] ^= window_term(kFpSeed[k], l, L);
       set_window(L, ox, oy);
       L.placed = true;
+      for (int k = 0; k < 2; ++k) window_fp_[k] ^= window_term(kFpSeed[k], l, L);
       recount(L);
       fast_dirty_ = true;
       ++stats_.window_moves;
@@ -220,7 +282,9 @@ bool Clipmap::commit(TileKey key, Evicted* evicted) {
     ++stats_.stale_commits;
     return false;
   }
-  Slot& s = L.slots[slot_index(L, tx, ty)];
+  const std::size_t slot = slot_index(L, tx, ty);
+  Slot& s = L.slots[slot];
+  for (int k = 0; k < 2; ++k) slot_fp_[k] ^= slot_term(kFpSeed[k], l, slot, s);
   if (s.tx != tx || s.ty != ty) {
     if (s.mask) {
       if (evicted) *evicted = Evicted{s.tx, s.ty, s.mask, s.sampled};
@@ -238,6 +302,7 @@ bool Clipmap::commit(TileKey key, Evicted* evicted) {
     s.mask |= bit;
     if (--L.missing == 0) fast_dirty_ = true;
   }
+  for (int k = 0; k < 2; ++k) slot_fp_[k] ^= slot_term(kFpSeed[k], l, slot, s);
   return true;
 }
 
@@ -271,7 +336,7 @@ int Clipmap::resident_level(std::int64_t u, std::int64_t v, int desired_level) c
         }
       if (!ok) continue;
     }
-    if (mark_sampled_) L.slots[window_slot(L, tile_of(ul), tile_of(vl))].sampled = true;
+    if (mark_sampled_) mark(L, l, window_slot(L, tile_of(ul), tile_of(vl)));
     return l;
   }
   return num_levels();
@@ -318,7 +383,7 @@ void Clipmap::resident_levels(const ViewSample* s, std::size_t n, std::int8_t* o
           const std::int64_t tx = tile_of(ul), ty = tile_of(vl);
           if (r != last_l || tx != last_tx || ty != last_ty) {
             const Level& L = levels_[static_cast<std::size_t>(r)];
-            L.slots[window_slot(L, tx, ty)].sampled = true;
+            mark(L, r, window_slot(L, tx, ty));
             last_l = r, last_tx = tx, last_ty = ty;
           }
         }
@@ -393,7 +458,7 @@ void Clipmap::span_resident_levels(const ViewSpan* s, std::size_t n, std::int8_t
           r = -1;
           break;
         }
-        L.slots[window_slot(L, tile_of(a), tile_of(c))].sampled = true;
+        mark(L, l, window_slot(L, tile_of(a), tile_of(c)));
       }
       break;
     }

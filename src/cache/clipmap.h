@@ -125,6 +125,12 @@ class Clipmap final : public IResidency {
   void span_resident_levels(const ViewSpan* s, std::size_t n, std::int8_t* out) const override;
   // When on, resident_level marks the slot it resolves to as sampled (for wasted-upload metrics).
   void set_mark_sampled(bool on) { mark_sampled_ = on; }
+  // IResidency's sharing: the parameters, each level's window, the clamp and every slot's tile
+  // and layers (not the sampled flags, which no lookup reads), O(1): commit keeps the slots'
+  // part and update_windows the windows'. A mark is (level << 40 | slot).
+  bool fingerprint(ResidencyFingerprint& out) const override;
+  void record_marks(std::vector<std::uint64_t>* out) const override;
+  void apply_marks(const std::vector<std::uint64_t>& marks) const override;
 
   struct Stats {
     std::uint64_t window_moves = 0;       // level recentres
@@ -141,6 +147,7 @@ class Clipmap final : public IResidency {
     std::int64_t tx = -1, ty = -1;  // tile held (level coordinates), -1 = none
     std::uint32_t mask = 0;         // resident layers of that tile
     mutable bool sampled = false;
+    mutable std::uint8_t marked = 0;  // == mark_epoch_: already in this recording's marks
   };
   struct Level {
     std::int64_t texels_x = 0, texels_y = 0;  // level size, texels
@@ -168,6 +175,19 @@ class Clipmap final : public IResidency {
     return static_cast<std::size_t>(sy * L.wx + sx);
   }
   void set_window(Level& L, std::int64_t ox, std::int64_t oy);
+  // Marks a slot sampled (and records the mark while record_marks is on).
+  void mark(const Level& L, int level, std::size_t slot) const {
+    const Slot& s = L.slots[slot];
+    s.sampled = true;
+    if (marks_ && s.marked != mark_epoch_) {
+      s.marked = mark_epoch_;
+      marks_->push_back(static_cast<std::uint64_t>(level) << 40 | slot);
+    }
+  }
+  // A slot's share of the fingerprint in lane `seed` (0 for an empty slot).
+  static std::uint64_t slot_term(std::uint64_t seed, int level, std::size_t slot, const Slot& s);
+  // A level's window's share of the fingerprint (0 while unplaced).
+  static std::uint64_t window_term(std::uint64_t seed, int level, const Level& L);
   std::int64_t tile_of(std::int64_t texel) const { return tile_shift_ >= 0 ? texel >> tile_shift_ : texel / p_.tile_size; }
   bool in_window(const Level& L, std::int64_t tx, std::int64_t ty) const;
   void recount(Level& L);
@@ -192,6 +212,11 @@ class Clipmap final : public IResidency {
   int tile_shift_ = -1;  // log2(tile size) when it is a power of two
   std::uint32_t full_mask_ = 1;
   bool mark_sampled_ = false;
+  mutable std::vector<std::uint64_t>* marks_ = nullptr;
+  mutable std::uint8_t mark_epoch_ = 0;  // of the recording under way (1..255; slots start at 0)
+  std::uint64_t param_fp_[2] = {0, 0};  // the parameters, per fingerprint lane
+  std::uint64_t slot_fp_[2] = {0, 0};   // XOR of slot_term over the slots, per lane
+  std::uint64_t window_fp_[2] = {0, 0}; // XOR of window_term over the levels, per lane
   Stats stats_;
 };
 

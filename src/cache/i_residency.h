@@ -4,11 +4,18 @@
 // page table's fallback; both apply the MaxTextureLOD clamp.
 #include <cstddef>
 #include <cstdint>
+#include <vector>
 
 #include "core/view.h"
 #include "core/view_spans.h"
 
 namespace vtsim {
+
+// 128 bits that identify a residency's state (IResidency::fingerprint).
+struct ResidencyFingerprint {
+  std::uint64_t a = 0, b = 0;
+  bool operator==(const ResidencyFingerprint&) const = default;
+};
 
 class IResidency {
  public:
@@ -33,6 +40,19 @@ class IResidency {
     (void)s;
     for (std::size_t i = 0; i < n; ++i) out[i] = -1;
   }
+
+  // Sharing answers between residencies in the same state (a lockstep sweep's runs: most configs
+  // hold the same tiles most frames; sim/run/popin_share.h). fingerprint: true and an identity of
+  // everything the three lookups above read (parameters, windows or page table, resident tiles,
+  // clamp), kept up to date as the state changes, so that equal fingerprints give equal levels
+  // for equal input. Two independent 64-bit Zobrist sums: a false match of two different states
+  // has probability ~2^-128. False (the default): no fingerprint, nothing is shared.
+  virtual bool fingerprint(ResidencyFingerprint& /*out*/) const { return false; }
+  // The lookups' side effect, marking what is sampled, as data: while `out` is set, each mark a
+  // lookup makes appends an id (duplicates possible); apply_marks makes the same marks on a
+  // residency with the same fingerprint. Residencies without a fingerprint ignore both.
+  virtual void record_marks(std::vector<std::uint64_t>* /*out*/) const {}
+  virtual void apply_marks(const std::vector<std::uint64_t>& /*marks*/) const {}
 };
 
 }  // namespace vtsim

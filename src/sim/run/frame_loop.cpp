@@ -6,6 +6,7 @@
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 #include <glm/geometric.hpp>
 #include <glm/gtc/quaternion.hpp>
 
@@ -343,7 +344,30 @@ void SystemRun::commit_uploads(FrameRow& row) {
   }
 }
 
-void SystemRun::step(const FrameView& view) {
+const SpanLevels& SystemRun::popin_levels(const SpanBuffer& spans, PopinShare* share, const ResidencyFingerprint* fp,
+                                          bool marking, SpanLevels& own) {
+  if (!share || !fp) {
+    resident_levels(spans, *system_, own);
+    return own;
+  }
+  if (const PopinShare::Levels* e = share->find(*fp, marking)) {
+    if (marking) system_->apply_marks(e->marks);
+    share->counts().levels_shared.fetch_add(1, std::memory_order_relaxed);
+    return e->levels;
+  }
+  share->counts().levels_resolved.fetch_add(1, std::memory_order_relaxed);
+  marks_.clear();
+  struct Recording {  // stops recording however the lookup ends
+    const IStreamingSystem& s;
+    ~Recording() { s.record_marks(nullptr); }
+  } rec{*system_};
+  if (marking) system_->record_marks(&marks_);
+  resident_levels(spans, *system_, own);
+  share->publish(*fp, marking, own, marks_);
+  return own;
+}
+
+void SystemRun::step(const FrameView& view, PopinShare* share) {
   if (view.fresh) finest_needed_ = finest_level(*view.feedback, num_levels_);
   FrameRow row;
   row.frame = frame_;
@@ -360,16 +384,30 @@ void SystemRun::step(const FrameView& view) {
   uploads_.clear();
   pipe_->take_uploads(budget_, uploads_);
   // Pop-in is measured on what the screen samples before and after this frame's commits.
+  // With a share, runs in the same state (equal fingerprints) resolve the spans once.
   const SpanBuffer& mb = *view.popin;
-  if (view.measured && !uploads_.empty()) {
+  if (share && share->spans() != &mb) throw std::logic_error("SystemRun::step: the pop-in share is not on this frame's spans");
+  const bool has_before = view.measured && !uploads_.empty();
+  ResidencyFingerprint fp_before, fp_after;
+  const bool shared_before = share && has_before && system_->fingerprint(fp_before);
+  const SpanLevels* before = nullptr;
+  if (has_before) {
     system_->set_mark_sampled(false);
-    resident_levels(mb, *system_, lv_before_);
+    before = &popin_levels(mb, share, shared_before ? &fp_before : nullptr, false, lv_before_);
   }
   commit_uploads(row);
   if (view.measured) {
     system_->set_mark_sampled(true);
-    resident_levels(mb, *system_, lv_after_);
-    const PopinFrame pf = popin_stats(mb, lv_after_, uploads_.empty() ? nullptr : &lv_before_, num_levels_);
+    const bool shared_after = share && system_->fingerprint(fp_after);
+    const SpanLevels& after = popin_levels(mb, share, shared_after ? &fp_after : nullptr, true, lv_after_);
+    const bool share_frame = shared_after && (!has_before || shared_before);
+    PopinFrame pf;
+    if (share_frame && share->find_frame(has_before, fp_before, fp_after, num_levels_, pf)) {
+      share->counts().frames_shared.fetch_add(1, std::memory_order_relaxed);
+    } else {
+      pf = popin_stats(mb, after, before, num_levels_);
+      if (share_frame) share->publish_frame(has_before, fp_before, fp_after, num_levels_, pf);
+    }
     row.measured = true;
     row.samples = static_cast<std::uint32_t>(pf.samples);
     row.blurry = static_cast<std::uint32_t>(pf.blurry);

@@ -25,6 +25,7 @@
 #include "core/view_spans.h"
 #include "sim/run/metrics.h"
 #include "sim/run/popin.h"
+#include "sim/run/popin_share.h"
 #include "sim/run/replay_config.h"
 #include "stream/exec/i_executor.h"
 #include "stream/exec/pipeline.h"
@@ -179,8 +180,11 @@ class SystemRun {
 
   // Frame f starts at `now`: completions up to it are collected.
   void begin_frame(int f, Ticks now);
-  // The rest of frame f on its view (after begin_frame(f, ...)).
-  void step(const FrameView& view);
+  // The rest of frame f on its view (after begin_frame(f, ...)). `share` (optional; its
+  // begin_frame called with view.popin): pop-in resolved by another run in the same state this
+  // frame is copied from it, and this run's is offered to the next (popin_share.h). The run's
+  // results are the same with or without it.
+  void step(const FrameView& view, PopinShare* share = nullptr);
   // The summary of the frames stepped so far (docs/metrics.md); moves the metrics out.
   ReplayResult summarize(const RunCost& cost);
 
@@ -188,6 +192,10 @@ class SystemRun {
   glm::dvec3 motion(int f, FrameRow& row);
   void throttle(const glm::dvec3& velocity, const FrameView& view, FrameRow& row);
   void commit_uploads(FrameRow& row);
+  // The resident levels of the pop-in spans now, into `own` or from the share's entry of the same
+  // state; `marking`: the lookup marks what it samples (applied from the entry on a share).
+  const SpanLevels& popin_levels(const SpanBuffer& spans, PopinShare* share, const ResidencyFingerprint* fp, bool marking,
+                                 SpanLevels& own);
   double service_Bps() const;
   void add_cache_bounds(nlohmann::json& summary) const;
 
@@ -215,6 +223,7 @@ class SystemRun {
   bool in_turn_ = false;
   bool cut_ = true;  // the first frame has no predecessor: treat it as a cut
   SpanLevels lv_before_, lv_after_;
+  std::vector<std::uint64_t> marks_;  // popin_levels: the marks of a lookup offered to a share
   std::vector<Need> needs_;
   std::vector<UploadItem> uploads_;
   std::vector<std::uint64_t> missing_;

@@ -88,6 +88,8 @@ class ViewRing {
     next_[ci] = j + 1;
     return v;
   }
+  // The pop-in share of the spans consumer c holds (after frame(c, ...)).
+  PopinShare& share(int c) { return slots_[static_cast<std::size_t>(held_[static_cast<std::size_t>(c)]) % slots_.size()].share; }
   // Consumer c is done with the buffers it holds (after its last frame).
   void release(int c) {
     const auto ci = static_cast<std::size_t>(c);
@@ -100,6 +102,7 @@ class ViewRing {
  private:
   struct Slot {
     SpanBuffer feedback, popin;
+    PopinShare share;  // the runs' pop-in on these spans, shared across consumers
     std::atomic<int> refs{0};
     std::atomic<std::int64_t> ready{-1};  // the render the slot holds; kFailed: it threw
   };
@@ -141,6 +144,7 @@ class ViewRing {
       const Camera cam = make_camera(pose, plan_.trace.image_width, plan_.trace.image_height);
       scene_.render_spans(cam, vp_, s.feedback);
       if (separate_popin_) scene_.render_spans(cam, pp_, s.popin);
+      s.share.begin_frame(separate_popin_ ? &s.popin : &s.feedback);
     } catch (const std::exception& e) {
       error_ = e.what();
       s.ready.store(kFailed, std::memory_order_release);
@@ -197,19 +201,41 @@ std::vector<LockstepResult> run_lockstep(const std::vector<const ReplayConfig*>&
   if (block_shift < 0) return out;  // no run could start
 
   // One run's frame; an exception stops that run alone (its row says why).
-  const auto step = [&](std::size_t i, int f, const FrameView& v) {
+  const auto step = [&](std::size_t i, int f, const FrameView& v, PopinShare& share) {
     if (!runs[i] || !out[i].error.empty()) return;
     try {
       runs[i]->begin_frame(f, plan.target(f));
-      runs[i]->step(v);
+      runs[i]->step(v, &share);
     } catch (const std::exception& e) {
       out[i].error = e.what();
     }
+  };
+  // A run's row once its frames are done (on its consumer's thread: the summaries' sorts run in
+  // parallel too).
+  const auto finish = [&](std::size_t i) {
+    if (!runs[i] || !out[i].error.empty()) {
+      out[i].ok = false;
+      runs[i].reset();
+      return;
+    }
+    try {
+      ReplayResult r = runs[i]->summarize(RunCost{});
+      // The run's cost and the build are not the row's: sweep.json records the build once
+      // (docs/sweep.md), so rows stay byte-identical across builds and machines.
+      r.summary.erase("run");
+      r.summary.erase("provenance");
+      out[i].summary = std::move(r.summary);
+      out[i].ok = true;
+    } catch (const std::exception& e) {
+      out[i].error = e.what();
+    }
+    runs[i].reset();
   };
   const int consumers = std::max(1, std::min<int>(threads, static_cast<int>(cfgs.size())));
   if (threads <= 1) {
     // One thread: the view rendered in the loop, as run_replay with view.render_threads = 0.
     ViewStream view(*cfgs[0], plan, scene, block_shift, keep, 0);
+    PopinShare share;
     for (int f = 0; f < plan.frames; ++f) {
       bool any_keep = false, any_samples = false;
       std::size_t live = 0;
@@ -222,7 +248,8 @@ std::vector<LockstepResult> run_lockstep(const std::vector<const ReplayConfig*>&
       if (live == 0) break;
       const FrameView& v = view.frame(f, any_keep);
       if (any_samples) materialise_samples(*v.feedback);  // once, before the runs read them
-      for (std::size_t i = 0; i < runs.size(); ++i) step(i, f, v);
+      share.begin_frame(v.popin);
+      for (std::size_t i = 0; i < runs.size(); ++i) step(i, f, v, share);
       if (frames_done) frames_done->fetch_add(live, std::memory_order_relaxed);
     }
   } else {
@@ -239,11 +266,12 @@ std::vector<LockstepResult> run_lockstep(const std::vector<const ReplayConfig*>&
         try {
           for (int f = 0; f < plan.frames; ++f) {
             const FrameView& v = ring.frame(c, f);
+            PopinShare& share = ring.share(c);  // every consumer's runs on these spans
             std::uint64_t live = 0;
             for (std::size_t i : mine) {
               if (runs[i] && runs[i]->system().wants_samples() && !v.feedback->has_samples)
                 out[i].error = "internal: a run reads samples the shared view did not render";
-              step(i, f, v);
+              step(i, f, v, share);
               live += runs[i] && out[i].error.empty() ? 1 : 0;
             }
             if (frames_done) frames_done->fetch_add(live, std::memory_order_relaxed);
@@ -253,27 +281,12 @@ std::vector<LockstepResult> run_lockstep(const std::vector<const ReplayConfig*>&
             if (out[i].error.empty()) out[i].error = e.what();
         }
         ring.release(c);
+        for (std::size_t i : mine) finish(i);
       });
     for (auto& t : pool) t.join();
   }
-  for (std::size_t i = 0; i < runs.size(); ++i) {
-    if (!runs[i] || !out[i].error.empty()) {
-      out[i].ok = false;
-      runs[i].reset();
-      continue;
-    }
-    try {
-      ReplayResult r = runs[i]->summarize(RunCost{});
-      // The run's cost and the build are not the row's: sweep.json records the build once
-      // (docs/sweep.md), so rows stay byte-identical across builds and machines.
-      r.summary.erase("run");
-      r.summary.erase("provenance");
-      out[i].summary = std::move(r.summary);
-      out[i].ok = true;
-    } catch (const std::exception& e) {
-      out[i].error = e.what();
-    }
-  }
+  if (threads <= 1)
+    for (std::size_t i = 0; i < runs.size(); ++i) finish(i);
   return out;
 }
 

@@ -49,6 +49,9 @@ class ClipmapSystem final : public IStreamingSystem {
   std::uint32_t throttled_needs() const override { return throttled_; }
   bool commit(TileKey key, int frame) override;
   void set_mark_sampled(bool on) override { cm_.set_mark_sampled(on); }
+  bool fingerprint(ResidencyFingerprint& out) const override { return cm_.fingerprint(out); }
+  void record_marks(std::vector<std::uint64_t>* out) const override { cm_.record_marks(out); }
+  void apply_marks(const std::vector<std::uint64_t>& marks) const override { cm_.apply_marks(marks); }
   nlohmann::json stats_json() const override;
   std::uint64_t vram_evictions() const override { return cm_.stats().vram_evictions; }
   std::uint64_t vram_thrash() const override { return thrash_; }

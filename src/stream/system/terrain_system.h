@@ -102,6 +102,9 @@ class TerrainSystem final : public IStreamingSystem {
   bool full_tile_work(ProduceWork& work) const override;
   bool tile_sizes(TileKey key, std::uint64_t& disk_bytes, std::uint64_t& decoded_bytes) const override;
   void set_mark_sampled(bool on) override { cm_.set_mark_sampled(on); }
+  bool fingerprint(ResidencyFingerprint& out) const override { return cm_.fingerprint(out); }
+  void record_marks(std::vector<std::uint64_t>* out) const override { cm_.record_marks(out); }
+  void apply_marks(const std::vector<std::uint64_t>& marks) const override { cm_.apply_marks(marks); }
   std::vector<std::string> frame_counter_names() const override;
   void frame_counters(SystemCounters& out) const override;
   nlohmann::json stats_json() const override;
