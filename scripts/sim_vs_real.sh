@@ -35,11 +35,9 @@ if [ "$system" = terrain ]; then
   "$vtsim" replay --clock real --trace "$out/calib_walk.csv" "${common[@]}" --produce-samples "$out/calib_tiles.csv" \
     --summary "$out/calib.real.json"
   "$vtsim" calibrate --samples "$out/calib_tiles.csv" -o "$out/profile.toml" -q
-  # The profile's [produce] keys as --set (the terrain's own config is the --config).
-  fitted=()
-  while IFS= read -r kv; do fitted+=(--set "produce.$kv"); done < <(sed -n '/^\[produce\]/,$p' "$out/profile.toml" |
-    sed -n 's/^\([a-z_]*\) = \([0-9.eE+-]*\).*/\1=\2/p')
-  "$vtsim" replay --clock sim --trace "$here/traces/walk.csv" "${common[@]}" "${fitted[@]}" --summary "$out/walk.sim.json"
+  # The fitted profile read after the terrain's own config (its [produce] keys override).
+  "$vtsim" replay --clock sim --trace "$here/traces/walk.csv" "${common[@]}" --config "$out/profile.toml" \
+    --summary "$out/walk.sim.json"
   for i in $(seq 1 "$runs"); do
     "$vtsim" replay --clock real --trace "$here/traces/walk.csv" "${common[@]}" --summary "$out/walk.real.$i.json"
   done

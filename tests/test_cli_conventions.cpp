@@ -253,3 +253,28 @@ TEST_CASE("cli: --config - reads the config from stdin (errors name '-'), and vi
   CHECK(v["tiles"]["touched"].get<std::size_t>() > 0);
   CHECK(v["levels"].size() > 0);
 }
+
+TEST_CASE("cli: --config is repeatable, files read in order, a later file's keys overriding; stdin once") {
+  const std::string a = conv_tmp("a.toml"), b = conv_tmp("b.toml");
+  std::ofstream(a) << "[upload]\ntiles_per_frame = 3\n[view]\ndivisor = 16\n";
+  std::ofstream(b) << "[upload]\ntiles_per_frame = 7\n";
+  const auto ab = conv_sh("$V replay -c " + a + " -c " + b + " --print-config");
+  CHECK(ab.code == 0);
+  CHECK(vtsim::test::contains(ab.out, "upload.tiles_per_frame = 7 "));
+  CHECK(vtsim::test::contains(ab.out, "view.divisor = 16 "));  // a key only the first file sets stays
+  const auto ba = conv_sh("$V replay -c " + b + " -c " + a + " --print-config");
+  CHECK(vtsim::test::contains(ba.out, "upload.tiles_per_frame = 3 "));
+  // One of them from stdin; an error in it names "-" and its line.
+  const auto dash = conv_sh("$V replay -c - -c " + b + " --print-config < " + a);
+  CHECK(dash.code == 0);
+  CHECK(vtsim::test::contains(dash.out, "view.divisor = 16 "));
+  const auto bad = conv_sh("printf \"[upload]\\ntiles_per_frame = x\\n\" | $V replay -c " + a + " -c - --print-config");
+  CHECK(bad.code == 2);
+  CHECK(vtsim::test::contains(bad.err, "vtsim: error: -:2: "));
+  const auto twice = conv_sh("$V replay -c - -c - --print-config < " + a);
+  CHECK(twice.code == 2);
+  CHECK(vtsim::test::contains(twice.err, "--config: - (stdin) given twice"));
+  // One value per --config: a second path without the flag is not taken as a config.
+  const auto two = conv_sh("$V replay -c " + a + " " + b + " --print-config");
+  CHECK(two.code != 0);
+}

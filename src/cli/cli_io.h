@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "core/error.h"
 
@@ -57,5 +58,24 @@ auto with_input(const std::string& path, F&& f) {
   }
 }
 
+// with_input over several paths, of which at most one is "-" (stdin): f(paths) with "-" readable
+// as a file. Throws InputError(`option`, ...) when "-" appears twice or `stdin_taken` (another
+// option already reads stdin) and one is "-".
+template <class F>
+auto with_inputs(const std::vector<std::string>& paths, const std::string& option, bool stdin_taken, F&& f) {
+  std::size_t dash = paths.size();
+  for (std::size_t i = 0; i < paths.size(); ++i)
+    if (paths[i] == "-") {
+      if (dash != paths.size()) throw InputError(option, "- (stdin) given twice");
+      if (stdin_taken) throw InputError(option, "- and another option cannot both read stdin");
+      dash = i;
+    }
+  if (dash == paths.size()) return f(paths);
+  return with_input("-", [&](const std::string& p) {
+    std::vector<std::string> with = paths;
+    with[dash] = p;
+    return f(with);
+  });
+}
 
 }  // namespace vtsim::cli

@@ -38,7 +38,7 @@ struct CapacityArgs {
   double overdraw = 3.0, redundancy = 1.0, texels_per_pixel = 1.0;
   bool seed_check = false;
   // terrain
-  std::string config;
+  std::vector<std::string> configs;
   std::vector<std::string> sets;
   std::string camera;
 };
@@ -224,8 +224,8 @@ std::uint64_t brush_mip_bytes_of(const TerrainConfig& t, int m) {
 
 void run_terrain_capacity(const CapacityArgs& a) {
   std::vector<std::string> sets = a.sets;
-  const ReplayConfig cfg = a.config.empty() ? load_replay_config("", sets, "terrain")
-                                             : with_input(a.config, [&](const std::string& p) { return load_replay_config(p, sets, "terrain"); });
+  const ReplayConfig cfg =
+      with_inputs(a.configs, "--config", false, [&](const std::vector<std::string>& p) { return load_replay_config(p, sets, "terrain"); });
   const TerrainConfig& t = cfg.terrain;
   const double world_x = t.sector_m * t.sectors_x, world_y = t.sector_m * t.sectors_y;
   // The camera in world metres (default: the terrain's centre, a sector corner with an even count).
@@ -322,8 +322,8 @@ void run_terrain_capacity(const CapacityArgs& a) {
 }
 
 void run_capacity(const CapacityArgs& a) {
-  if (a.system != "terrain" && (!a.config.empty() || !a.sets.empty() || !a.camera.empty()))
-    throw InputError(!a.config.empty() ? "--config" : !a.sets.empty() ? "--set" : "--camera", "only with --system terrain");
+  if (a.system != "terrain" && (!a.configs.empty() || !a.sets.empty() || !a.camera.empty()))
+    throw InputError(!a.configs.empty() ? "--config" : !a.sets.empty() ? "--set" : "--camera", "only with --system terrain");
   if (a.system == "vt") {
     run_vt_capacity(a);
     return;
@@ -411,7 +411,8 @@ void register_capacity_commands(CLI::App& app) {
   c->add_option("--redundancy", a->redundancy, "vt: screen-sized textures of cache slack (Yao 2011 §2: 6)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
   c->add_option("--texels-per-pixel", a->texels_per_pixel, "vt: texels per pixel at the desired level (Yao 2011 §2: 1)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
   c->add_flag("--seed-check", a->seed_check, "vt: recompute Yao 2011's arithmetic (§2, §3, §5)");
-  c->add_option("--config,-c", a->config, "terrain: TOML config file (docs/config.md; e.g. docs/examples/terrain.toml)");
+  c->add_option("--config,-c", a->configs, "terrain: TOML config file (docs/config.md; e.g. docs/examples/terrain.toml); repeatable: files read in order, a later one overriding an earlier one's keys")
+      ->allow_extra_args(false);
   c->add_option("--set", a->sets, "terrain: override one config key (repeatable)");
   c->add_option("--camera", a->camera, "terrain: camera X,Y, m (default: the terrain's centre)");
   c->callback([a] { run_capacity(*a); });

@@ -2,6 +2,7 @@
 // (SHARDS), with its knee (docs/cache.md, "Miss-ratio curves").
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
@@ -33,7 +34,8 @@ namespace {
 struct MrcArgs {
   std::string accesses;
   // Or a replay whose accesses are recorded (sim/run/replay.h, record_accesses):
-  std::string trace, config, system, level, record;
+  std::string trace, system, level, record;
+  std::vector<std::string> configs;
   std::vector<std::string> sets;
   bool opt = false, allow_repairs = false;
   std::string unit;  // empty: pages for an access file; a replay's level sets its own
@@ -148,8 +150,8 @@ void run_mrc(const MrcArgs& a) {
   if (a.accesses.empty() == a.trace.empty())
     throw InputError(a.trace.empty() ? "--accesses" : "--trace",
                      "give either an access file (--accesses) or a replay to record (--trace, with --config/--set)");
-  if (a.trace.empty() && (!a.level.empty() || !a.config.empty() || !a.sets.empty() || !a.system.empty()))
-    throw InputError(!a.level.empty() ? "--level" : !a.config.empty() ? "--config" : !a.sets.empty() ? "--set" : "--system",
+  if (a.trace.empty() && (!a.level.empty() || !a.configs.empty() || !a.sets.empty() || !a.system.empty()))
+    throw InputError(!a.level.empty() ? "--level" : !a.configs.empty() ? "--config" : !a.sets.empty() ? "--set" : "--system",
                      "configures a replay to record: give --trace");
   if (!a.trace.empty() && !a.unit.empty())
     throw InputError("--unit", "a replay's level sets the unit (--level pool: pages, --level ram: bytes)");
@@ -160,8 +162,10 @@ void run_mrc(const MrcArgs& a) {
   AccessLog log;
   std::string source = a.accesses;
   if (!a.trace.empty()) {
-    if (a.config == "-" && a.trace == "-") throw InputError("--config", "--config - and --trace - cannot both read stdin");
-    const ReplayConfig cfg = with_input(a.config, [&](const std::string& p) { return load_replay_config(p, a.sets, a.system); });
+    if (std::find(a.configs.begin(), a.configs.end(), "-") != a.configs.end() && a.trace == "-")
+      throw InputError("--config", "--config - and --trace - cannot both read stdin");
+    const ReplayConfig cfg = with_inputs(a.configs, "--config", false,
+                                         [&](const std::vector<std::string>& p) { return load_replay_config(p, a.sets, a.system); });
     const Trace trace = load_cli_trace(a.trace, a.allow_repairs);
     std::string level = a.level.empty() ? (cfg.run.system == "vt" ? "pool" : "ram") : a.level;
     if (level != "ram" && level != "pool") throw InputError("--level", fmt::format("'{}' is not ram or pool", level));
@@ -203,7 +207,7 @@ void register_mrc_commands(CLI::App& app) {
                                       "SHARDS sampling, with its knee (docs/cache.md)");
   c->add_option("--accesses", a->accesses, "access file: 'key [size]' per line, keys decimal or 0x-hex, '#' comments (- for stdin)");
   c->add_option("--trace,-t", a->trace, "or record a simulated replay of this trace (with --config, --set, --system)");
-  c->add_option("--config,-c", a->config, "replay: TOML config file (docs/config.md; - for stdin)");
+  c->add_option("--config,-c", a->configs, "replay: TOML config file (docs/config.md; - for stdin); repeatable: files read in order, a later one overriding an earlier one's keys")->allow_extra_args(false);
   c->add_option("--set", a->sets, "replay: override one config key (repeatable)");
   c->add_option("--system", a->system, "replay: " + streaming_systems().names(" | ") + " (overrides run.system)");
   c->add_option("--level", a->level, "replay: ram (bytes) | pool (VT pages); default pool for vt, ram otherwise");

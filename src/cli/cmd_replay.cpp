@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <optional>
@@ -26,7 +27,7 @@ namespace {
 
 struct ReplayArgs {
   std::string trace;
-  std::string config;
+  std::vector<std::string> configs;
   std::vector<std::string> sets;
   std::string system;
   std::string clock = "sim";
@@ -160,8 +161,10 @@ std::string format_summary(const nlohmann::json& s) {
 void run_replay_command(const ReplayArgs& a) {
   std::vector<std::string> sets = a.sets;
   if (a.opt) sets.push_back("metrics.opt=true");
-  if (a.config == "-" && a.trace == "-") throw InputError("--config", "--config - and --trace - cannot both read stdin");
-  ReplayConfig cfg = with_input(a.config, [&](const std::string& p) { return load_replay_config(p, sets, a.system); });
+  const bool config_stdin = std::find(a.configs.begin(), a.configs.end(), "-") != a.configs.end();
+  if (config_stdin && a.trace == "-") throw InputError("--config", "--config - and --trace - cannot both read stdin");
+  ReplayConfig cfg =
+      with_inputs(a.configs, "--config", false, [&](const std::vector<std::string>& p) { return load_replay_config(p, sets, a.system); });
   if (a.print_config) {
     fmt::print("{}", replay_config_table().dump(cfg));
     return;
@@ -246,7 +249,7 @@ void register_replay_commands(CLI::App& app) {
   auto a = std::make_shared<ReplayArgs>();
   auto* c = app.add_subcommand("replay", "Replay a camera trace through a streaming system; print and write metrics");
   c->add_option("--trace,-t", a->trace, "camera trace (native CSV, or TUM / EuRoC / KITTI, see docs/traces.md; - for stdin)");
-  c->add_option("--config,-c", a->config, "TOML config file (docs/config.md; - for stdin)");
+  c->add_option("--config,-c", a->configs, "TOML config file (docs/config.md; - for stdin); repeatable: files read in order, a later one overriding an earlier one's keys")->allow_extra_args(false);
   c->add_option("--set", a->sets, "override one config key: --set upload.tiles_per_frame=8 (repeatable)");
   c->add_option("--system", a->system, streaming_systems().names(" | ") + " (overrides run.system)");
   c->add_option("--clock", a->clock, "sim (device models, deterministic) | real (IO and decode threads on --store, or the terrain's production "

@@ -22,7 +22,7 @@ namespace {
 struct VtCompareArgs {
   std::vector<std::string> traces;  // empty: the installed traces (default_traces_dir)
   std::string policies = throttle_policies().names(",");  // all of them
-  std::string config;
+  std::vector<std::string> configs;
   std::vector<std::string> sets;
   std::string markdown, json_file;
   bool quiet = false, json = false, allow_repairs = false;
@@ -94,7 +94,7 @@ void run_compare(const VtCompareArgs& a) {
     throw InputError("--json", "prints to stdout already: give --markdown / --json-file a file");
   const auto files = trace_files(a.traces.empty() ? std::vector<std::string>{default_traces_dir()} : a.traces);
   // The shared budget: one config for every run, the policy the only difference.
-  ReplayConfig base = load_replay_config(a.config, a.sets, "vt");
+  ReplayConfig base = load_replay_config(a.configs, a.sets, "vt");
   if (base.run.system != "vt")  // --set run.system=... comes after the command's own "vt"
     throw InputError("config", "field 'run.system': vt compare replays the vt system, not '" + base.run.system + "'");
   nlohmann::json rows = nlohmann::json::array();
@@ -105,7 +105,7 @@ void run_compare(const VtCompareArgs& a) {
     for (const auto& policy : policies) {
       std::vector<std::string> sets = a.sets;
       sets.push_back("throttle.policy=" + policy);
-      const ReplayConfig cfg = load_replay_config(a.config, sets, "vt");
+      const ReplayConfig cfg = load_replay_config(a.configs, sets, "vt");
       if (!a.quiet) fmt::print(stderr, "\r{:<60}", fmt::format("{} / {}", name, policy));
       const ReplayResult r = run_replay(cfg, trace, *scene);
       const auto& s = r.summary;
@@ -193,7 +193,7 @@ void register_vt_commands(CLI::App& app) {
   c->add_option("--traces", a->traces,
                 "trace files or directories of *.csv (default: the standard traces installed beside vtsim, share/vtsim/traces)");
   c->add_option("--policies", a->policies, "comma-separated throttle policies")->capture_default_str();
-  c->add_option("--config,-c", a->config, "TOML config file shared by every run (docs/config.md)");
+  c->add_option("--config,-c", a->configs, "TOML config file shared by every run (docs/config.md); repeatable: files read in order, a later one overriding an earlier one's keys")->allow_extra_args(false);
   c->add_option("--set", a->sets, "override one config key for every run (repeatable)");
   c->add_option("--markdown", a->markdown, "write the table here (- for stdout)");
   c->add_option("--json-file", a->json_file, "write every run's figures as JSON here (- for stdout)");

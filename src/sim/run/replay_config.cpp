@@ -344,9 +344,15 @@ namespace vtsim {
 
 ReplayConfig load_replay_config(const std::string& config_path, const std::vector<std::string>& sets,
                                 const std::string& system) {
+  return load_replay_config(config_path.empty() ? std::vector<std::string>{} : std::vector<std::string>{config_path}, sets, system);
+}
+
+ReplayConfig load_replay_config(const std::vector<std::string>& config_paths, const std::vector<std::string>& sets,
+                                const std::string& system) {
   ReplayConfig cfg;
   const auto& table = replay_config_table();
-  if (!config_path.empty()) load_toml_file(table, cfg, config_path);
+  for (const std::string& p : config_paths)
+    if (!p.empty()) load_toml_file(table, cfg, p);
   if (!system.empty()) table.set(cfg, "run.system", ConfigValue{system}, "--system");
   for (const auto& s : sets) apply_set(table, cfg, s);
   validate(cfg);

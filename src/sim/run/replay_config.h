@@ -135,6 +135,10 @@ void validate(const ReplayConfig& c);
 // each "key=value" of `sets` in order; validated. Throws InputError naming the file/line or key.
 ReplayConfig load_replay_config(const std::string& config_path, const std::vector<std::string>& sets,
                                 const std::string& system = "");
+// The same with several TOML files, read in order: a key a later file sets overrides an earlier
+// file's (a profile, then a scene's config). Validated once, after everything.
+ReplayConfig load_replay_config(const std::vector<std::string>& config_paths, const std::vector<std::string>& sets,
+                                const std::string& system = "");
 
 // docs/config.md's reference: the table of every key (default and why), then each extension
 // point's table (systems, scenes, policies, disk presets, codecs) with its entries' whys.
