@@ -254,7 +254,7 @@ TEST_CASE("cli: --config - reads the config from stdin (errors name '-'), and vi
   CHECK(v["levels"].size() > 0);
 }
 
-TEST_CASE("cli: --config is repeatable, files read in order, a later file's keys overriding; stdin once") {
+TEST_CASE("cli: --config is repeatable, files read in order, a later file's keys overriding, stdin once") {
   const std::string a = conv_tmp("a.toml"), b = conv_tmp("b.toml");
   std::ofstream(a) << "[upload]\ntiles_per_frame = 3\n[view]\ndivisor = 16\n";
   std::ofstream(b) << "[upload]\ntiles_per_frame = 7\n";
