@@ -352,10 +352,10 @@ const SpanLevels& SystemRun::popin_levels(const SpanBuffer& spans, PopinShare* s
   }
   if (const PopinShare::Levels* e = share->find(*fp, marking)) {
     if (marking) system_->apply_marks(e->marks);
-    share->counts().levels_shared.fetch_add(1, std::memory_order_relaxed);
+    ++share_counts_.levels_shared;
     return e->levels;
   }
-  share->counts().levels_resolved.fetch_add(1, std::memory_order_relaxed);
+  ++share_counts_.levels_resolved;
   marks_.clear();
   struct Recording {  // stops recording however the lookup ends
     const IStreamingSystem& s;
@@ -403,7 +403,7 @@ void SystemRun::step(const FrameView& view, PopinShare* share) {
     const bool share_frame = shared_after && (!has_before || shared_before);
     PopinFrame pf;
     if (share_frame && share->find_frame(has_before, fp_before, fp_after, num_levels_, pf)) {
-      share->counts().frames_shared.fetch_add(1, std::memory_order_relaxed);
+      ++share_counts_.frames_shared;
     } else {
       pf = popin_stats(mb, after, before, num_levels_);
       if (share_frame) share->publish_frame(has_before, fp_before, fp_after, num_levels_, pf);

@@ -185,6 +185,8 @@ class SystemRun {
   // frame is copied from it, and this run's is offered to the next (popin_share.h). The run's
   // results are the same with or without it.
   void step(const FrameView& view, PopinShare* share = nullptr);
+  // What this run's steps took from their shares and offered to them.
+  const PopinShare::Counts& popin_share_counts() const { return share_counts_; }
   // The summary of the frames stepped so far (docs/metrics.md); moves the metrics out.
   ReplayResult summarize(const RunCost& cost);
 
@@ -224,6 +226,7 @@ class SystemRun {
   bool cut_ = true;  // the first frame has no predecessor: treat it as a cut
   SpanLevels lv_before_, lv_after_;
   std::vector<std::uint64_t> marks_;  // popin_levels: the marks of a lookup offered to a share
+  PopinShare::Counts share_counts_;
   std::vector<Need> needs_;
   std::vector<UploadItem> uploads_;
   std::vector<std::uint64_t> missing_;

@@ -33,9 +33,11 @@ class PopinShare {
     SpanLevels levels;
     std::vector<std::uint64_t> marks;   // distinct, in the lookup's order
   };
+  // What a run took from shares and offered to them (SystemRun::popin_share_counts; kept per run,
+  // not here, so that threads write no shared line per lookup).
   struct Counts {
-    std::atomic<std::uint64_t> levels_shared{0}, levels_resolved{0};  // lookups copied, or resolved and published
-    std::atomic<std::uint64_t> frames_shared{0};                      // PopinFrames copied
+    std::uint64_t levels_shared = 0, levels_resolved = 0;  // lookups copied, or resolved and published
+    std::uint64_t frames_shared = 0;                       // PopinFrames copied
   };
 
   // New spans: the entries are forgotten (storage is reused). Not concurrent with anything.
@@ -54,8 +56,6 @@ class PopinShare {
   void publish_frame(bool has_before, const ResidencyFingerprint& before, const ResidencyFingerprint& after, int num_levels,
                      const PopinFrame& f);
 
-  Counts& counts() { return counts_; }
-
  private:
   struct FrameEntry {
     bool has_before;
@@ -69,7 +69,6 @@ class PopinShare {
   std::atomic<std::size_t> used_{0};
   std::vector<FrameEntry> frames_;   // [0, frames_used_) published; kMaxEntries long
   std::atomic<std::size_t> frames_used_{0};
-  Counts counts_;
 };
 
 }  // namespace vtsim
