@@ -18,16 +18,10 @@ inline std::int64_t floor_div(std::int64_t a, std::int64_t b) {
 inline std::int64_t floor_mod(std::int64_t a, std::int64_t b) { return a - floor_div(a, b) * b; }
 inline std::int64_t ceil_div(std::int64_t a, std::int64_t b) { return (a + b - 1) / b; }
 
-// Fingerprint lanes (IResidency::fingerprint): values chained through SplitMix64's finaliser
-// (Steele, Lea & Flood 2014), one seed per lane.
+// Fingerprint lanes (IResidency::fingerprint): values chained through a SplitMix64 step (Steele,
+// Lea & Flood 2014: the golden-ratio increment, then mix64's finaliser), one seed per lane.
 constexpr std::uint64_t kFpSeed[2] = {0x6a09e667f3bcc908ULL, 0xbb67ae8584caa73bULL};
-inline std::uint64_t fp_chain(std::uint64_t h, std::uint64_t v) {
-  std::uint64_t x = h ^ v;
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
+inline std::uint64_t fp_chain(std::uint64_t h, std::uint64_t v) { return mix64((h ^ v) + 0x9e3779b97f4a7c15ULL); }
 inline std::uint64_t fp_bits(std::int64_t v) { return static_cast<std::uint64_t>(v); }
 
 }  // namespace
