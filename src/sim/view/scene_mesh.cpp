@@ -34,6 +34,9 @@ constexpr double kNearFlagFraction = 1.0 / 1024.0;
 // its chunk's box only by rounding (a few ulps, far more for a sliver whose plane equation
 // cancels); 2^-20 leaves 2^32 ulps.
 constexpr double kOccludeMargin = 0x1p-20;
+// Ray-box tests one box's occlusion test may make before it calls the box visible: a far box's
+// rectangle holds a few dozen samples at divisor 8, and a box whose rays miss that many is rare.
+constexpr int kMaxReachTests = 64;
 
 std::uint32_t spread_bits10(std::uint32_t x) {  // 10 bits -> every third bit (Morton)
   x &= 0x3ffu;
@@ -595,6 +598,25 @@ struct Scratch {
       }
     return true;
   }
+
+  // all_nearer, where a sample that is not nearer counts only if `reaches(x, y)` (a superset test:
+  // may the tested box cover that sample?). After kMaxReachTests such tests it gives up (false).
+  template <class Reaches>
+  bool all_nearer_where(int x0, int x1, int y0, int y1, double bound, const Reaches& reaches) {
+    int tests = 0;
+    for (int ty = y0 >> kTileShift; ty <= y1 >> kTileShift; ++ty)
+      for (int tx = x0 >> kTileShift; tx <= x1 >> kTileShift; ++tx) {
+        if (tile_least(tx, ty) > bound) continue;
+        const int xa = std::max(x0, tx << kTileShift), xb = std::min(x1, (tx << kTileShift) + kTile - 1);
+        const int ya = std::max(y0, ty << kTileShift), yb = std::min(y1, (ty << kTileShift) + kTile - 1);
+        for (int y = ya; y <= yb; ++y) {
+          const double* row = invz.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(bw);
+          for (int x = xa; x <= xb; ++x)
+            if (!(row[x] > bound) && (++tests > kMaxReachTests || reaches(x, y))) return false;
+        }
+      }
+    return true;
+  }
 };
 
 // The render scratch of this thread (reused: no allocation after warm-up).
@@ -802,7 +824,30 @@ struct DepthPass {
     int x0, x1, y0, y1;
     sample_range(X0, X1, div, bw, x0, x1);
     sample_range(Y0, Y1, div, bh, y0, y1);
-    return s.all_nearer(x0, x1, y0, y1, (1.0 / zmin) * (1.0 + kOccludeMargin));
+    // A sample of the rectangle that is not nearer (most often sky beside or above the box: the
+    // rectangle of a wide box seen from a street holds far more than the box's hexagon) counts
+    // only if its ray meets the box (slab test, Kay & Kajiya 1986): a triangle in the box covers a
+    // sample only if the sample's ray meets the triangle. The box grows by 2^-20 of its distance
+    // and size, far beyond the rounding of the rasteriser's projections.
+    const glm::dvec3 far_corner = glm::max(glm::abs(lo - o), glm::abs(hi - o));
+    const double grow = (std::max({far_corner.x, far_corner.y, far_corner.z}) + 1.0) * 0x1p-20;
+    const glm::dvec3 blo = lo - grow, bhi = hi + grow;
+    const auto reaches = [&](int x, int y) {
+      const glm::dvec3 d = F + ((s.sx[static_cast<std::size_t>(x)] - cx) / f) * R - ((s.sy[static_cast<std::size_t>(y)] - cy) / f) * U;
+      double t0 = 0.0, t1 = INFINITY;
+      for (int a = 0; a < 3; ++a) {
+        if (d[a] == 0.0) {
+          if (o[a] < blo[a] || o[a] > bhi[a]) return false;
+          continue;
+        }
+        const double ta = (blo[a] - o[a]) / d[a], tb = (bhi[a] - o[a]) / d[a];
+        t0 = std::max(t0, std::min(ta, tb));
+        t1 = std::min(t1, std::max(ta, tb));
+        if (!(t0 <= t1)) return false;
+      }
+      return true;
+    };
+    return s.all_nearer_where(x0, x1, y0, y1, (1.0 / zmin) * (1.0 + kOccludeMargin), reaches);
   }
 
   void project(const CV* poly, int n, PV* out) const {
