@@ -585,18 +585,7 @@ struct Scratch {
   // (also when the range is empty): tiles first, the samples of a tile only where its least 1/z
   // does not decide.
   bool all_nearer(int x0, int x1, int y0, int y1, double bound) {
-    for (int ty = y0 >> kTileShift; ty <= y1 >> kTileShift; ++ty)
-      for (int tx = x0 >> kTileShift; tx <= x1 >> kTileShift; ++tx) {
-        if (tile_least(tx, ty) > bound) continue;
-        const int xa = std::max(x0, tx << kTileShift), xb = std::min(x1, (tx << kTileShift) + kTile - 1);
-        const int ya = std::max(y0, ty << kTileShift), yb = std::min(y1, (ty << kTileShift) + kTile - 1);
-        for (int y = ya; y <= yb; ++y) {
-          const double* row = invz.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(bw);
-          for (int x = xa; x <= xb; ++x)
-            if (!(row[x] > bound)) return false;
-        }
-      }
-    return true;
+    return all_nearer_where(x0, x1, y0, y1, bound, [](int, int) { return true; });
   }
 
   // all_nearer, where a sample that is not nearer counts only if `reaches(x, y)` (a superset test:
