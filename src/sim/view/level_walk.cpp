@@ -18,6 +18,7 @@
 
 #include "core/error.h"
 #include "core/input_file.h"
+#include "sim/view/render_util.h"
 #include "sim/trace/trace_io.h"
 #include "sim/trace/trace_resample.h"
 #include "sim/trace/trace_transform.h"
@@ -109,18 +110,7 @@ class LwGrid {
   bool hit(const glm::dvec3& o, const glm::dvec3& d, double tmax, double& t_hit, double& nz) const {
     ++rays_;
     double t0 = 0.0, t1 = tmax;
-    for (int k = 0; k < 3; ++k) {  // clip to the grid box (slabs)
-      const double hi = lo_[k] + cell_[k] * n_[k];
-      if (d[k] == 0.0) {
-        if (o[k] < lo_[k] || o[k] > hi) return false;
-        continue;
-      }
-      double a = (lo_[k] - o[k]) / d[k], b = (hi - o[k]) / d[k];
-      if (a > b) std::swap(a, b);
-      t0 = std::max(t0, a);
-      t1 = std::min(t1, b);
-    }
-    if (t0 > t1) return false;
+    if (!detail::clip_ray_to_box(o, d, lo_, hi(), t0, t1)) return false;  // clip to the grid box
     glm::ivec3 c = cell_of(o + d * t0), step(0);
     glm::dvec3 t_next(std::numeric_limits<double>::infinity()), t_delta(std::numeric_limits<double>::infinity());
     for (int k = 0; k < 3; ++k) {

@@ -757,6 +757,7 @@ struct DepthPass {
   int div, bw, bh;        // divisor; buffer size, samples
   bool cull, skip_back;   // occlusion culling; back faces skipped (MeshScene::skips_back_faces)
   glm::dvec3 planes[5];   // frustum planes through o at the image border, inward normals
+  const Camera& camera;
   Scratch& s;
 
   DepthPass(const Camera& cam, const ViewParams& p, Scratch& scr, bool occlusion_culling, bool skip_back_faces)
@@ -770,7 +771,7 @@ struct DepthPass {
             -U + (cam.cy / f) * F,                    // below the top border: y <= (cy/f)·z
             U + ((cam.height - cam.cy) / f) * F,      // above the bottom border
         },
-        s(scr) {}
+        camera(cam), s(scr) {}
 
   // Whether box [lo, hi] may reach into the frustum (its corner farthest along each plane's normal
   // is inside all five).
@@ -822,19 +823,9 @@ struct DepthPass {
     const double grow = (std::max({far_corner.x, far_corner.y, far_corner.z}) + 1.0) * 0x1p-20;
     const glm::dvec3 blo = lo - grow, bhi = hi + grow;
     const auto reaches = [&](int x, int y) {
-      const glm::dvec3 d = F + ((s.sx[static_cast<std::size_t>(x)] - cx) / f) * R - ((s.sy[static_cast<std::size_t>(y)] - cy) / f) * U;
       double t0 = 0.0, t1 = INFINITY;
-      for (int a = 0; a < 3; ++a) {
-        if (d[a] == 0.0) {
-          if (o[a] < blo[a] || o[a] > bhi[a]) return false;
-          continue;
-        }
-        const double ta = (blo[a] - o[a]) / d[a], tb = (bhi[a] - o[a]) / d[a];
-        t0 = std::max(t0, std::min(ta, tb));
-        t1 = std::min(t1, std::max(ta, tb));
-        if (!(t0 <= t1)) return false;
-      }
-      return true;
+      return detail::clip_ray_to_box(o, camera.ray_dir(s.sx[static_cast<std::size_t>(x)], s.sy[static_cast<std::size_t>(y)]), blo,
+                                     bhi, t0, t1);
     };
     return s.all_nearer_where(x0, x1, y0, y1, (1.0 / zmin) * (1.0 + kOccludeMargin), reaches);
   }
