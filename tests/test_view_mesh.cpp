@@ -241,6 +241,52 @@ TEST_CASE("mesh: a wall hides the ground behind it / its back hides it too") {
   CHECK(min_ground_u >= 20 * (1 << 20) / 400);  // nothing nearer than x = 20 m
 }
 
+TEST_CASE("mesh: coincident faces go to the triangle first in the mesh, culled or not") {
+  // The ground [0, 100]² twice, as the same grid of 10 × 10 quads: once with texels in u < 2^18,
+  // once in u >= 2^19. Every visible sample is an exact depth tie between the two copies (the
+  // rule also decides samples on a silhouette edge, where a back face meets the front face
+  // before it; there the hierarchy's order would otherwise show through).
+  Mesh grid, other;
+  for (int i = 0; i < 10; ++i)
+    for (int j = 0; j < 10; ++j) {
+      const double x = 10.0 * i, y = 10.0 * j;
+      add_quad(grid, {x, y, 0}, {x + 10, y, 0}, {x + 10, y + 10, 0}, {x, y + 10, 0}, {0, 0}, {0.25, 0.25});
+      add_quad(other, {x, y, 0}, {x + 10, y, 0}, {x + 10, y + 10, 0}, {x, y + 10, 0}, {0.5, 0}, {0.75, 0.25});
+    }
+  const auto joined = [](const Mesh& first, const Mesh& second) {
+    Mesh m = first;
+    const auto p = static_cast<std::uint32_t>(m.positions.size());
+    const auto t = static_cast<std::int32_t>(m.uvs.size());
+    m.positions.insert(m.positions.end(), second.positions.begin(), second.positions.end());
+    m.uvs.insert(m.uvs.end(), second.uvs.begin(), second.uvs.end());
+    for (Mesh::Tri tri : second.tris) {
+      for (int c = 0; c < 3; ++c) {
+        tri.p[c] += p;
+        tri.t[c] += t;
+      }
+      m.tris.push_back(tri);
+    }
+    return m;
+  };
+  const Camera cam = make_camera(pose_from_angles({50, 50, 40}, 30, -70), 640, 480);
+  ViewParams vp;
+  vp.divisor = 4;
+  for (const bool grid_first : {true, false}) {
+    CAPTURE(grid_first);
+    MeshScene scene(grid_first ? joined(grid, other) : joined(other, grid), kTex);
+    for (const bool culling : {true, false}) {
+      CAPTURE(culling);
+      scene.set_occlusion_culling(culling);
+      ViewBuffer vb;
+      scene.render(cam, vp, vb);
+      REQUIRE(vb.samples.size() > 1000);
+      std::size_t from_grid = 0;
+      for (const ViewSample& s : vb.samples) from_grid += s.u < (1 << 18);
+      CHECK(from_grid == (grid_first ? vb.samples.size() : 0));
+    }
+  }
+}
+
 TEST_CASE("mesh: a narrow wall occludes exactly the tiles behind it (frustum and occlusion)") {
   // With a 2 m-wide wall, ground behind it is hidden only within its shadow wedge.
   const MeshScene scene(ground_and_wall(1.0), kTex);

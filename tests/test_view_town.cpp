@@ -268,7 +268,8 @@ TEST_CASE("town: render work counts add up, and culling is what removes the work
   const auto counts = [&](const MeshScene& m) {
     m.render_spans(cam, vp, sb);
     const MeshScene::RenderStats w = MeshScene::last_render_stats();
-    CHECK(w.chunks == (mesh.tris.size() + 15) / 16);
+    CHECK(w.chunks * 16 >= mesh.tris.size());  // at most 16 triangles a chunk
+    CHECK(w.chunks <= mesh.tris.size());
     CHECK(w.chunks_occluded <= w.chunks_in_frustum);
     CHECK(w.chunks_in_frustum <= w.chunks);
     CHECK(w.back_faces_skipped + w.triangles_occluded + w.triangles_rasterised <= w.triangles_visited);
@@ -369,12 +370,14 @@ TEST_CASE("town: the BVH walk renders an instanced town exactly as drawing every
   const MeshScene::RenderStats w = MeshScene::last_render_stats();
   plain.render(street, vp, b);
   const MeshScene::RenderStats all = MeshScene::last_render_stats();
-  CHECK(w.chunks == (mesh.tris.size() + 15) / 16);
+  CHECK(w.chunks * 16 >= mesh.tris.size());
+  CHECK(w.chunks <= mesh.tris.size());
   CHECK(w.nodes_visited > 0);
   CHECK(w.chunks_in_frustum * 4 < all.chunks_in_frustum);
   CHECK(w.nodes_visited * 4 < 2 * w.chunks);
-  // 24-byte triangles over shared corners and texture coordinates, 32-byte BVH nodes: the
-  // town's layout stays under 96 bytes a triangle (89 untiled; docs/view.md).
-  CHECK(culled.memory_bytes() <= 96 * culled.triangle_count());
+  // 24-byte triangles and their 4-byte mesh indices over shared corners and texture
+  // coordinates, 32-byte BVH nodes: the town's layout stays under 100 bytes a triangle (95
+  // untiled; docs/view.md).
+  CHECK(culled.memory_bytes() <= 100 * culled.triangle_count());
   MESSAGE("chunks ", w.chunks, " reached ", w.chunks_in_frustum, " of ", all.chunks_in_frustum, " in the frustum; nodes ", w.nodes_visited);
 }

@@ -24,9 +24,13 @@ namespace {
 
 constexpr std::uint32_t kNoTri = 0xffffffffu;
 constexpr std::uint32_t kBackBit = 0x80000000u;
-// Triangles per culling box: the town replay ran fastest at 16 (8 the same, 64 15 % slower).
-// The chunks are the leaves of the BVH (MeshScene::Node).
+// Triangles per culling box at most: the town replay ran fastest at 16 (8 the same, 64 15 %
+// slower). The chunks are the leaves of the BVH (MeshScene::Node).
 constexpr std::uint32_t kChunkSize = 16;
+// Morton ranges of at most this many triangles are split by the surface area heuristic instead
+// of the Morton grid (chunk_bvh_build): a grid cell's edge falls anywhere in a building, the
+// heuristic puts the cut in the street. Four chunks' worth: its sorts stay short.
+constexpr std::uint32_t kSahRange = 64;
 // The part of a triangle between view depth near/1024 and near is rasterised only to tell
 // "clipped" from "sky" in the counters; nearer than that it is ignored (projection blows up).
 constexpr double kNearFlagFraction = 1.0 / 1024.0;
@@ -54,6 +58,21 @@ std::uint32_t morton_code(const glm::dvec3& c, const glm::dvec3& lo, const glm::
          (spread_bits10(static_cast<std::uint32_t>(q.z)) << 2);
 }
 
+void set_box_outward(glm::vec3& flo, glm::vec3& fhi, const glm::dvec3& lo, const glm::dvec3& hi) {
+  for (int c = 0; c < 3; ++c) {  // to float, outward
+    float l = static_cast<float>(lo[c]), h = static_cast<float>(hi[c]);
+    if (static_cast<double>(l) > lo[c]) l = std::nextafter(l, -INFINITY);
+    if (static_cast<double>(h) < hi[c]) h = std::nextafter(h, INFINITY);
+    flo[c] = l;
+    fhi[c] = h;
+  }
+}
+
+float box_area(const glm::vec3& lo, const glm::vec3& hi) {
+  const glm::vec3 e = hi - lo;
+  return 2.0f * (e.x * e.y + e.y * e.z + e.z * e.x);
+}
+
 // Appends the BVH over items [a, b) (box(i) gives item i's lo and hi; code[i] its Morton code,
 // nondecreasing) to `nodes` in preorder — an LBVH (Lauterbach et al. 2009): a node splits its
 // range where the highest bit in which its first and last codes differ turns to 1 (Karras 2012's
@@ -68,13 +87,7 @@ void mesh_bvh_build(std::vector<Node>& nodes, const std::uint32_t* code, std::ui
   if (b - a == 1) {
     glm::dvec3 lo, hi;
     box(a, lo, hi);
-    for (int c = 0; c < 3; ++c) {  // to float, outward
-      float l = static_cast<float>(lo[c]), h = static_cast<float>(hi[c]);
-      if (static_cast<double>(l) > lo[c]) l = std::nextafter(l, -INFINITY);
-      if (static_cast<double>(h) < hi[c]) h = std::nextafter(h, INFINITY);
-      nodes[me].lo[c] = l;
-      nodes[me].hi[c] = h;
-    }
+    set_box_outward(nodes[me].lo, nodes[me].hi, lo, hi);
     nodes[me].item = a;
     return;
   }
@@ -90,6 +103,121 @@ void mesh_bvh_build(std::vector<Node>& nodes, const std::uint32_t* code, std::ui
   const Node& r = nodes[nodes[me].right];
   nodes[me].lo = glm::min(l.lo, r.lo);
   nodes[me].hi = glm::max(l.hi, r.hi);
+}
+
+// A subtree of the chunk tree over at most kSahRange triangles, their bounds loaded once, in
+// float rounded outward as the nodes hold them (the heuristic only picks cuts: float suffices).
+struct SahRange {
+  std::array<glm::vec3, kSahRange> lo, hi;  // triangle j's bounds
+  std::array<std::pair<float, std::uint32_t>, kSahRange> key{};  // (2 × centroid, triangle)
+  std::array<float, kSahRange> right_area{};
+};
+
+// The subtree over triangles perm[0, n) of `r` (positions pos, pos + 1, … in the tree's order):
+// cut where the surface area heuristic puts it (MacDonald & Booth 1990: the least
+// A_L·n_L + A_R·n_R over the triangles sorted by centroid; perm reordered) until a range holds
+// at most kChunkSize, a leaf: chunk first.size() (pushed: its first position).
+template <class Node>
+void sah_build(std::vector<Node>& nodes, std::vector<std::uint32_t>& first, SahRange& r, std::uint32_t* perm,
+               std::uint32_t n, std::uint32_t pos) {
+  const std::size_t me = nodes.size();
+  nodes.emplace_back();
+  if (n <= kChunkSize) {
+    glm::vec3 lo = r.lo[perm[0]], hi = r.hi[perm[0]];
+    for (std::uint32_t k = 1; k < n; ++k) {
+      lo = glm::min(lo, r.lo[perm[k]]);
+      hi = glm::max(hi, r.hi[perm[k]]);
+    }
+    nodes[me].lo = lo;
+    nodes[me].hi = hi;
+    nodes[me].item = static_cast<std::uint32_t>(first.size());
+    first.push_back(pos);
+    return;
+  }
+  // Along the axis where the centroids spread most (all three axes found the town's cuts as well
+  // for twice the build time: docs/view.md), the triangles sorted by centroid, ties by triangle
+  // (deterministic); the suffixes' box areas, then each cut's cost from the prefix's box.
+  glm::vec3 clo = r.lo[perm[0]] + r.hi[perm[0]], chi = clo;  // twice the centroids' bounds
+  for (std::uint32_t k = 1; k < n; ++k) {
+    clo = glm::min(clo, r.lo[perm[k]] + r.hi[perm[k]]);
+    chi = glm::max(chi, r.lo[perm[k]] + r.hi[perm[k]]);
+  }
+  const glm::vec3 spread = chi - clo;
+  const int axis = spread.x >= spread.y && spread.x >= spread.z ? 0 : spread.y >= spread.z ? 1 : 2;
+  for (std::uint32_t k = 0; k < n; ++k) r.key[k] = {r.lo[perm[k]][axis] + r.hi[perm[k]][axis], perm[k]};
+  std::sort(r.key.begin(), r.key.begin() + n);
+  glm::vec3 lo = r.lo[r.key[n - 1].second], hi = r.hi[r.key[n - 1].second];
+  for (std::uint32_t k = n - 1; k > 0; --k) {  // right_area[k]: sorted [k, n)
+    lo = glm::min(lo, r.lo[r.key[k].second]);
+    hi = glm::max(hi, r.hi[r.key[k].second]);
+    r.right_area[k] = box_area(lo, hi);
+  }
+  float best = std::numeric_limits<float>::infinity();
+  std::uint32_t cut = 0;
+  lo = r.lo[r.key[0].second];
+  hi = r.hi[r.key[0].second];
+  for (std::uint32_t k = 1; k < n; ++k) {  // the cut before sorted k: the left is [0, k)
+    const float cost = box_area(lo, hi) * static_cast<float>(k) + r.right_area[k] * static_cast<float>(n - k);
+    if (cost < best) {
+      best = cost;
+      cut = k;
+    }
+    lo = glm::min(lo, r.lo[r.key[k].second]);
+    hi = glm::max(hi, r.hi[r.key[k].second]);
+  }
+  if (cut > 0) {
+    for (std::uint32_t k = 0; k < n; ++k) perm[k] = r.key[k].second;
+  } else {
+    cut = n / 2;  // every cost NaN (bounds beyond float's range): halved, in Morton order
+  }
+  sah_build(nodes, first, r, perm, cut, pos);
+  nodes[me].right = static_cast<std::uint32_t>(nodes.size());
+  sah_build(nodes, first, r, perm + cut, n - cut, pos + cut);
+  const Node& l = nodes[me + 1];
+  const Node& rt = nodes[nodes[me].right];
+  nodes[me].lo = glm::min(l.lo, rt.lo);
+  nodes[me].hi = glm::max(l.hi, rt.hi);
+}
+
+// The chunk tree over the triangles at positions [a, b) (Morton order; code[k] the code at
+// position k): split at the Morton grid as mesh_bvh_build does while the range holds more than
+// kSahRange triangles, below that by sah_build, whose order of the range's triangles
+// reorder(a, n, perm) applies (position a + k then holds the one at a + perm[k]). Morton above
+// and the heuristic below, as hybrid builders do (Pantaleoni & Luebke 2010's HLBVH the other way
+// round): the grid keeps the build O(n log n), the heuristic keeps a chunk's box from spanning a
+// street (such a box holds air that reaches sky samples no depth hides, so it is opened and
+// drawn: docs/view.md "Mesh renderer scaling"). tri_box(k, lo, hi) gives the bounds of the
+// triangle at position k.
+template <class Node, class TriBox, class Reorder>
+void chunk_bvh_build(std::vector<Node>& nodes, std::vector<std::uint32_t>& first, const std::uint32_t* code,
+                     std::uint32_t a, std::uint32_t b, SahRange& r, const TriBox& tri_box, const Reorder& reorder) {
+  const std::uint32_t n = b - a;
+  if (n <= kSahRange) {
+    std::array<std::uint32_t, kSahRange> perm{};
+    glm::dvec3 lo, hi;
+    for (std::uint32_t k = 0; k < n; ++k) {
+      tri_box(a + k, lo, hi);
+      set_box_outward(r.lo[k], r.hi[k], lo, hi);
+      perm[k] = k;
+    }
+    sah_build(nodes, first, r, perm.data(), n, a);
+    reorder(a, n, perm.data());
+    return;
+  }
+  const std::size_t me = nodes.size();
+  nodes.emplace_back();
+  std::uint32_t mid = a + n / 2;
+  if (code[a] != code[b - 1]) {
+    const std::uint32_t bit = std::bit_floor(code[a] ^ code[b - 1]);
+    mid = static_cast<std::uint32_t>(std::partition_point(code + a, code + b, [&](std::uint32_t c) { return (c & bit) == 0; }) - code);
+  }
+  chunk_bvh_build(nodes, first, code, a, mid, r, tri_box, reorder);
+  nodes[me].right = static_cast<std::uint32_t>(nodes.size());
+  chunk_bvh_build(nodes, first, code, mid, b, r, tri_box, reorder);
+  const Node& l = nodes[me + 1];
+  const Node& rt = nodes[nodes[me].right];
+  nodes[me].lo = glm::min(l.lo, rt.lo);
+  nodes[me].hi = glm::max(l.hi, rt.hi);
 }
 
 // Camera-space vertex: x right, y up, z view depth.
@@ -638,7 +766,7 @@ Scratch& scratch() {
 // writes `tag`; flag mode (depth == false): marks near_cut only. Every quantity at a sample is
 // evaluated from the sample's own position (no incremental stepping), so coverage and depth at a
 // full-resolution pixel do not depend on the divisor.
-void raster_poly(const PV* v, int n, std::uint32_t tag, bool depth, int div, int bw, int bh, Scratch& s) {
+void raster_poly(const PV* v, int n, std::uint32_t tag, bool depth, int div, int bw, int bh, const std::uint32_t* src, Scratch& s) {
   for (int k = 1; k + 1 < n; ++k) {
     PV a = v[0], b = v[k], c = v[k + 1];
     double area = (b.X - a.X) * (c.Y - a.Y) - (b.Y - a.Y) * (c.X - a.X);
@@ -675,10 +803,14 @@ void raster_poly(const PV* v, int n, std::uint32_t tag, bool depth, int div, int
     std::uint32_t* const ids = s.id.data();
     std::uint8_t* const near_cut = s.near_cut.data();
     const std::uint32_t tid = tag & ~kBackBit;
-    // Nearest wins; an exact tie goes to the smaller triangle index, which is what drawing in
-    // index order gave, so the chunks may be drawn in any order (nearest first, below).
+    // Nearest wins; an exact tie (coincident faces) goes to the triangle that comes first in the
+    // Mesh (src: its index there), as a GPU drawing the mesh in order with a "less" depth test
+    // keeps it. So the chunks may be drawn in any order (nearest first, below), and how the BVH
+    // orders the triangles never shows in the buffer.
     const auto depth_write = [&](std::size_t idx, double iz) {
-      if (!(iz > invz[idx] || (iz == invz[idx] && tid < (ids[idx] & ~kBackBit)))) return false;
+      if (!(iz > invz[idx] ||
+            (iz == invz[idx] && ((ids[idx] & ~kBackBit) == (kNoTri & ~kBackBit) || src[tid] < src[ids[idx] & ~kBackBit]))))
+        return false;
       invz[idx] = iz;
       ids[idx] = tag;
       return true;
@@ -758,9 +890,11 @@ struct DepthPass {
   bool cull, skip_back;   // occlusion culling; back faces skipped (MeshScene::skips_back_faces)
   glm::dvec3 planes[5];   // frustum planes through o at the image border, inward normals
   const Camera& camera;
+  const std::uint32_t* src;  // per triangle, its index in the Mesh (the depth test's tie rule)
   Scratch& s;
 
-  DepthPass(const Camera& cam, const ViewParams& p, Scratch& scr, bool occlusion_culling, bool skip_back_faces)
+  DepthPass(const Camera& cam, const ViewParams& p, Scratch& scr, bool occlusion_culling, bool skip_back_faces,
+            const std::uint32_t* mesh_index)
       : o(cam.pos_m), F(cam.fwd), R(-cam.left), U(cam.up), cx(cam.cx), cy(cam.cy), f(cam.focal_px), near(p.near_m),
         zflag(p.near_m * kNearFlagFraction), div(p.divisor), bw(scr.bw), bh(scr.bh), cull(occlusion_culling),
         skip_back(skip_back_faces),
@@ -771,7 +905,7 @@ struct DepthPass {
             -U + (cam.cy / f) * F,                    // below the top border: y <= (cy/f)·z
             U + ((cam.height - cam.cy) / f) * F,      // above the bottom border
         },
-        camera(cam), s(scr) {}
+        camera(cam), src(mesh_index), s(scr) {}
 
   // Whether box [lo, hi] may reach into the frustum (its corner farthest along each plane's normal
   // is inside all five).
@@ -872,7 +1006,7 @@ struct DepthPass {
         }
       }
       ++s.stats.triangles_rasterised;
-      raster_poly(pv, 3, tag, true, div, bw, bh, s);
+      raster_poly(pv, 3, tag, true, div, bw, bh, src, s);
       return;
     }
     CV clip_a[4], clip_b[5], tmp[4];
@@ -880,13 +1014,13 @@ struct DepthPass {
     if (na >= 3) {
       ++s.stats.triangles_rasterised;
       project(clip_a, na, pv);
-      raster_poly(pv, na, tag, true, div, bw, bh, s);
+      raster_poly(pv, na, tag, true, div, bw, bh, src, s);
     }
     const int nt = clip_poly(cv, 3, near, false, tmp);
     const int nb = nt >= 3 ? clip_poly(tmp, nt, zflag, true, clip_b) : 0;
     if (nb >= 3) {
       project(clip_b, nb, pv);
-      raster_poly(pv, nb, 0, false, div, bw, bh, s);
+      raster_poly(pv, nb, 0, false, div, bw, bh, src, s);
     }
   }
 };
@@ -961,14 +1095,15 @@ MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
   std::vector<std::uint32_t> order(nt);
   std::iota(order.begin(), order.end(), 0u);
   std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return code[a] < code[b]; });
-  std::vector<std::uint32_t> chunk_code((nt + kChunkSize - 1) / kChunkSize);  // of each chunk's first triangle
-  for (std::size_t c = 0; c < chunk_code.size(); ++c) chunk_code[c] = code[order[c * kChunkSize]];
+  std::vector<std::uint32_t> sorted_code(nt);  // of the triangle at each position
+  for (std::size_t k = 0; k < nt; ++k) sorted_code[k] = code[order[k]];
   code = {};
   // Shared corners and texture coordinates: one copy of each bit pattern, numbered in the order
   // the sorted triangles first use them (a chunk's corners lie together).
   const std::vector<std::uint32_t> pos_same = mesh_same_bits(mesh.positions), uv_same = mesh_same_bits(mesh.uvs);
   std::vector<std::uint32_t> pos_new(mesh.positions.size(), kNoTri), uv_new(mesh.uvs.size(), kNoTri);
   tris_.reserve(nt);
+  src_ = order;
   for (const std::uint32_t k : order) {
     const Mesh::Tri& mt = mesh.tris[k];
     Tri t;
@@ -991,17 +1126,35 @@ MeshScene::MeshScene(const Mesh& mesh, TextureExtent extent) : extent_(extent) {
   }
   positions_.shrink_to_fit();
   uvs_.shrink_to_fit();
-  const auto chunks = static_cast<std::uint32_t>((tris_.size() + kChunkSize - 1) / kChunkSize);
-  chunk_tree_.reserve(2 * static_cast<std::size_t>(chunks) - 1);
-  mesh_bvh_build(chunk_tree_, chunk_code.data(), 0, chunks, [&](std::uint32_t i, glm::dvec3& blo, glm::dvec3& bhi) {
-    const std::uint32_t first = i * kChunkSize, end = std::min<std::uint32_t>(first + kChunkSize, static_cast<std::uint32_t>(tris_.size()));
-    blo = bhi = positions_[tris_[first].p[0]];
-    for (std::uint32_t k = first; k < end; ++k)
-      for (const std::uint32_t q : tris_[k].p) {
-        blo = glm::min(blo, positions_[q]);
-        bhi = glm::max(bhi, positions_[q]);
-      }
-  });
+  {
+    // The chunks and their tree, which orders the triangles within ranges of kSahRange.
+    order = {};
+    chunk_tree_.reserve(nt / 4 + 1);  // at most 4n/17 nodes: a leaf's parent holds > 16 triangles
+    chunk_first_.reserve(nt / 8 + 2);
+    SahRange sah;
+    chunk_bvh_build(
+        chunk_tree_, chunk_first_, sorted_code.data(), 0, static_cast<std::uint32_t>(nt), sah,
+        [&](std::uint32_t k, glm::dvec3& blo, glm::dvec3& bhi) {
+          blo = bhi = positions_[tris_[k].p[0]];
+          for (int c = 1; c < 3; ++c) {
+            blo = glm::min(blo, positions_[tris_[k].p[c]]);
+            bhi = glm::max(bhi, positions_[tris_[k].p[c]]);
+          }
+        },
+        [&](std::uint32_t a, std::uint32_t n, const std::uint32_t* perm) {
+          std::array<Tri, kSahRange> t;
+          std::array<std::uint32_t, kSahRange> m{};
+          for (std::uint32_t k = 0; k < n; ++k) {
+            t[k] = tris_[a + perm[k]];
+            m[k] = src_[a + perm[k]];
+          }
+          std::copy(t.begin(), t.begin() + n, tris_.begin() + a);
+          std::copy(m.begin(), m.begin() + n, src_.begin() + a);
+        });
+    chunk_first_.push_back(static_cast<std::uint32_t>(nt));
+    chunk_tree_.shrink_to_fit();
+    chunk_first_.shrink_to_fit();
+  }
   // Solids: the unbounded ones (the half-space under a ground) apart, the others in Morton order
   // of their centres under a BVH of their own.
   std::vector<Mesh::Box> bounded;
@@ -1080,6 +1233,7 @@ std::size_t MeshScene::memory_bytes() const {
   std::size_t n = sizeof(*this) + tris_.capacity() * sizeof(Tri) + positions_.capacity() * sizeof(glm::dvec3) +
                   uvs_.capacity() * sizeof(glm::dvec2) +
                   (chunk_tree_.capacity() + solid_tree_.capacity()) * sizeof(Node) +
+                  (chunk_first_.capacity() + src_.capacity()) * sizeof(std::uint32_t) +
                   (solids_.capacity() + open_solids_.capacity()) * sizeof(Mesh::Box) +
                   load_warnings_.capacity() * sizeof(std::string);
   for (const std::string& w : load_warnings_) n += w.capacity();
@@ -1118,11 +1272,8 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
   const int bw = spans ? spans->width : view->width, bh = spans ? spans->height : view->height;
   Scratch& s = scratch();
   s.begin(cam, p.divisor, bw, bh, tris_.size());
-  s.stats.chunks = static_cast<std::uint32_t>((tris_.size() + kChunkSize - 1) / kChunkSize);
-  const auto chunk_end = [&](std::uint32_t first) {
-    return std::min<std::uint32_t>(first + kChunkSize, static_cast<std::uint32_t>(tris_.size()));
-  };
-  const DepthPass dp(cam, p, s, occlusion_culling_, skips_back_faces(cam, p));
+  s.stats.chunks = static_cast<std::uint32_t>(chunk_first_.size() - 1);
+  const DepthPass dp(cam, p, s, occlusion_culling_, skips_back_faces(cam, p), src_.data());
   const auto draw = [&](std::uint32_t k) {
     TriGeom g;
     tri_corners(positions_[tris_[k].p[0]], positions_[tris_[k].p[1]], positions_[tris_[k].p[2]], g);
@@ -1133,7 +1284,7 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
     for (const Node& nd : chunk_tree_) {  // preorder: the leaves in chunk order
       if (nd.right != 0 || !dp.in_frustum(glm::dvec3(nd.lo), glm::dvec3(nd.hi))) continue;
       ++s.stats.chunks_in_frustum;
-      for (std::uint32_t k = nd.item * kChunkSize; k < chunk_end(nd.item * kChunkSize); ++k) draw(k);
+      for (std::uint32_t k = chunk_first_[nd.item]; k < chunk_first_[nd.item + 1]; ++k) draw(k);
     }
     resolve(cam, p, view, spans);
     return;
@@ -1182,7 +1333,7 @@ void MeshScene::render_impl(const Camera& cam, const ViewParams& p, ViewBuffer* 
       continue;
     }
     // The chunk's triangles but those the warm start drew (hint is sorted).
-    const std::uint32_t first = nd.item * kChunkSize, end = chunk_end(first);
+    const std::uint32_t first = chunk_first_[nd.item], end = chunk_first_[nd.item + 1];
     auto h = std::lower_bound(hint.begin(), hint.end(), first);
     for (std::uint32_t k = first; k < end; ++k) {
       if (h != hint.end() && *h == k) {

@@ -17,9 +17,10 @@
 
 namespace vtsim {
 
-// Render cost O(visible chunks' triangles + covered samples + log n): chunks of 16 spatially
-// sorted triangles are the leaves of a binary bounding-volume hierarchy (the chunk range halved in
-// Morton order, as an LBVH: Lauterbach et al. 2009), traversed nearest first from a priority queue;
+// Render cost O(visible chunks' triangles + covered samples + log n): chunks of at most 16
+// triangles are the leaves of a binary bounding-volume hierarchy (Morton order split on the grid,
+// an LBVH: Lauterbach et al. 2009, down to 64 triangles; below, by the surface area heuristic so
+// that a chunk's box does not span a street), traversed nearest first from a priority queue;
 // a node outside the frustum, or whose box lies behind the depth drawn so far, is skipped with
 // everything under it (hierarchical occlusion culling: Greene, Kass & Miller 1993, against a
 // hierarchical depth buffer of 8×8-sample tiles that answers most tests without reading samples),
@@ -30,7 +31,8 @@ namespace vtsim {
 // start: at 60 Hz they fill nearly the same depth), which never changes the result, only how much
 // is culled. The scratch (depth buffer, warm start, per-frame shading) is per thread and sized by
 // the buffer, not the mesh (thread_local, reused, so no allocation after warm-up): render is
-// thread-safe. Memory: memory_bytes(); construction O(n log n) (the Morton sort).
+// thread-safe. Memory: memory_bytes(); construction O(n log n) (the Morton sort). An exact depth
+// tie goes to the triangle first in the Mesh, so the hierarchy's order never shows in a render.
 // Back faces (seen from behind, per triangle: the camera is behind its plane) are rasterised as
 // occluders and never sampled: a camera inside a closed wall sees nothing, as on a solid. When the
 // mesh promises solids (Mesh::solids) and none comes within the near plane's reach of the camera,
@@ -113,7 +115,7 @@ class MeshScene final : public IScene {
   };
   // A node of a bounding-volume hierarchy in preorder: its left child is the next node, `right`
   // the other one's index; a leaf (right == 0: the root is nobody's child) holds item `item`
-  // (chunk `item`: triangles [16·item, min(16·item + 16, n)); or solids_[item]). The box is in
+  // (chunk `item`: triangles [chunk_first_[item], chunk_first_[item + 1]); or solids_[item]). The box is in
   // float rounded outward: culling with a larger box only culls less (the buffer is the same),
   // and 32 bytes a node halve the walk's cache misses.
   struct Node {
@@ -127,11 +129,13 @@ class MeshScene final : public IScene {
   void resolve(const Camera& cam, const ViewParams& p, ViewBuffer* view, SpanBuffer* spans) const;
 
   TextureExtent extent_;
-  std::vector<Tri> tris_;           // in Morton order of their centroids
+  std::vector<Tri> tris_;           // in the chunk tree's order (Morton, then by the area heuristic)
+  std::vector<std::uint32_t> src_;  // per triangle, its index in the Mesh (the depth test's tie rule)
   std::vector<glm::dvec3> positions_;  // world metres, each bit pattern once
   std::vector<glm::dvec2> uvs_;     // texture coordinates, each bit pattern once
   std::vector<std::string> load_warnings_;
-  std::vector<Node> chunk_tree_;    // over the chunks of 16 triangles
+  std::vector<Node> chunk_tree_;    // over the chunks (at most 16 triangles each)
+  std::vector<std::uint32_t> chunk_first_;  // chunk i: triangles [chunk_first_[i], chunk_first_[i + 1])
   std::vector<Mesh::Box> solids_;   // the bounded ones, in Morton order of their centres
   std::vector<Node> solid_tree_;    // over solids_ (skips_back_faces: O(log solids) near the camera)
   std::vector<Mesh::Box> open_solids_;  // solids with an infinite bound, tested one by one
