@@ -803,9 +803,9 @@ void raster_poly(const PV* v, int n, std::uint32_t tag, bool depth, int div, int
     std::uint32_t* const ids = s.id.data();
     std::uint8_t* const near_cut = s.near_cut.data();
     const std::uint32_t tid = tag & ~kBackBit;
-    // Nearest wins; an exact tie (coincident faces) goes to the triangle that comes first in the
-    // Mesh (src: its index there), as a GPU drawing the mesh in order with a "less" depth test
-    // keeps it. So the chunks may be drawn in any order (nearest first, below), and how the BVH
+    // Nearest wins; an exact tie (a sample on a silhouette edge, where a back face meets the
+    // front face before it; coincident faces) goes to the triangle that comes first in the Mesh
+    // (src: its index there), as a GPU drawing the mesh in order with a "less" depth test keeps it. So the chunks may be drawn in any order (nearest first, below), and how the BVH
     // orders the triangles never shows in the buffer.
     const auto depth_write = [&](std::size_t idx, double iz) {
       if (!(iz > invz[idx] ||
