@@ -73,11 +73,28 @@ float box_area(const glm::vec3& lo, const glm::vec3& hi) {
   return 2.0f * (e.x * e.y + e.y * e.z + e.z * e.x);
 }
 
+// Where a Morton range [a, b) (code nondecreasing) splits: where the highest bit in which its
+// first and last codes differ turns to 1 (Karras 2012), so each side covers one cell of the grid;
+// a range of one code is halved.
+std::uint32_t morton_split(const std::uint32_t* code, std::uint32_t a, std::uint32_t b) {
+  if (code[a] == code[b - 1]) return a + (b - a) / 2;
+  const std::uint32_t bit = std::bit_floor(code[a] ^ code[b - 1]);
+  return static_cast<std::uint32_t>(std::partition_point(code + a, code + b, [&](std::uint32_t c) { return (c & bit) == 0; }) - code);
+}
+
+// Node `me`'s box: the union of its children's (the left one at me + 1).
+template <class Node>
+void join_children(std::vector<Node>& nodes, std::size_t me) {
+  const Node& l = nodes[me + 1];
+  const Node& r = nodes[nodes[me].right];
+  nodes[me].lo = glm::min(l.lo, r.lo);
+  nodes[me].hi = glm::max(l.hi, r.hi);
+}
+
 // Appends the BVH over items [a, b) (box(i) gives item i's lo and hi; code[i] its Morton code,
 // nondecreasing) to `nodes` in preorder — an LBVH (Lauterbach et al. 2009): a node splits its
-// range where the highest bit in which its first and last codes differ turns to 1 (Karras 2012's
-// split), so each child covers one cell of the Morton grid and the boxes stay compact (halving
-// the range instead joins the ends of two distant cells); items of one code are halved. Depth at
+// range at morton_split, so each child covers one cell of the Morton grid and the boxes stay
+// compact (halving the range instead joins the ends of two distant cells). Depth at
 // most 30 + log2 n. No SAH: its build cost would buy little for a walk that stops at occluded
 // nodes. O(n) nodes (2n − 1), O(n log n) time.
 template <class Node, class BoxOf>
@@ -91,18 +108,11 @@ void mesh_bvh_build(std::vector<Node>& nodes, const std::uint32_t* code, std::ui
     nodes[me].item = a;
     return;
   }
-  std::uint32_t mid = a + (b - a) / 2;
-  if (code[a] != code[b - 1]) {
-    const std::uint32_t bit = std::bit_floor(code[a] ^ code[b - 1]);
-    mid = static_cast<std::uint32_t>(std::partition_point(code + a, code + b, [&](std::uint32_t c) { return (c & bit) == 0; }) - code);
-  }
+  const std::uint32_t mid = morton_split(code, a, b);
   mesh_bvh_build(nodes, code, a, mid, box);
   nodes[me].right = static_cast<std::uint32_t>(nodes.size());
   mesh_bvh_build(nodes, code, mid, b, box);
-  const Node& l = nodes[me + 1];
-  const Node& r = nodes[nodes[me].right];
-  nodes[me].lo = glm::min(l.lo, r.lo);
-  nodes[me].hi = glm::max(l.hi, r.hi);
+  join_children(nodes, me);
 }
 
 // A subtree of the chunk tree over at most kSahRange triangles, their bounds loaded once, in
@@ -173,10 +183,7 @@ void sah_build(std::vector<Node>& nodes, std::vector<std::uint32_t>& first, SahR
   sah_build(nodes, first, r, perm, cut, pos);
   nodes[me].right = static_cast<std::uint32_t>(nodes.size());
   sah_build(nodes, first, r, perm + cut, n - cut, pos + cut);
-  const Node& l = nodes[me + 1];
-  const Node& rt = nodes[nodes[me].right];
-  nodes[me].lo = glm::min(l.lo, rt.lo);
-  nodes[me].hi = glm::max(l.hi, rt.hi);
+  join_children(nodes, me);
 }
 
 // The chunk tree over the triangles at positions [a, b) (Morton order; code[k] the code at
@@ -206,18 +213,11 @@ void chunk_bvh_build(std::vector<Node>& nodes, std::vector<std::uint32_t>& first
   }
   const std::size_t me = nodes.size();
   nodes.emplace_back();
-  std::uint32_t mid = a + n / 2;
-  if (code[a] != code[b - 1]) {
-    const std::uint32_t bit = std::bit_floor(code[a] ^ code[b - 1]);
-    mid = static_cast<std::uint32_t>(std::partition_point(code + a, code + b, [&](std::uint32_t c) { return (c & bit) == 0; }) - code);
-  }
+  const std::uint32_t mid = morton_split(code, a, b);
   chunk_bvh_build(nodes, first, code, a, mid, r, tri_box, reorder);
   nodes[me].right = static_cast<std::uint32_t>(nodes.size());
   chunk_bvh_build(nodes, first, code, mid, b, r, tri_box, reorder);
-  const Node& l = nodes[me + 1];
-  const Node& rt = nodes[nodes[me].right];
-  nodes[me].lo = glm::min(l.lo, rt.lo);
-  nodes[me].hi = glm::max(l.hi, rt.hi);
+  join_children(nodes, me);
 }
 
 // Camera-space vertex: x right, y up, z view depth.
