@@ -95,8 +95,8 @@ void join_children(std::vector<Node>& nodes, std::size_t me) {
 // nondecreasing) to `nodes` in preorder — an LBVH (Lauterbach et al. 2009): a node splits its
 // range at morton_split, so each child covers one cell of the Morton grid and the boxes stay
 // compact (halving the range instead joins the ends of two distant cells). Depth at
-// most 30 + log2 n. No SAH: its build cost would buy little for a walk that stops at occluded
-// nodes. O(n) nodes (2n − 1), O(n log n) time.
+// most 30 + log2 n. O(n) nodes (2n − 1), O(n log n) time. The solids' hierarchy; the chunks'
+// (chunk_bvh_build) is this down to kSahRange triangles and the area heuristic below.
 template <class Node, class BoxOf>
 void mesh_bvh_build(std::vector<Node>& nodes, const std::uint32_t* code, std::uint32_t a, std::uint32_t b, const BoxOf& box) {
   const std::size_t me = nodes.size();
