@@ -73,7 +73,7 @@ TEST_CASE("sweep: the lockstep rows equal each config's replay alone, every syst
   const auto scene = make_scene_from_config(cfgs[0]);
   std::vector<const ReplayConfig*> ptrs;
   for (const auto& c : cfgs) ptrs.push_back(&c);
-  for (int threads : {1, 3}) {
+  for (int threads : {1, 2, 3}) {  // 2: one leader and the follower; 3: two leaders
     CAPTURE(threads);
     const std::vector<LockstepResult> rows = run_lockstep(ptrs, walk, *scene, threads);
     REQUIRE(rows.size() == cfgs.size());

@@ -37,9 +37,18 @@ namespace {
 // and in frame order; the consumer that first needs a render renders it (no thread of its own:
 // on 2 cores a third runnable thread only adds switches). Renders are claimed in order
 // (next_claim_); a consumer waiting for a render another is doing renders a later one meanwhile
-// if its slot is free. Slot state machine: holding render j - slots (ready) with refs -> 0 when
-// every consumer moved past it: free for render j -> the claimer of j renders, sets refs =
-// consumers and publishes ready = j (release). A consumer needing j that another claimed waits on the
+// if its slot is free.
+// Roles: left alone, the consumers run neck and neck (one that falls behind copies the pop-in the
+// other resolved and catches up), and at the same frame both resolve the same new states: over
+// the 10-minute plane walk, 13,000-21,000 of a 16-config clipmap sweep's ~70,000 resolutions on
+// two threads were such doubles (one thread: 54,783 in all). So the last consumer, the follower,
+// renders one frame ahead each frame it takes while it is less than kFollowerLead renders behind
+// the leader: the others lead and resolve each new state first, the follower renders and copies.
+// A follower kFollowerLead behind stops rendering ahead and the leaders render for themselves, so
+// the work stays balanced (docs/sweep.md "Speed").
+// Slot state machine: holding render j - slots (ready) with refs -> 0 when every consumer moved
+// past it: free for render j -> the claimer of j renders, sets refs = consumers and publishes
+// ready = j (release). A consumer needing j that another claimed waits on the
 // slot's `ready` (atomic wait). A render that throws publishes kFailed: its waiters throw.
 class ViewRing {
  public:
@@ -48,7 +57,7 @@ class ViewRing {
       : plan_(plan), scene_(scene), vp_(view_params(cfg.view)), pp_(view_params(cfg.view)),
         separate_popin_(cfg.view.popin_divisor > 0 && cfg.view.popin_divisor != cfg.view.divisor),
         consumers_(consumers), slots_(static_cast<std::size_t>(consumers) + kSlack),
-        held_(static_cast<std::size_t>(consumers), -1), next_(static_cast<std::size_t>(consumers), 0),
+        held_(static_cast<std::size_t>(consumers), -1), next_(static_cast<std::size_t>(consumers)),
         views_(static_cast<std::size_t>(consumers)) {
     if (cfg.view.popin_divisor > 0) pp_.divisor = cfg.view.popin_divisor;
     for (Slot& s : slots_) {
@@ -66,10 +75,11 @@ class ViewRing {
     v.frame = f;
     v.pose = &plan_.trace.poses[static_cast<std::size_t>(f)];
     v.measured = plan_.measured(f);
-    const std::size_t j = next_[ci];
+    const std::size_t j = next_[ci].load(std::memory_order_relaxed);
     v.fresh = j < plan_.render_frames.size() && plan_.render_frames[j] == f;
     if (!v.fresh) return v;  // the last rendered buffers stand in
     release(c);
+    if (c > 0 && c == consumers_ - 1 && j + kFollowerLead > lead()) render_ahead();
     Slot& s = slots_[j % slots_.size()];
     const auto jj = static_cast<std::int64_t>(j);
     std::size_t claim = j;
@@ -85,7 +95,7 @@ class ViewRing {
     v.feedback = &s.feedback;
     v.popin = separate_popin_ ? &s.popin : &s.feedback;
     held_[ci] = jj;
-    next_[ci] = j + 1;
+    next_[ci].store(j + 1, std::memory_order_relaxed);
     return v;
   }
   // The pop-in share of the spans consumer c holds (after frame(c, ...)).
@@ -111,6 +121,17 @@ class ViewRing {
   // waiting for each other (each wait is a futex call, dear on a paravirtualised VM). A slot is
   // one feedback buffer (~0.1 MB of spans at divisor 8, ~0.5 MB more with samples).
   static constexpr std::size_t kSlack = 14;
+  // How far behind the leader the follower still renders ahead: half the ring. 4 left 700-1,800
+  // doubles; 8, 80-250 (10-minute walk, two threads); with no limit the follower rendered nearly
+  // every frame, fell behind, and the leader waited for its renders.
+  static constexpr std::size_t kFollowerLead = 8;
+
+  // The render the furthest consumer but the follower takes next.
+  std::size_t lead() const {
+    std::size_t l = 0;
+    for (std::size_t o = 0; o + 1 < next_.size(); ++o) l = std::max(l, next_[o].load(std::memory_order_relaxed));
+    return l;
+  }
 
   // Claims and renders the next unclaimed render if its slot is free now (never waits).
   bool render_ahead() {
@@ -163,7 +184,7 @@ class ViewRing {
   int consumers_;
   std::vector<Slot> slots_;
   std::vector<long long> held_;    // per consumer: the render it holds, -1 none
-  std::vector<std::size_t> next_;  // per consumer: the next render it takes
+  std::vector<std::atomic<std::size_t>> next_;  // per consumer: the next render it takes (read by the follower)
   std::vector<FrameView> views_;   // per consumer
   std::atomic<std::size_t> next_claim_{0};
   std::string error_;              // written before a slot's ready = kFailed (release)

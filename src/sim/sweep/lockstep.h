@@ -8,9 +8,10 @@
 //
 // Parallelism: with threads > 1 the runs are split among `threads` consumer threads, each
 // stepping its runs through every frame; the frames are rendered into a ring of buffers by the
-// consumer that first needs each, and a frame's buffers are freed when every consumer has moved
-// past them (no barrier per frame: a consumer waits only for a render another is doing, or for
-// the slowest consumer when the ring is full). A group that may
+// consumer that first needs each (the last consumer also renders ahead while it is close behind
+// the others, so that they meet new states first and it copies their pop-in), and a frame's
+// buffers are freed when every consumer has moved past them (no barrier per frame: a consumer
+// waits only for a render another is doing, or for the slowest consumer when the ring is full). A group that may
 // read every sample (SystemRun::may_keep_samples) has them rendered up front, so consumers never
 // write the shared buffers. Results do not depend on the thread count.
 #include <atomic>
