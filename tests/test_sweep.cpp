@@ -1,6 +1,7 @@
 // Sweeps (docs/sweep.md): specs, view once / systems many against separate replays, shards and
 // their merge, restart after a kill, determinism across thread counts, failures in a row.
 #include <doctest/doctest.h>
+#include <fmt/format.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -9,6 +10,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "cache/policy/i_replacement.h"
 #include "sim/run/frame_loop.h"
 #include "sim/run/replay.h"
 #include "sim/run/systems.h"
@@ -55,11 +57,45 @@ std::vector<std::string> joined_files(const std::string& dir) {
   return {test::slurp(dir + "/rows.jsonl"), test::slurp(dir + "/rows.csv"), test::slurp(dir + "/report.html")};
 }
 
+// The first 3 s of the town walk (tests/data), the lockstep's exactness cases' trace.
+Trace short_town_walk() {
+  Trace walk = load_trace(test::kData + "/town_walk.csv");
+  while (!walk.poses.empty() && walk.poses.back().t_s > 3.0) walk.poses.pop_back();
+  return walk;
+}
+
+// Every config's lockstep row, on 1..max_threads consumer threads, equals its replay alone (the
+// replay's summary less its run's cost and build: sweep.json has the build). `alone` as
+// run_replay gave them, in the same form.
+void check_lockstep_exact(const std::vector<ReplayConfig>& cfgs, const std::vector<std::string>& alone, const Trace& walk,
+                          const IScene& scene, std::initializer_list<int> thread_counts) {
+  std::vector<const ReplayConfig*> ptrs;
+  for (const auto& c : cfgs) ptrs.push_back(&c);
+  for (int threads : thread_counts) {
+    CAPTURE(threads);
+    const std::vector<LockstepResult> rows = run_lockstep(ptrs, walk, scene, threads);
+    REQUIRE(rows.size() == cfgs.size());
+    for (std::size_t i = 0; i < cfgs.size(); ++i) {
+      CAPTURE(cfgs[i].run.system);
+      CAPTURE(cfgs[i].throttle.policy);
+      CAPTURE(cfgs[i].ram.policy);
+      REQUIRE(rows[i].ok);
+      CHECK(rows[i].summary.dump() == alone[i]);
+    }
+  }
+}
+
+nlohmann::json alone_summary(const ReplayConfig& cfg, const Trace& walk, const IScene& scene) {
+  ReplayResult r = run_replay(cfg, walk, scene);
+  r.summary.erase("run");
+  r.summary.erase("provenance");
+  return std::move(r.summary);
+}
+
 }  // namespace
 
 TEST_CASE("sweep: the lockstep rows equal each config's replay alone, every system × every throttle policy") {
-  Trace walk = load_trace(test::kData + "/town_walk.csv");
-  while (!walk.poses.empty() && walk.poses.back().t_s > 3.0) walk.poses.pop_back();
+  const Trace walk = short_town_walk();
   std::vector<ReplayConfig> cfgs;
   for (const auto& sys_entry : streaming_systems().entries())
     for (const auto& policy_entry : throttle_policies().entries()) {
@@ -71,28 +107,38 @@ TEST_CASE("sweep: the lockstep rows equal each config's replay alone, every syst
     }
   REQUIRE(cfgs.size() >= 10);
   const auto scene = make_scene_from_config(cfgs[0]);
-  std::vector<const ReplayConfig*> ptrs;
-  for (const auto& c : cfgs) ptrs.push_back(&c);
-  for (int threads : {1, 2, 3}) {  // 2: one leader and the follower; 3: two leaders
-    CAPTURE(threads);
-    const std::vector<LockstepResult> rows = run_lockstep(ptrs, walk, *scene, threads);
-    REQUIRE(rows.size() == cfgs.size());
-    for (std::size_t i = 0; i < cfgs.size(); ++i) {
-      CAPTURE(cfgs[i].run.system);
-      CAPTURE(cfgs[i].throttle.policy);
-      REQUIRE(rows[i].ok);
-      ReplayResult alone = run_replay(cfgs[i], walk, *scene);
-      // A row is the replay's summary less its run's cost and build (sweep.json has the build).
-      alone.summary.erase("run");
-      alone.summary.erase("provenance");
-      CHECK(rows[i].summary.dump() == alone.summary.dump());
+  std::vector<std::string> alone;
+  for (const auto& c : cfgs) alone.push_back(alone_summary(c, walk, *scene).dump());
+  check_lockstep_exact(cfgs, alone, walk, *scene, {1, 2, 3});  // 2: one leader and the follower; 3: two leaders
+}
+
+TEST_CASE("sweep: the lockstep rows equal each config's replay alone, every system × every replacement policy") {
+  const Trace walk = short_town_walk();
+  std::vector<ReplayConfig> cfgs;
+  for (const auto& sys_entry : streaming_systems().entries())
+    for (const auto& policy_entry : replacement_policies().entries()) {
+      const std::string system(sys_entry.name), policy(policy_entry.name);
+      // RAM and the VT pool small enough that both levels evict, so the policy decides.
+      std::vector<std::string> sets = {"scene.kind=town", "view.render_threads=0", "run.system=" + system,
+                                       "ram.policy=" + policy, "ram.capacity_MiB=2", "upload.tiles_per_frame=6"};
+      if (system == "vt") sets.insert(sets.end(), {"vt.pool_pages=96", "vt.pool_policy=" + policy});
+      cfgs.push_back(load_replay_config("", sets));
     }
+  REQUIRE(cfgs.size() >= 10);
+  const auto scene = make_scene_from_config(cfgs[0]);
+  std::vector<std::string> alone;
+  for (const auto& c : cfgs) {
+    const nlohmann::json s = alone_summary(c, walk, *scene);
+    CAPTURE(c.run.system);
+    CHECK(s["cache"]["ram_evictions"].get<std::uint64_t>() > 0);
+    if (c.run.system == "vt") CHECK(s["vt"]["pool"]["evictions"].get<std::uint64_t>() > 0);
+    alone.push_back(s.dump());
   }
+  check_lockstep_exact(cfgs, alone, walk, *scene, {1, 2});
 }
 
 TEST_CASE("sweep: runs in the same state share their pop-in and end exactly as alone (clipmap, terrain)") {
-  Trace walk = load_trace(test::kData + "/town_walk.csv");
-  while (!walk.poses.empty() && walk.poses.back().t_s > 3.0) walk.poses.pop_back();
+  const Trace walk = short_town_walk();
   for (const char* system : {"clipmap", "terrain"}) {
     CAPTURE(system);
     // RAM size and disk differ, the clipmaps mostly not: the second run finds the first's entries.
@@ -178,7 +224,63 @@ TEST_CASE("sweep: spec errors name file:line and the key, before anything runs")
   // Cross-field checks name the point and its values.
   CHECK(test::contains(spec_error(d, "generate = [\"walk\"]\n[[configs]]\n\"clipmap.clipsize\" = 100\n"),
                        f + ": config point 0 (clipmap.clipsize = 100): config: field 'clipmap.clipsize'"));
+  // A key or value given twice, or in both [[configs]] and [grid], would run a config twice or
+  // silently drop one of the values.
+  CHECK(test::contains(spec_error(d, "generate = [\"walk\"]\n[grid]\n\"upload.tiles_per_frame\" = [4, 8, 4]\n"),
+                       f + ":3: grid key 'upload.tiles_per_frame': the value 4 twice"));
+  CHECK(test::contains(spec_error(d, "generate = [\"walk\"]\n[grid]\n\"upload.tiles_per_frame\" = [4]\n[grid.upload]\ntiles_per_frame = [8]\n"),
+                       f + ":5: grid key 'upload.tiles_per_frame': an axis already (line 3)"));
+  CHECK(test::contains(spec_error(d, "generate = [\"walk\"]\n[grid]\n\"upload.tiles_per_frame\" = [4]\n[[configs]]\n\"upload.tiles_per_frame\" = 8\n"),
+                       f + ":5: [[configs]]: key 'upload.tiles_per_frame' is also a [grid] axis (line 3)"));
+  CHECK(test::contains(spec_error(d, "generate = [\"walk\"]\nmetrics = [\"latency_ms.p99\", \"latency_ms.p99\"]\n"),
+                       f + ":2: metrics: 'latency_ms.p99' twice"));
+  // The base config's errors say where the spec named it.
+  CHECK(test::contains(spec_error(d, "generate = [\"walk\"]\nset = [\"upload.tiles_per_frame=abc\"]\n"),
+                       f + ":2: key 'set': 'upload.tiles_per_frame=abc': "));
+  CHECK(test::contains(spec_error(d, "generate = [\"walk\"]\nconfig = \"no-base.toml\"\n"), f + ":2: key 'config': "));
+  sweep_write(d.file("base.toml"), "[upload]\ntiles_per_frame = \"x\"\n");
+  CHECK(test::contains(spec_error(d, "generate = [\"walk\"]\nconfig = \"base.toml\"\n"),
+                       f + ":2: key 'config': " + d.file("base.toml") + ":2: field 'upload.tiles_per_frame'"));
   CHECK(spec_error(d, "generate = [\"walk\"]\n") == "");
+}
+
+TEST_CASE("sweep: a metric or tune constraint that no summary holds is refused before anything is written") {
+  test::TempDir d;
+  const auto refused = [&](const std::string& text) {
+    sweep_write(d.file("spec.toml"), text);
+    const SweepSpec spec = load_sweep_spec(d.file("spec.toml"));
+    SweepOptions o;
+    o.out_dir = d.file("out");
+    std::string err;
+    try {
+      run_sweep(spec, o);
+    } catch (const InputError& e) {
+      err = e.what();
+    }
+    CHECK_FALSE(std::filesystem::exists(o.out_dir));
+    std::filesystem::remove_all(o.out_dir);
+    return err;
+  };
+  const std::string f = d.file("spec.toml");
+  const std::string g = "generate = [\"walk duration_s=1\"]\n";
+  CHECK(test::contains(refused(g + "metrics = [\"popin.blurry_fraction_p95\", \"popin.nosuch\"]\n"),
+                       f + ":2: metrics: 'popin.nosuch' is not a value of a replay summary: popin has no key 'nosuch' (keys: "));
+  CHECK(test::contains(refused(g + "metrics = [\"latency_ms\"]\n"), "latency_ms is a section, not a value"));
+  CHECK(test::contains(refused(g + "metrics = [\"bandwidth.per_level.first.disk_read_MBps\"]\n"),
+                       "bandwidth.per_level is a list: give an element's number"));
+  CHECK(test::contains(refused(g + "[grid]\n\"upload.tiles_per_frame\" = [4, 8]\n[tune]\nconstraints = [\n  \"latency_ms.p99 <= 200\",\n"
+                                   "  \"popin.blurry_p99 <= 0.02\"]\n"),
+                       f + ":5: tune.constraints: 'popin.blurry_p99' is not a value"));
+  // Paths that hold in some summaries: an element of a list by number (any: lists differ in
+  // length), a section only runs that produce have, the system's own section, the defaults.
+  sweep_write(d.file("spec.toml"), g + "metrics = [\"bandwidth.per_level.0.disk_read_MBps\", \"bandwidth.per_level.99.disk_read_MBps\", "
+                                       "\"produce.requests\", \"vt.pool.evictions\", \"clipmap.levels\"]\n"
+                                       "[grid]\n\"run.system\" = [\"clipmap\", \"vt\"]\n");
+  const SweepSpec ok = load_sweep_spec(d.file("spec.toml"));
+  CHECK_NOTHROW(check_sweep_metrics(ok, load_sweep_traces(ok)));
+  sweep_write(d.file("spec.toml"), g + "[grid]\n\"run.system\" = [\"clipmap\", \"vt\", \"terrain\"]\n");
+  const SweepSpec defaults = load_sweep_spec(d.file("spec.toml"));
+  CHECK_NOTHROW(check_sweep_metrics(defaults, load_sweep_traces(defaults)));
 }
 
 TEST_CASE("sweep: shards merged give exactly the unsharded outputs, and --jobs changes nothing") {
@@ -238,6 +340,21 @@ TEST_CASE("sweep: shards merged give exactly the unsharded outputs, and --jobs c
   sj.replace(sj.find("\"complete\": true"), 16, "\"complete\": false");
   sweep_write(shards[1] + "/shard.json", sj);
   CHECK_THROWS_WITH_AS(merge_sweep(shards, d.file("m5")), doctest::Contains("incomplete"), InputError);
+  // A complete shard whose parts/ was tampered with: the error names that shard's directory.
+  sj.replace(sj.find("\"complete\": false"), 17, "\"complete\": true");
+  sweep_write(shards[1] + "/shard.json", sj);
+  std::vector<std::filesystem::path> parts1;
+  for (const auto& e : std::filesystem::directory_iterator(shards[1] + "/parts")) parts1.push_back(e.path());
+  REQUIRE_FALSE(parts1.empty());
+  std::filesystem::copy_file(parts1[0], shards[1] + "/parts/copy.jsonl");
+  CHECK_THROWS_WITH_AS(merge_sweep(shards, d.file("m6")), doctest::Contains((shards[1] + ": work items ").c_str()), InputError);
+  CHECK_THROWS_WITH_AS(merge_sweep(shards, d.file("m6")), doctest::Contains("are in two parts"), InputError);
+  std::filesystem::remove(shards[1] + "/parts/copy.jsonl");
+  std::filesystem::remove(parts1[0]);
+  CHECK_THROWS_WITH_AS(merge_sweep(shards, d.file("m7")), doctest::Contains((shards[1] + ": work items ").c_str()), InputError);
+  CHECK_THROWS_WITH_AS(merge_sweep(shards, d.file("m7")), doctest::Contains("are missing from parts/"), InputError);
+  CHECK_FALSE(std::filesystem::exists(d.file("m6")));
+  CHECK_FALSE(std::filesystem::exists(d.file("m7")));
   // A shard directory of one spec is not reused for another.
   CHECK_THROWS_WITH_AS(run_sweep(load_sweep_spec(d.file("spec2.toml")), one), doctest::Contains("another spec"), InputError);
 }
@@ -266,6 +383,34 @@ TEST_CASE("sweep: a killed sweep restarted on the same output redoes only the un
   CHECK(test::slurp(parts[0].string()) == kept);
   CHECK_FALSE(std::filesystem::exists(parts[1].string() + ".tmp"));
   CHECK(joined_files(o.out_dir) == before);
+}
+
+TEST_CASE("sweep CLI: a sweep killed with SIGKILL and started again on its output loses and repeats nothing") {
+  test::TempDir d;
+  // Four tasks (two traces × two views) of ~0.4 s each (more under the sanitizers), one at a time.
+  sweep_write(d.file("spec.toml"), "set = [\"run.system=vt\", \"scene.kind=town\", \"view.render_threads=0\"]\n"
+                                  "generate = [\"walk duration_s=60 start_m=30,8\", \"walk duration_s=60 start_m=40,8\"]\n"
+                                  "[grid]\n\"vt.pool_pages\" = [128, 512]\n\"view.divisor\" = [16, 32]\n");
+  const std::string spec = d.file("spec.toml"), ref = d.file("ref"), out = d.file("out");
+  test::CliRun r = test::run_vtsim_capture("sweep " + spec + " -o " + ref + " -q --jobs 1", d.file("err"));
+  REQUIRE(r.code == 0);
+  // Killed as soon as its first task's part is on disk: the shell prints the status `wait` saw.
+  r = test::run_capture("sh -c '" + std::string(VTSIM_CLI) + " sweep " + spec + " -o " + out + " -q --jobs 1 & p=$!; i=0; "
+                        "while [ $i -lt 12000 ] && ! ls " + out + "/parts/*.jsonl >/dev/null 2>&1; do sleep 0.01; i=$((i+1)); done; "
+                        "kill -9 $p; wait $p; echo $?' 2>" + d.file("err"), d.file("err"));
+  REQUIRE(r.out == "137\n");  // 128 + SIGKILL: it was killed, not finished
+  CHECK_FALSE(std::filesystem::exists(out + "/rows.jsonl"));
+  std::size_t parts = 0;
+  for (const auto& e : std::filesystem::directory_iterator(out + "/parts")) parts += e.path().extension() == ".jsonl";
+  CHECK(parts >= 1);
+  CHECK(parts < 4);
+  // Started again: it finishes the other tasks (progress on stderr), and the outputs are the
+  // uninterrupted sweep's, byte for byte.
+  r = test::run_vtsim_capture("sweep " + spec + " -o " + out + " --jobs 1 --progress", d.file("err"));
+  CHECK(r.code == 0);
+  CHECK(test::contains(r.out, fmt::format("8 rows ({} run now, {} already done, 0 failed)", 8 - 2 * parts, 2 * parts)));
+  CHECK(test::contains(r.err, "rows done), "));
+  CHECK(joined_files(out) == joined_files(ref));
 }
 
 TEST_CASE("sweep: a row whose replay fails says why in its row, and the others run") {

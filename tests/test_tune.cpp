@@ -2,6 +2,7 @@
 // and catches monotonicity failures next to the front.
 #include <doctest/doctest.h>
 
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <string>
@@ -106,6 +107,23 @@ TEST_CASE("tune: spec errors for [tune] name the file and line") {
                        doctest::Contains("unknown key 'tune.budget'"), InputError);
   const SweepSpec no_tune = grid_spec(d, "generate = [\"walk\"]\n[grid]\n\"vt.pool_pages\" = [1]\n");
   CHECK_THROWS_AS(run_tune(no_tune, [](const std::vector<int>&) { return std::vector<std::vector<nlohmann::json>>{}; }), InputError);
+}
+
+TEST_CASE("tune CLI: a constraint on no summary value or a store that does not open is refused before any replay") {
+  test::TempDir d;
+  std::ofstream(d.file("bad.toml")) << "generate = [\"walk duration_s=1\"]\n[grid]\n\"upload.tiles_per_frame\" = [1, 4]\n"
+                                       "[tune]\nconstraints = [\"latency_ms.p99 <= 200\", \"popin.blurry <= 0.1\"]\n";
+  test::CliRun r = test::run_vtsim_capture("tune " + d.file("bad.toml") + " -o " + d.file("o1"), d.file("err"));
+  CHECK(r.code == 2);
+  CHECK(test::contains(r.err, d.file("bad.toml") + ":5: tune.constraints: 'popin.blurry' is not a value of a replay summary"));
+  CHECK_FALSE(std::filesystem::exists(d.file("o1")));
+  std::ofstream(d.file("ok.toml")) << "generate = [\"walk duration_s=1\"]\n[grid]\n\"upload.tiles_per_frame\" = [1, 4]\n"
+                                      "[tune]\nconstraints = [\"latency_ms.p99 <= 200\"]\n";
+  r = test::run_vtsim_capture("tune " + d.file("ok.toml") + " -o " + d.file("o2") + " --store " + d.file("none.vts"), d.file("err"));
+  CHECK(r.code == 2);
+  CHECK(test::contains(r.err, d.file("none.vts") + ": cannot open"));
+  CHECK_FALSE(test::contains(r.err, "replayed"));
+  CHECK_FALSE(std::filesystem::exists(d.file("o2")));
 }
 
 TEST_CASE("tune: on real replays the search equals the brute-force front of the same grid") {

@@ -14,6 +14,7 @@
 #include "sim/sweep/sweep.h"
 #include "sim/sweep/sweep_table.h"
 #include "sim/sweep/tune.h"
+#include "stream/store/tile_store.h"
 
 namespace vtsim::cli {
 
@@ -37,7 +38,7 @@ void run_sweep_command(const SweepArgs& a) {
   const bool tty = isatty(fileno(stderr)) != 0;
   if (!a.quiet && (a.progress || tty))
     o.progress = [tty, last = -10.0](std::size_t done, std::size_t rows, double frac, double el, double eta) mutable {
-      if (!tty && el - last < 10.0) return;
+      if (!tty && el - last < 10.0 && frac < 1.0) return;  // the last report always shows
       last = el;
       fmt::print(stderr, "{}sweep: {:.0f}% ({}/{} rows done), {:.0f} s elapsed, ~{:.0f} s left{}", tty ? "\r" : "",
                  100.0 * frac, done, rows, el, eta, tty ? "   " : "\n");
@@ -140,6 +141,8 @@ void run_tune_command(const TuneArgs& a) {
   std::vector<std::string> trace_warnings;
   const std::vector<Trace> traces = load_sweep_traces(spec, &trace_warnings);
   for (const std::string& w : trace_warnings) warn(w);
+  check_sweep_metrics(spec, traces);
+  if (!a.store.empty()) (void)TileStore::open(a.store);  // refused now, not after the search
   std::size_t replays = 0;
   const bool show = !a.quiet && isatty(fileno(stderr)) != 0;
   const TuneResult r = run_tune(spec, [&](const std::vector<int>& configs) {
@@ -174,15 +177,19 @@ void run_tune_command(const TuneArgs& a) {
   }
   const int rec = recommended_config(spec, r.front);
   out["recommended"] = rec;
-  if (!a.store.empty() && rec >= 0) out["real_check"] = tune_real_check(spec, traces, rec, a.store);
   std::error_code ec;
   std::filesystem::create_directories(a.out, ec);
   if (ec) throw InputError(a.out, "cannot create the output directory: " + ec.message());
-  {
+  const auto write = [&] {
     std::ofstream f(std::filesystem::path(a.out) / "tune.json", std::ios::binary | std::ios::trunc);
     f << out.dump(2) << "\n";
     if (!f.flush()) throw InputError(a.out + "/tune.json", "write failed");
+  };
+  if (!a.store.empty() && rec >= 0) {
+    write();  // the search's result is kept if the real-clock check fails (or is interrupted)
+    out["real_check"] = tune_real_check(spec, traces, rec, a.store);
   }
+  write();
   if (a.json) fmt::print("{}\n", out.dump(2));  // what tune.json holds
   if (a.quiet || a.json) return;
   fmt::print("{} configs meet every constraint at least cost (of {} in the grid); {} replayed ({:.0f}% of the grid), "

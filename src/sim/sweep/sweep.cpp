@@ -21,6 +21,7 @@
 #include "core/error.h"
 #include "core/hash.h"
 #include "core/input_file.h"
+#include "core/text.h"
 #include "sim/run/provenance.h"
 #include "sim/run/replay.h"
 #include "sim/sweep/lockstep.h"
@@ -330,6 +331,73 @@ nlohmann::json make_row(const SweepSpec& spec, int config, int trace, LockstepRe
   return row;
 }
 
+// Where a metric path stops resolving in a summary: "" when it resolves (an array element by any
+// index: arrays differ in length between configs and traces), else why not, with the keys there.
+std::string path_miss(const nlohmann::json& summary, const std::string& dotted) {
+  const nlohmann::json* p = &summary;
+  std::string at, rest = dotted;
+  for (;;) {
+    const std::size_t dot = rest.find('.');
+    const std::string part = rest.substr(0, dot);
+    if (p->is_array()) {
+      std::size_t i = 0;
+      if (!text::parse_whole(part, i)) return fmt::format("{} is a list: give an element's number", at);
+      if (p->empty()) return "";
+      p = &(*p)[std::min(i, p->size() - 1)];
+    } else if (p->is_object()) {
+      const auto it = p->find(part);
+      if (it == p->end()) {
+        std::string keys;
+        for (const auto& [k, v] : p->items()) keys += (keys.empty() ? "" : ", ") + k;
+        return fmt::format("{} has no key '{}' (keys: {})", at.empty() ? "the summary" : at, part, keys);
+      }
+      p = &*it;
+    } else {
+      return fmt::format("{} is a value, not a section", at);
+    }
+    at += (at.empty() ? "" : ".") + part;
+    if (dot == std::string::npos) return p->is_object() || p->is_array() ? fmt::format("{} is a section, not a value", at) : "";
+    rest = rest.substr(dot + 1);
+  }
+}
+
+// Refuses, before any run, a metric (or tune constraint) that no row's summary could hold: a short
+// replay (the first trace's first three poses) of the first point of each system and metrics.opt
+// (what changes the summary's keys) gives the summaries' shape. Sections a summary has only when
+// the run did that work ("produce") are accepted by name. A probe that fails is left out (its
+// rows will say why); with none left, nothing is checked.
+void check_metrics(const SweepSpec& spec, const std::vector<Trace>& traces, SceneCache& scenes) {
+  if (traces.empty() || spec.points.empty()) return;
+  Trace probe = traces[0];
+  probe.poses.resize(std::min<std::size_t>(probe.poses.size(), 3));
+  std::set<std::string> kinds;
+  std::vector<nlohmann::json> shapes;
+  for (const SweepPoint& p : spec.points) {
+    if (!kinds.insert(p.cfg.run.system + (p.cfg.metrics.opt ? "+opt" : "")).second) continue;
+    try {
+      std::vector<LockstepResult> r = run_lockstep({&p.cfg}, probe, scenes.get(p.cfg), 1);
+      if (r.size() == 1 && r[0].ok) shapes.push_back(std::move(r[0].summary));
+    } catch (const std::exception&) {
+    }
+  }
+  if (shapes.empty()) return;
+  for (const std::string& m : spec.metrics) {
+    if (m.rfind("produce.", 0) == 0) continue;
+    std::string miss;
+    for (const nlohmann::json& s : shapes) {
+      miss = path_miss(s, m);
+      if (miss.empty()) break;
+    }
+    if (miss.empty()) continue;
+    long long line = spec.metrics_line;
+    std::string key = "metrics";
+    for (const TuneConstraint& c : spec.tune.constraints)
+      if (c.metric == m) line = c.line, key = "tune.constraints";
+    throw InputError(line > 0 ? at_line(spec.path, line) : spec.path,
+                     fmt::format("{}: '{}' is not a value of a replay summary: {} (docs/metrics.md)", key, m, miss));
+  }
+}
+
 }  // namespace
 
 std::vector<std::vector<nlohmann::json>> replay_points(const SweepSpec& spec, const std::vector<Trace>& traces,
@@ -357,6 +425,11 @@ std::vector<std::vector<nlohmann::json>> replay_points(const SweepSpec& spec, co
     }
   }
   return out;
+}
+
+void check_sweep_metrics(const SweepSpec& spec, const std::vector<Trace>& traces) {
+  SceneCache scenes;
+  check_metrics(spec, traces, scenes);
 }
 
 std::string sweep_spec_hash(const SweepSpec& spec, const std::vector<Trace>& traces) {
@@ -409,6 +482,8 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
   std::vector<std::string> trace_warnings;
   const std::vector<Trace> traces = load_sweep_traces(spec, &trace_warnings);
   const std::string hash = sweep_spec_hash(spec, traces);
+  SceneCache scenes;
+  check_metrics(spec, traces, scenes);  // before anything is written
   const fs::path out(opts.out_dir);
   const fs::path parts = out / "parts";
   std::error_code ec;
@@ -463,7 +538,6 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
   const int jobs = opts.jobs > 0 ? opts.jobs : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   const int parallel = std::max(1, std::min<int>(jobs, static_cast<int>(todo.size())));
   const int team = std::max(1, jobs / parallel);
-  SceneCache scenes;
   std::atomic<std::size_t> next{0}, rows_done{0}, failed{0};
   std::atomic<std::uint64_t> frames_done{0};
   std::atomic<double> replayed_s{0.0};
@@ -521,6 +595,9 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
       const double frac = total_frames ? static_cast<double>(frames_done.load()) / static_cast<double>(total_frames) : 1.0;
       opts.progress(st.rows_skipped + rows_done.load(), st.rows, frac, el, frac > 0 ? el * (1 - frac) / frac : 0.0);
     }
+    // And once at the end, so that a log shows how the run ended, also a run under a second.
+    opts.progress(st.rows_skipped + rows_done.load(), st.rows, 1.0,
+                  std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count(), 0.0);
   } else {
     for (int i = 1; i < parallel; ++i) pool.emplace_back(worker);
     worker();
@@ -559,6 +636,7 @@ void merge_sweep(const std::vector<std::string>& shard_dirs, const std::string& 
   std::map<int, std::string> seen;
   std::vector<nlohmann::json> rows;
   std::vector<std::pair<std::size_t, std::size_t>> covered;  // item ranges of the parts
+  std::map<std::size_t, std::pair<std::size_t, std::string>> shard_items;  // first item -> end, directory
   nlohmann::json cost = {{"wall_s", 0.0}, {"cpu_s", 0.0}, {"shards", nlohmann::json::array()}};
   for (const std::string& d : shard_dirs) {
     const fs::path f = fs::path(d) / "shard.json";
@@ -582,6 +660,7 @@ void merge_sweep(const std::vector<std::string>& shard_dirs, const std::string& 
       cost["shards"].push_back(s["cost"]);
     }
     const auto range = s["items"].get<std::vector<std::size_t>>();
+    shard_items[range[0]] = {range[1], d};
     for (const auto& pf : fs::directory_iterator(fs::path(d) / "parts")) {
       if (pf.path().extension() != ".jsonl") continue;
       Part p = read_part(pf.path(), hash);
@@ -596,13 +675,20 @@ void merge_sweep(const std::vector<std::string>& shard_dirs, const std::string& 
     if (!seen.count(i)) throw InputError("merge", fmt::format("shard {}/{} is missing", i, count));
   std::sort(covered.begin(), covered.end());
   const std::size_t R = meta["rows"].get<std::size_t>();
+  // A gap or an overlap names the shard directory whose items it falls in (its parts were
+  // removed or copied in from elsewhere although its shard.json says complete).
+  constexpr const char* kRedo = "(run that shard again with the same -o: it redoes what is missing)";
+  const auto dir_of = [&](std::size_t item) {
+    auto it = shard_items.upper_bound(item);
+    return it == shard_items.begin() || item >= std::prev(it)->second.first ? std::string("merge") : std::prev(it)->second.second;
+  };
   std::size_t at = 0;
   for (const auto& [b, e] : covered) {
-    if (b != at) throw InputError("merge", fmt::format("work items {}..{} are {}", std::min(at, b), std::max(at, b),
-                                                       b > at ? "missing" : "in two parts"));
+    if (b > at) throw InputError(dir_of(at), fmt::format("work items {}..{} are missing from parts/ {}", at, b, kRedo));
+    if (b < at) throw InputError(dir_of(b), fmt::format("work items {}..{} are in two parts of parts/", b, at));
     at = e;
   }
-  if (at != R) throw InputError("merge", fmt::format("work items {}..{} are missing", at, R));
+  if (at != R) throw InputError(dir_of(at), fmt::format("work items {}..{} are missing from parts/ {}", at, R, kRedo));
   std::error_code ec;
   fs::create_directories(out_dir, ec);
   if (ec) throw InputError(out_dir, "cannot create the output directory: " + ec.message());

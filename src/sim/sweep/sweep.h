@@ -40,7 +40,8 @@ struct SweepOptions {
   int jobs = 0;                  // 0: one per core
   SweepShard shard;
   // Progress, about once a second from the calling thread: rows done, rows of this shard, the
-  // fraction of the work done (frames stepped), seconds elapsed, seconds left (estimate).
+  // fraction of the work done (frames stepped), seconds elapsed, seconds left (estimate); and once
+  // when the work is done (fraction 1).
   std::function<void(std::size_t, std::size_t, double, double, double)> progress;
 };
 
@@ -73,6 +74,11 @@ std::vector<Trace> load_sweep_traces(const SweepSpec& spec, std::vector<std::str
 // config, one row per trace.
 std::vector<std::vector<nlohmann::json>> replay_points(const SweepSpec& spec, const std::vector<Trace>& traces,
                                                        const std::vector<int>& configs, int jobs);
+
+// Throws InputError naming spec:line when a metric or tune constraint names no value of a replay
+// summary (a short probe replay per system gives the summaries' keys); run_sweep checks this
+// before it writes anything.
+void check_sweep_metrics(const SweepSpec& spec, const std::vector<Trace>& traces);
 
 // The spec's identity: its expanded points, the base config, the trace sources and their
 // content, the metrics; hex.

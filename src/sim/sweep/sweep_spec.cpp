@@ -144,6 +144,7 @@ SweepSpec load_sweep_spec(const std::string& path) {
   });
   const toml::table* grid = nullptr;
   const toml::array* configs = nullptr;
+  long long config_line = 0, set_line = 0;
   for (const auto& [key, node] : top) {
     const std::string where = at_line(path, line_of(*node));
     if (key == "name") {
@@ -152,8 +153,10 @@ SweepSpec load_sweep_spec(const std::string& path) {
     } else if (key == "config") {
       if (!node->as_string()) throw InputError(where, "key 'config': expected a file name");
       spec.base_config = resolve(dir, node->as_string()->get()).string();
+      config_line = line_of(*node);
     } else if (key == "set") {
       spec.base_sets = strings(*node, path, key);
+      set_line = line_of(*node);
     } else if (key == "traces") {
       for (const std::string& t : strings(*node, path, key)) {
         const std::string p = resolve(dir, t).string();
@@ -169,6 +172,12 @@ SweepSpec load_sweep_spec(const std::string& path) {
       }
     } else if (key == "metrics") {
       spec.metrics = strings(*node, path, key);
+      spec.metrics_line = line_of(*node);
+      for (std::size_t i = 0; i < spec.metrics.size(); ++i) {
+        if (spec.metrics[i].empty()) throw InputError(where, "metrics: an empty metric name");
+        for (std::size_t j = 0; j < i; ++j)
+          if (spec.metrics[j] == spec.metrics[i]) throw InputError(where, "metrics: '" + spec.metrics[i] + "' twice");
+      }
     } else if (key == "grid") {
       grid = node->as_table();
       if (!grid) throw InputError(where, "key 'grid': expected a table of key = [values]");
@@ -181,7 +190,10 @@ SweepSpec load_sweep_spec(const std::string& path) {
         const std::string tkey(tk.str());
         const std::string tw = at_line(path, line_of(tn));
         if (tkey == "constraints") {
-          for (const std::string& c : strings(tn, path, "tune.constraints")) spec.tune.constraints.push_back(parse_tune_constraint(c, tw));
+          for (const std::string& c : strings(tn, path, "tune.constraints")) {
+            spec.tune.constraints.push_back(parse_tune_constraint(c, tw));
+            spec.tune.constraints.back().line = line_of(tn);
+          }
         } else if (tkey == "costs") {
           spec.tune.costs = strings(tn, path, "tune.costs");
         } else {
@@ -205,8 +217,21 @@ SweepSpec load_sweep_spec(const std::string& path) {
   // The base config, as `vtsim replay --config F --set S...` builds it (validated at each point).
   ReplayConfig base;
   const auto& table = replay_config_table();
-  if (!spec.base_config.empty()) load_toml_file(table, base, spec.base_config);
-  for (const std::string& s : spec.base_sets) apply_set(table, base, s);
+  // Errors inside the base config name its file and line; the spec's line says where it was named.
+  if (!spec.base_config.empty()) {
+    try {
+      load_toml_file(table, base, spec.base_config);
+    } catch (const InputError& e) {
+      throw InputError(at_line(path, config_line), std::string("key 'config': ") + e.what());
+    }
+  }
+  for (const std::string& s : spec.base_sets) {
+    try {
+      apply_set(table, base, s);
+    } catch (const InputError& e) {
+      throw InputError(at_line(path, set_line), "key 'set': '" + s + "': " + e.what());
+    }
+  }
   spec.base_dump = table.dump(base);
 
   // Axes.
@@ -221,10 +246,17 @@ SweepSpec load_sweep_spec(const std::string& path) {
       const auto* arr = node->as_array();
       if (!arr) throw InputError(where, "grid key '" + key + "': expected a list of values, e.g. [4, 8, 16]");
       if (arr->empty()) throw InputError(where, "grid key '" + key + "': an empty axis (no config would run)");
+      for (const SweepAxis& a : spec.grid)  // "vt.pool_pages" and [grid.vt] pool_pages are one key
+        if (a.key == key) throw InputError(where, fmt::format("grid key '{}': an axis already (line {})", key, a.line));
       grid_values.emplace_back();
       for (const auto& e : *arr) {
         grid_values.back().push_back(scalar(e, where, key));
         axis.values.push_back(config_value_to_string(grid_values.back().back()));
+        // Two equal values would run the same configs twice and make two points of one (tune's
+        // order of cost would have a tie it cannot rank).
+        for (std::size_t v = 0; v + 1 < axis.values.size(); ++v)
+          if (axis.values[v] == axis.values.back())
+            throw InputError(where, "grid key '" + key + "': the value " + axis.values.back() + " twice");
       }
       spec.grid.push_back(std::move(axis));
     }
@@ -245,6 +277,12 @@ SweepSpec load_sweep_spec(const std::string& path) {
       for (const auto& [key, node] : keys) {
         const std::string w = at_line(path, line_of(*node));
         check_key(key, w);
+        for (const auto& [k, v] : kv)
+          if (k == key) throw InputError(w, "[[configs]]: key '" + key + "' twice in one table");
+        // A point takes the grid's value, so a key in both would be silently overridden.
+        for (const SweepAxis& a : spec.grid)
+          if (a.key == key)
+            throw InputError(w, fmt::format("[[configs]]: key '{}' is also a [grid] axis (line {}); give it in one place", key, a.line));
         kv.emplace_back(key, scalar(*node, w, key));
         lines.push_back(line_of(*node));
         texts.emplace_back(key, config_value_to_string(kv.back().second));

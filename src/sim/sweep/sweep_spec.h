@@ -55,6 +55,7 @@ struct TuneConstraint {
   bool at_most = true;  // metric <= bound (else >=)
   double bound = 0;
   std::string text;     // as written
+  long long line = 0;   // its line in the spec
 };
 struct TuneSpec {
   bool present = false;
@@ -72,6 +73,7 @@ struct SweepSpec {
   std::vector<SweepAxis> grid;
   std::vector<std::vector<std::pair<std::string, std::string>>> configs;  // explicit sets
   std::vector<std::string> metrics;       // dotted summary paths for the CSV and the report
+  long long metrics_line = 0;             // the spec line of `metrics` (0: the default set)
   std::vector<SweepPoint> points;         // configs × grid, validated
   std::vector<std::string> axis_keys;     // every key a point sets, in first-seen order
   std::string base_dump;                  // the base config, every key (identity, not display)
