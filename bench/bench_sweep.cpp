@@ -34,12 +34,27 @@
 using namespace vtsim;
 
 int main(int argc, char** argv) {
-  std::vector<char*> args(argv, argv + argc);
+  std::vector<char*> args;
   bool has_warmup = false;
-  for (int i = 1; i < argc; ++i) has_warmup = has_warmup || std::strcmp(argv[i], "--warmup") == 0;
+  double tune_trace_s = 0;  // --tune-s: the tune case's trace length (default 30 s, quick 10 s)
+  for (int i = 0; i < argc; ++i) {
+    if (i > 0 && std::strcmp(argv[i], "--tune-s") == 0) {
+      char* end = nullptr;
+      tune_trace_s = i + 1 < argc ? std::strtod(argv[i + 1], &end) : 0.0;
+      if (i + 1 >= argc || *end != '\0' || !(tune_trace_s >= 2.0 && tune_trace_s <= 3600.0)) {
+        fmt::print(stderr, "bench_sweep: --tune-s needs seconds in [2, 3600]\n");
+        return 2;
+      }
+      ++i;
+      continue;
+    }
+    has_warmup = has_warmup || (i > 0 && std::strcmp(argv[i], "--warmup") == 0);
+    args.push_back(argv[i]);
+  }
   std::string warm = "--warmup", zero = "0";
   if (!has_warmup) args.insert(args.end(), {warm.data(), zero.data()});
-  bench::Harness h("sweep", static_cast<int>(args.size()), args.data(), 3, 3);
+  bench::Harness h("sweep", static_cast<int>(args.size()), args.data(), 3, 3,
+                   "  --tune-s S      the tune case's walk and turn, seconds (default 30; quick 10)\n");
   const double duration_s = h.pick(600.0, 60.0);
   h.param("trace_s", duration_s);
   int status = 0;
@@ -134,7 +149,7 @@ int main(int argc, char** argv) {
   if (h.selected("tune_6x6x4")) {
     const std::string dir = std::filesystem::temp_directory_path() / "vtsim-bench-tune";
     std::filesystem::create_directories(dir);
-    const double tune_s = h.pick(30.0, 10.0);
+    const double tune_s = tune_trace_s > 0 ? tune_trace_s : h.pick(30.0, 10.0);
     std::ofstream(dir + "/tune.toml") << fmt::format(R"(set = ["run.system=vt", "scene.kind=town", "view.divisor=8"]
 generate = ["walk duration_s={0} start_m=30,8", "turn duration_s={0} start_m=30,8 event_s={1}"]
 [grid]
@@ -169,7 +184,7 @@ constraints = ["popin.blurry_fraction_mean <= 0.05", "latency_ms.p99 <= 250"]
                tune_s, r.replayed.size(), r.grid, 100.0 * static_cast<double>(r.replayed.size()) / static_cast<double>(r.grid),
                r.inferred, r.front.size(), brute.size(), r.front == brute ? "equal" : "DIFFERENT", passing, violations,
                r.monotonicity_failures.size());
-    h.param("tune_6x6x4", {{"replayed", r.replayed.size()}, {"grid", r.grid}, {"front_equal", r.front == brute},
+    h.param("tune_6x6x4", {{"trace_s", tune_s}, {"replayed", r.replayed.size()}, {"grid", r.grid}, {"front_equal", r.front == brute},
                            {"front", r.front}, {"violations", violations}, {"monotonicity_failures", r.monotonicity_failures}});
     if (r.front != brute) status = 1;
     std::filesystem::remove_all(dir);
