@@ -266,6 +266,10 @@ TEST_CASE("sweep: a metric or tune constraint that no summary holds is refused b
   CHECK(test::contains(refused(g + "metrics = [\"popin.blurry_fraction_p95\", \"popin.nosuch\"]\n"),
                        f + ":2: metrics: 'popin.nosuch' is not a value of a replay summary: popin has no key 'nosuch' (keys: "));
   CHECK(test::contains(refused(g + "metrics = [\"latency_ms\"]\n"), "latency_ms is a section, not a value"));
+  // A point whose probe fails (its scene does not load) is followed by the next of its system.
+  CHECK(test::contains(refused(g + "metrics = [\"popin.nosuch\"]\n[[configs]]\n\"scene.kind\" = \"heightfield\"\n"
+                                   "\"scene.file\" = \"no-such-height.png\"\n[[configs]]\n"),
+                       "popin has no key 'nosuch'"));
   CHECK(test::contains(refused(g + "metrics = [\"bandwidth.per_level.first.disk_read_MBps\"]\n"),
                        "bandwidth.per_level is a list: give an element's number"));
   CHECK(test::contains(refused(g + "[grid]\n\"upload.tiles_per_frame\" = [4, 8]\n[tune]\nconstraints = [\n  \"latency_ms.p99 <= 200\",\n"
@@ -387,9 +391,10 @@ TEST_CASE("sweep: a killed sweep restarted on the same output redoes only the un
 
 TEST_CASE("sweep CLI: a sweep killed with SIGKILL and started again on its output loses and repeats nothing") {
   test::TempDir d;
-  // Four tasks (two traces × two views) of ~0.4 s each (more under the sanitizers), one at a time.
+  // Four tasks (two traces × two views) of ~0.6 s each (more under the sanitizers), one at a time:
+  // the poller has the other three's time, ~1.8 s, to see the first part and kill.
   sweep_write(d.file("spec.toml"), "set = [\"run.system=vt\", \"scene.kind=town\", \"view.render_threads=0\"]\n"
-                                  "generate = [\"walk duration_s=60 start_m=30,8\", \"walk duration_s=60 start_m=40,8\"]\n"
+                                  "generate = [\"walk duration_s=90 start_m=30,8\", \"walk duration_s=90 start_m=40,8\"]\n"
                                   "[grid]\n\"vt.pool_pages\" = [128, 512]\n\"view.divisor\" = [16, 32]\n");
   const std::string spec = d.file("spec.toml"), ref = d.file("ref"), out = d.file("out");
   test::CliRun r = test::run_vtsim_capture("sweep " + spec + " -o " + ref + " -q --jobs 1", d.file("err"));

@@ -2,6 +2,7 @@
 // runs of one view while render-ahead renders, and tasks on a pool, give the one-thread results.
 #include <doctest/doctest.h>
 
+#include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -78,4 +79,21 @@ constraints = ["latency_ms.p99 <= 10000", "bandwidth.uploads >= 1"]
   // The simulated clock on the store's tile sizes reads what the real clock read (a still camera).
   CHECK(r["constraints"][1]["sim"] == r["constraints"][1]["real"]);
   CHECK(r["constraints"][1]["gap"] == 0.0);
+}
+
+TEST_CASE("sweep threads: tune refuses a store that fits no config of the grid before any replay") {
+  test::TempDir d;
+  std::ofstream(d.file("spec.toml")) << R"(set = ["texture.tile_size=32"]
+generate = ["walk duration_s=1"]
+[grid]
+"upload.tiles_per_frame" = [1, 4]
+[tune]
+constraints = ["latency_ms.p99 <= 10000"]
+)";
+  const test::CliRun r = test::run_vtsim_capture("tune " + d.file("spec.toml") + " -o " + d.file("out") + " --store " +
+                                                     test::small_store(), d.file("err"));
+  CHECK(r.code == 2);
+  CHECK(test::contains(r.err, "fits no config of the grid (config 0: "));
+  CHECK(test::contains(r.err, "texture.tile_size"));
+  CHECK_FALSE(std::filesystem::exists(d.file("out")));
 }

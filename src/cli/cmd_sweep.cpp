@@ -14,6 +14,7 @@
 #include "sim/sweep/sweep.h"
 #include "sim/sweep/sweep_table.h"
 #include "sim/sweep/tune.h"
+#include "sim/run/real_replay.h"
 #include "stream/store/tile_store.h"
 
 namespace vtsim::cli {
@@ -38,7 +39,7 @@ void run_sweep_command(const SweepArgs& a) {
   const bool tty = isatty(fileno(stderr)) != 0;
   if (!a.quiet && (a.progress || tty))
     o.progress = [tty, last = -10.0](std::size_t done, std::size_t rows, double frac, double el, double eta) mutable {
-      if (!tty && el - last < 10.0 && frac < 1.0) return;  // the last report always shows
+      if (!tty && el - last < 10.0 && done < rows) return;  // the last report always shows
       last = el;
       fmt::print(stderr, "{}sweep: {:.0f}% ({}/{} rows done), {:.0f} s elapsed, ~{:.0f} s left{}", tty ? "\r" : "",
                  100.0 * frac, done, rows, el, eta, tty ? "   " : "\n");
@@ -142,7 +143,21 @@ void run_tune_command(const TuneArgs& a) {
   const std::vector<Trace> traces = load_sweep_traces(spec, &trace_warnings);
   for (const std::string& w : trace_warnings) warn(w);
   check_sweep_metrics(spec, traces);
-  if (!a.store.empty()) (void)TileStore::open(a.store);  // refused now, not after the search
+  if (!a.store.empty()) {  // refused now, not after the search: a store that opens and fits a config
+    const TileStore store = TileStore::open(a.store);
+    std::string why;
+    for (const SweepPoint& p : spec.points) {
+      ReplayConfig c = p.cfg;
+      try {
+        (void)bind_store_texture(c, store);
+        why.clear();
+        break;
+      } catch (const InputError& e) {
+        if (why.empty()) why = e.what();
+      }
+    }
+    if (!why.empty()) throw InputError(a.store, "fits no config of the grid (config 0: " + why + ")");
+  }
   std::size_t replays = 0;
   const bool show = !a.quiet && isatty(fileno(stderr)) != 0;
   const TuneResult r = run_tune(spec, [&](const std::vector<int>& configs) {

@@ -364,23 +364,32 @@ std::string path_miss(const nlohmann::json& summary, const std::string& dotted) 
 // Refuses, before any run, a metric (or tune constraint) that no row's summary could hold: a short
 // replay (the first trace's first three poses) of the first point of each system and metrics.opt
 // (what changes the summary's keys) gives the summaries' shape. Sections a summary has only when
-// the run did that work ("produce") are accepted by name. A probe that fails is left out (its
-// rows will say why); with none left, nothing is checked.
+// the run did that work ("produce") are accepted by name. A point whose probe fails is followed by
+// the next of its kind (up to four); when some kind has no shape, nothing is checked (the rows
+// will say why they failed).
 void check_metrics(const SweepSpec& spec, const std::vector<Trace>& traces, SceneCache& scenes) {
   if (traces.empty() || spec.points.empty()) return;
   Trace probe = traces[0];
   probe.poses.resize(std::min<std::size_t>(probe.poses.size(), 3));
-  std::set<std::string> kinds;
+  std::map<std::string, int> tries;  // per kind: -1 once a probe of it ran, else probes failed
   std::vector<nlohmann::json> shapes;
   for (const SweepPoint& p : spec.points) {
-    if (!kinds.insert(p.cfg.run.system + (p.cfg.metrics.opt ? "+opt" : "")).second) continue;
+    int& t = tries[p.cfg.run.system + (p.cfg.metrics.opt ? "+opt" : "")];
+    if (t < 0 || t >= 4) continue;  // a kind whose points keep failing is left to its rows
     try {
       std::vector<LockstepResult> r = run_lockstep({&p.cfg}, probe, scenes.get(p.cfg), 1);
-      if (r.size() == 1 && r[0].ok) shapes.push_back(std::move(r[0].summary));
+      if (r.size() == 1 && r[0].ok) {
+        shapes.push_back(std::move(r[0].summary));
+        t = -1;
+        continue;
+      }
     } catch (const std::exception&) {
     }
+    ++t;
   }
-  if (shapes.empty()) return;
+  // A kind that no probe ran could hold the metric: check only when every kind has a shape.
+  for (const auto& [kind, t] : tries)
+    if (t >= 0) return;
   for (const std::string& m : spec.metrics) {
     if (m.rfind("produce.", 0) == 0) continue;
     std::string miss;
@@ -595,15 +604,17 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
       const double frac = total_frames ? static_cast<double>(frames_done.load()) / static_cast<double>(total_frames) : 1.0;
       opts.progress(st.rows_skipped + rows_done.load(), st.rows, frac, el, frac > 0 ? el * (1 - frac) / frac : 0.0);
     }
-    // And once at the end, so that a log shows how the run ended, also a run under a second.
-    opts.progress(st.rows_skipped + rows_done.load(), st.rows, 1.0,
-                  std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count(), 0.0);
   } else {
     for (int i = 1; i < parallel; ++i) pool.emplace_back(worker);
     worker();
   }
   for (auto& th : pool) th.join();
   if (first_error) std::rethrow_exception(first_error);
+  // And once when every row is done (also a run under a second, or one that found everything
+  // done), so that a log shows how the run ended.
+  if (opts.progress)
+    opts.progress(st.rows_skipped + rows_done.load(), st.rows, 1.0,
+                  std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count(), 0.0);
 
   st.rows_failed = failed.load();
   for (std::string& w : scenes.load_warnings()) st.input_warnings.push_back(std::move(w));
@@ -660,7 +671,7 @@ void merge_sweep(const std::vector<std::string>& shard_dirs, const std::string& 
       cost["shards"].push_back(s["cost"]);
     }
     const auto range = s["items"].get<std::vector<std::size_t>>();
-    shard_items[range[0]] = {range[1], d};
+    if (range[1] > range[0]) shard_items[range[0]] = {range[1], d};  // an empty shard holds no item
     for (const auto& pf : fs::directory_iterator(fs::path(d) / "parts")) {
       if (pf.path().extension() != ".jsonl") continue;
       Part p = read_part(pf.path(), hash);
