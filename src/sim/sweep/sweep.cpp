@@ -362,8 +362,8 @@ std::string path_miss(const nlohmann::json& summary, const std::string& dotted) 
 }
 
 // Refuses, before any run, a metric (or tune constraint) that no row's summary could hold: a short
-// replay (the first trace's first three poses) of the first point of each system and metrics.opt
-// (what changes the summary's keys) gives the summaries' shape. Sections a summary has only when
+// replay (the first trace's first three poses) of one point of each system and metrics.opt (what
+// changes the summary's keys) gives the summaries' shape. Sections a summary has only when
 // the run did that work ("produce") are accepted by name. A point whose probe fails is followed by
 // the next of its kind (up to four); when some kind has no shape, nothing is checked (the rows
 // will say why they failed).
