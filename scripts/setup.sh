@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Installs vtsim's build dependencies from Debian if any is missing (idempotent), then configures
 # and builds one build tree.  Usage: scripts/setup.sh [BUILD_DIR] [extra cmake args...]
+#   scripts/setup.sh --packages-only      -> installs the packages only
+#   scripts/setup.sh build --target vtsim -> builds that target only (the demo)
 #   scripts/setup.sh                      -> build/ (Release), produces build/vtsim
 #   scripts/setup.sh build-asan -DVTSIM_SANITIZE=address -DCMAKE_BUILD_TYPE=RelWithDebInfo
 set -euo pipefail
@@ -15,9 +17,17 @@ PKGS=(build-essential cmake pkg-config git
 
 . scripts/packages.sh
 ensure_packages "${PKGS[@]}"
+[ "${1:-}" != --packages-only ] || exit 0
 
 build=${1:-build}
 shift || true
+# --target T (repeatable) builds only those targets; everything else goes to cmake.
+cmake_args=() targets=()
+while (($#)); do
+  if [ "$1" = --target ] && [ $# -ge 2 ]; then targets+=(--target "$2"); shift 2
+  else cmake_args+=("$1"); shift; fi
+done
+set -- "${cmake_args[@]}"
 gen=()
 command -v ninja >/dev/null 2>&1 && gen=(-G Ninja)
 if [ ! -f "$build/CMakeCache.txt" ]; then
@@ -25,4 +35,4 @@ if [ ! -f "$build/CMakeCache.txt" ]; then
 else
   cmake -S . -B "$build" "$@" >/dev/null
 fi
-cmake --build "$build" -j"$(nproc)"
+cmake --build "$build" -j"$(nproc)" "${targets[@]}"

@@ -3,6 +3,13 @@
 # Release (-Werror) and ASan+UBSan run all of ctest; TSan runs the doctest suite "threads" (the
 # threaded code). Idempotent; exits non-zero on any failure.
 # VTSIM_TEST_VARIANTS="release asan tsan" selects variants (all three by default).
+#
+# Phases overlap where a core would otherwise idle (docs/bench.md, "CI time"): the packages only
+# the tests need (Slurm, munge, Chromium) install in the background while the first variant builds,
+# and each further variant compiles at a lower priority (nice 10) while the previous variant's tests
+# run, which leave a core idle for long stretches (serial tests, a browser, a Slurm job, the
+# install test's configure). A variant's tests start only once its own build has finished; a build
+# failure fails the run with its log. Logs of background steps: out/test-logs/.
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 cd "$here"
@@ -12,29 +19,65 @@ jobs=$(nproc)
 # machine CPU time is the steadier figure (wall time depends on what else runs).
 tck=$(getconf CLK_TCK)
 cpu() { local s; read -ra s < /proc/$$/stat; echo $(( (s[15] + s[16]) / tck )); }
-# The ctest sweep_slurm starts a local Slurm cluster (scripts/slurm_local.sh), as root only: its
-# packages are installed here, before ctest runs tests in parallel; so is Debian's chromium, in
-# which the ctest report_browser renders the HTML reports.
-if [ "$(id -u)" -eq 0 ] && [[ $variants == *release* || $variants == *asan* ]]; then
-  . scripts/packages.sh
-  ensure_packages slurm-wlm munge chromium
-fi
+phase() { echo "== $1 at $(date -u +%T), ${SECONDS}s into the run, $(cpu)s CPU"; }
+
 # Sanitizer builds at -O1 with line tables only (-g1): ASan+UBSan at -O2 -g compiled 2x slower
 # (37.6 s vs 18.7 s for src/sim/run/compare.cpp) for stack traces that -g1 already gives file:line.
-san=(-DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1" -DVTSIM_BUILD_BENCH=OFF)
+san=(-DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1")
+dirs=() ; argsets=()
 for v in $variants; do
   case $v in
-    release) dir=build;      args=() ;;
-    asan)    dir=build-asan; args=(-DVTSIM_SANITIZE=address "${san[@]}") ;;
-    tsan)    dir=build-tsan; args=(-DVTSIM_SANITIZE=thread  "${san[@]}" -DVTSIM_TESTS_THREADS_ONLY=ON) ;;
+    release) dirs+=(build);      argsets+=("") ;;
+    asan)    dirs+=(build-asan); argsets+=("-DVTSIM_SANITIZE=address") ;;
+    tsan)    dirs+=(build-tsan); argsets+=("-DVTSIM_SANITIZE=thread -DVTSIM_TESTS_THREADS_ONLY=ON") ;;
     *) echo "test.sh: unknown variant '$v' (release|asan|tsan)" >&2; exit 2 ;;
   esac
-  echo "== $v: build ($dir) at $(date -u +%T), ${SECONDS}s into the run, $(cpu)s CPU"
-  bash scripts/setup.sh "$dir" "${args[@]}"
-  echo "== $v: ctest at $(date -u +%T), ${SECONDS}s into the run, $(cpu)s CPU"
-  export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
-  export LSAN_OPTIONS=suppressions=$here/scripts/lsan.supp:print_suppressions=0
-  export TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1:suppressions=$here/scripts/tsan.supp:print_suppressions=0
+done
+vs=($variants)
+# build I [nice]: configure and build variant I (scripts/setup.sh).
+build() {
+  local i=$1 extra=() pre=()
+  read -ra extra <<< "${argsets[$i]}"
+  [ "${vs[$i]}" = release ] || extra+=("${san[@]}")
+  [ -z "${2:-}" ] || pre=(setsid nice -n 10)
+  "${pre[@]}" bash scripts/setup.sh "${dirs[$i]}" "${extra[@]}"
+}
+logs=out/test-logs
+mkdir -p "$logs"
+bg=()
+# Background steps run in their own process groups (setsid): a failing run stops them whole.
+trap 'for p in "${bg[@]}"; do kill -- "-$p" 2>/dev/null || true; done' EXIT
+
+# The build's own packages first, then, in the background while the first variant builds, those
+# only tests use: the ctest sweep_slurm starts a local Slurm cluster (scripts/slurm_local.sh; root
+# only) and report_browser renders the reports in Debian's chromium.
+pkg_pid=
+if [ "$(id -u)" -eq 0 ] && [[ $variants == *release* || $variants == *asan* ]]; then
+  phase "packages"
+  bash scripts/setup.sh --packages-only
+  setsid bash -c '. scripts/packages.sh; ensure_packages slurm-wlm munge chromium' > "$logs/packages.log" 2>&1 &
+  pkg_pid=$!; bg+=("$pkg_pid")
+fi
+
+export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+export LSAN_OPTIONS=suppressions=$here/scripts/lsan.supp:print_suppressions=0
+export TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1:suppressions=$here/scripts/tsan.supp:print_suppressions=0
+
+phase "${vs[0]}: build (${dirs[0]})"
+build 0
+for ((i = 0; i < ${#vs[@]}; i++)); do
+  v=${vs[$i]} dir=${dirs[$i]} next_pid=
+  # The next variant compiles, niced, while this one's tests run.
+  if ((i + 1 < ${#vs[@]})); then
+    phase "${vs[i+1]}: build (${dirs[i+1]}) starts beside the ${v} tests"
+    build $((i + 1)) nice > "$logs/${vs[i+1]}-build.log" 2>&1 &
+    next_pid=$!; bg+=("$next_pid")
+  fi
+  if [ -n "$pkg_pid" ] && [ "$v" != tsan ]; then
+    wait "$pkg_pid" || { cat "$logs/packages.log" >&2; echo "test.sh: installing slurm-wlm munge chromium failed" >&2; exit 1; }
+    pkg_pid=
+  fi
+  phase "$v: tests ($dir)"
   if [ "$v" = tsan ]; then
     # TSan checks the threaded code: the doctest suite "threads" (IO and decode pools, threaded
     # executor, faults, real clock, store builder and generator) and the fuzz corpus of the
@@ -45,5 +88,13 @@ for v in $variants; do
   else
     ctest --test-dir "$dir" --output-on-failure -j"$jobs" --timeout 600
   fi
+  if [ -n "$next_pid" ]; then
+    if ! wait "$next_pid"; then
+      cat "$logs/${vs[i+1]}-build.log" >&2
+      echo "test.sh: the ${vs[i+1]} build failed (log above: $logs/${vs[i+1]}-build.log)" >&2
+      exit 1
+    fi
+    phase "${vs[i+1]}: build done"
+  fi
 done
-echo "== all test variants passed: $variants (${SECONDS}s, $(cpu)s CPU)"
+phase "all test variants passed: $variants"
