@@ -110,6 +110,12 @@ TEST_CASE("empty inputs: an empty access file is an error naming it, not a curve
     CHECK(r.code == 2);
     CHECK(vtsim::test::contains(r.err, D + "/empty.txt"));
   }
+  // The one exception: a config file without keys means the defaults (README.md "Conventions").
+  r = cf_sh(D, "$V replay --trace $SRC/traces/static.csv -c $D/empty.txt -c $D/comments.txt --set run.fps=2 -q");
+  CHECK(r.code == 2);  // "frame" is no TOML: the comments-only file must be TOML comments
+  std::ofstream(D + "/toml_comments.toml") << "# only a comment\n\n";
+  r = cf_sh(D, "$V replay --trace $SRC/traces/static.csv -c $D/empty.txt -c $D/toml_comments.toml --set run.fps=2 -q");
+  CHECK(r.code == 0);
 }
 
 TEST_CASE("trace cut: the poses between two times, an interpolated pose at each end, times kept") {

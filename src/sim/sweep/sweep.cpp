@@ -511,7 +511,8 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
 
   // Restart: the tasks whose part is on disk are done (a part is renamed into place whole).
   for (const auto& f : fs::directory_iterator(parts))
-    if (is_atomic_temp_name(f.path().filename().string())) fs::remove(f.path(), ec);
+    if (is_atomic_temp_name(f.path().filename().string()) || f.path().extension() == ".tmp")  // ".tmp": older builds' name
+      fs::remove(f.path(), ec);
   SweepRunStats st;
   st.input_warnings = std::move(trace_warnings);
   st.rows = e - b;
