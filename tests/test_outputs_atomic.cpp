@@ -113,6 +113,7 @@ TEST_CASE("outputs: every command that writes, failing on a bad input, leaves th
       {"trace export $D/in/bad.csv --format tum -o $D/o/t.txt", {"o/t.txt"}},
       {"trace resample $D/in/walk.csv --fps -5 -o $D/o/t.csv", {"o/t.csv"}},
       {"trace cut $D/in/walk.csv --from 0.5 --to 0.2 -o $D/o/t.csv", {"o/t.csv"}},
+      {"trace level-walk $D/in/bad.json --mesh $D/in/bad.json -o $D/o/t.csv", {"o/t.csv"}},
       {"store gen -o $D/o/s.vts --size 0x0", {"o/s.vts"}},
       {"store build $D/in/bad.png -o $D/o/s.vts", {"o/s.vts"}},
       {"store extract $D/in/bad.png -o $D/o/x.png", {"o/x.png"}},
