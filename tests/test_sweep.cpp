@@ -372,20 +372,22 @@ TEST_CASE("sweep: a killed sweep restarted on the same output redoes only the un
   o.jobs = 2;
   run_sweep(spec, o);
   const std::vector<std::string> before = joined_files(o.out_dir);
-  // What a kill leaves: some parts done, one in flight (a .tmp), no joined outputs.
+  // What a kill leaves: some parts done, one in flight (its hidden temporary, core/atomic_file.h),
+  // no joined outputs.
   std::vector<std::filesystem::path> parts;
   for (const auto& f : std::filesystem::directory_iterator(o.out_dir + "/parts")) parts.push_back(f.path());
   std::sort(parts.begin(), parts.end());
   REQUIRE(parts.size() == 4);
   const std::string kept = test::slurp(parts[0].string());
-  std::filesystem::rename(parts[1], parts[1].string() + ".tmp");
+  const std::string in_flight = (parts[1].parent_path() / ("." + parts[1].filename().string() + ".tmp-a1B2c3")).string();
+  std::filesystem::rename(parts[1], in_flight);
   std::filesystem::remove(parts[3]);
   for (const char* f : {"/rows.jsonl", "/rows.csv", "/report.html"}) std::filesystem::remove(o.out_dir + f);
   const SweepRunStats st = run_sweep(spec, o);
   CHECK(st.rows_skipped == 8);  // parts 0 and 2: 4 rows each
   CHECK(st.rows - st.rows_skipped == 8);
   CHECK(test::slurp(parts[0].string()) == kept);
-  CHECK_FALSE(std::filesystem::exists(parts[1].string() + ".tmp"));
+  CHECK_FALSE(std::filesystem::exists(in_flight));
   CHECK(joined_files(o.out_dir) == before);
 }
 

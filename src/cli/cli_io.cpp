@@ -11,6 +11,8 @@
 #include <memory>
 #include <system_error>
 
+#include "core/atomic_file.h"
+
 
 namespace vtsim::cli {
 
@@ -25,6 +27,18 @@ void warn(const std::string& message) {
 }
 
 std::size_t warnings_printed() { return g_cli_io_warnings; }
+
+bool stderr_is_terminal() { return ::isatty(2) != 0; }
+
+void progress_line(const std::string& text) {
+  if (stderr_is_terminal()) fmt::print(stderr, "\r{:<70}", text);
+  else fmt::print(stderr, "{}\n", text);
+  std::fflush(stderr);
+}
+
+void progress_done() {
+  if (stderr_is_terminal()) fmt::print(stderr, "\r{:70}\r", "");
+}
 
 void check_output(const std::string& flag, const std::string& path) {
   if (path.empty() || path == "-") return;
@@ -53,10 +67,7 @@ void write_output(const std::string& path, const std::string& text) {
     std::fwrite(text.data(), 1, text.size(), stdout);
     return;  // a failed write to stdout is reported by main() at exit
   }
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw InputError(path, "cannot open for writing");
-  out << text;
-  if (!out.flush()) throw InputError(path, "write failed");
+  write_file_atomic(path, text);
 }
 
 namespace {
@@ -77,7 +88,7 @@ std::string cli_io_temp_file(const char* what) {
 
 void write_output_via(const std::string& path, const std::function<void(const std::string&)>& write) {
   if (path != "-") {
-    write(path);
+    write_file_atomic_via(path, write);
     return;
   }
   const std::string temp = cli_io_temp_file("stdout");

@@ -17,16 +17,25 @@ void warn(const std::string& message);
 // Warnings printed since the program started.
 std::size_t warnings_printed();
 
+// Progress on stderr (README.md "Conventions"): on a terminal one line rewritten in place with
+// "\r"; in a log (stderr not a terminal) one line each, never a "\r". progress_done() clears a
+// terminal's line and prints nothing in a log.
+bool stderr_is_terminal();
+void progress_line(const std::string& text);
+void progress_done();
+
 // Throws InputError naming `flag` when `path` cannot be written: its directory is missing or not
 // writable, or it is a directory. "-" (stdout) and "" (not given) pass. Creates nothing.
 void check_output(const std::string& flag, const std::string& path);
 // Throws InputError naming `flag` when `path` cannot be opened for reading. "-" (stdin) passes.
 void check_input(const std::string& flag, const std::string& path);
 
-// Writes `text` to `path`, or to stdout when `path` is "-". Throws InputError naming the path.
+// Writes `text` to `path`, or to stdout when `path` is "-". Throws InputError naming the path. A
+// file is written whole or not at all (core/atomic_file.h): a failed run leaves it as it was.
 void write_output(const std::string& path, const std::string& text);
-// For writers that take a path (write(path) creates the file): "-" writes to a temporary file,
-// then copies it to stdout and removes it.
+// For writers that take a path (write(path) creates the file): a file is written to a temporary
+// beside it, renamed into place once write() returns; "-" writes to a temporary file, then copies
+// it to stdout and removes it.
 void write_output_via(const std::string& path, const std::function<void(const std::string&)>& write);
 
 // stdin as a file for readers that take a path: for "-" reads all of stdin into a temporary file

@@ -11,6 +11,7 @@
 
 #include "cli/cli_io.h"
 #include "cli/commands.h"
+#include "core/atomic_file.h"
 #include "core/error.h"
 #include "stream/produce/atlas.h"
 #include "stream/produce/brush_images.h"
@@ -32,6 +33,7 @@ void run_atlas_build(const AtlasBuildArgs& a) {
   namespace fs = std::filesystem;
   if (a.ext != "png" && a.ext != "tif")
     throw InputError("--format", fmt::format("'{}': give png or tif", a.ext));
+  check_output_dir("--out", a.out_dir);  // before the work
   const std::vector<std::string> files = produce::expand_brush_files(a.brushes);
   if (files.empty()) throw InputError("brushes", "no brush image given");
   std::vector<produce::Rgba8> brushes;
@@ -40,9 +42,7 @@ void run_atlas_build(const AtlasBuildArgs& a) {
     brushes.push_back(produce::read_brush(f));
   }
   const produce::Atlas at = produce::build_atlas(brushes, files, a.params);
-  std::error_code ec;  // created only once the brushes made an atlas
-  fs::create_directories(a.out_dir, ec);
-  if (ec || !fs::is_directory(a.out_dir)) throw InputError("--out", fmt::format("{}: cannot create the directory ({})", a.out_dir, ec.message()));
+  make_output_dir("--out", a.out_dir);  // only once the brushes made an atlas; the last level only
   nlohmann::json man;
   man["format"] = "vtsim-atlas/1";
   man["cols"] = at.cols;

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,7 @@
 #include "cache/page_table.h"
 #include "cli/cli_io.h"
 #include "cli/commands.h"
+#include "cli/config_load.h"
 #include "cli/format.h"
 #include "core/error.h"
 #include "sim/run/replay_config.h"
@@ -37,9 +39,12 @@ struct CapacityArgs {
   std::string screen = "1920x1080";
   double overdraw = 3.0, redundancy = 1.0, texels_per_pixel = 1.0;
   bool seed_check = false;
-  // terrain
+  // every system: a replay config's texture (width, height, tile_size, border, layers) and
+  // clipmap.clipsize; a flag given on the command line wins; terrain reads its [terrain] too
   std::vector<std::string> configs;
   std::vector<std::string> sets;
+  std::set<std::string> given;  // the flags the command line gave
+  // terrain
   std::string camera;
 };
 
@@ -223,9 +228,7 @@ std::uint64_t brush_mip_bytes_of(const TerrainConfig& t, int m) {
 }
 
 void run_terrain_capacity(const CapacityArgs& a) {
-  std::vector<std::string> sets = a.sets;
-  const ReplayConfig cfg =
-      with_inputs(a.configs, "--config", false, [&](const std::vector<std::string>& p) { return load_replay_config(p, sets, "terrain"); });
+  const ReplayConfig cfg = load_cli_config(a.configs, a.sets, "terrain");
   const TerrainConfig& t = cfg.terrain;
   const double world_x = t.sector_m * t.sectors_x, world_y = t.sector_m * t.sectors_y;
   // The camera in world metres (default: the terrain's centre, a sector corner with an even count).
@@ -321,9 +324,26 @@ void run_terrain_capacity(const CapacityArgs& a) {
   fmt::print("    = {} B = {}\n", with_commas(c.brush_resident_bytes), mib(static_cast<double>(c.brush_resident_bytes)));
 }
 
-void run_capacity(const CapacityArgs& a) {
-  if (a.system != "terrain" && (!a.configs.empty() || !a.sets.empty() || !a.camera.empty()))
-    throw InputError(!a.configs.empty() ? "--config" : !a.sets.empty() ? "--set" : "--camera", "only with --system terrain");
+// `a` with the config's values where the command line gave no flag (clipmap and vt).
+CapacityArgs capacity_with_config(const CapacityArgs& a) {
+  if (a.configs.empty() && a.sets.empty()) return a;
+  const ReplayConfig cfg = load_cli_config(a.configs, a.sets, a.system);
+  const auto given = [&](const char* flag) { return a.given.count(flag) > 0; };
+  CapacityArgs b = a;
+  if (!given("--width")) b.width = cfg.texture.width;
+  if (!given("--height")) b.height = given("--width") ? 0 : cfg.texture.height;  // --width alone: square, as without -c
+  if (!given("--tile")) b.tile = cfg.texture.tile_size;
+  if (!given("--clipsize")) b.clipsize = cfg.clipmap.clipsize;
+  if (!given("--layers")) b.layers = cfg.texture.layers.text;
+  if (!given("--border")) b.border = cfg.texture.border;
+  return b;
+}
+
+void run_capacity(const CapacityArgs& args) {
+  if (args.system != "terrain" && !args.camera.empty()) throw InputError("--camera", "only with --system terrain");
+  if (args.system != "clipmap" && args.system != "vt" && args.system != "terrain")
+    throw InputError("--system", "'" + args.system + "': one of clipmap, vt, terrain");
+  const CapacityArgs a = args.system == "terrain" ? args : capacity_with_config(args);
   if (a.system == "vt") {
     run_vt_capacity(a);
     return;
@@ -411,11 +431,14 @@ void register_capacity_commands(CLI::App& app) {
   c->add_option("--redundancy", a->redundancy, "vt: screen-sized textures of cache slack (Yao 2011 §2: 6)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
   c->add_option("--texels-per-pixel", a->texels_per_pixel, "vt: texels per pixel at the desired level (Yao 2011 §2: 1)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
   c->add_flag("--seed-check", a->seed_check, "vt: recompute Yao 2011's arithmetic (§2, §3, §5)");
-  c->add_option("--config,-c", a->configs, "terrain: TOML config file (docs/config.md; e.g. docs/examples/terrain.toml); repeatable: files read in order, a later one overriding an earlier one's keys")
-      ->allow_extra_args(false);
-  c->add_option("--set", a->sets, "terrain: override one config key (repeatable)");
+  add_config_options(c, a->configs, a->sets,
+                     "; capacity reads texture.* and clipmap.clipsize, a flag given wins (terrain: [terrain] too, e.g. "
+                     "docs/examples/terrain.toml)");
   c->add_option("--camera", a->camera, "terrain: camera X,Y, m (default: the terrain's centre)");
-  c->callback([a] { run_capacity(*a); });
+  c->callback([a, c] {
+    a->given = flags_given(c);
+    run_capacity(*a);
+  });
 }
 
 }  // namespace vtsim::cli

@@ -163,8 +163,7 @@ void run_replay_command(const ReplayArgs& a) {
   if (a.opt) sets.push_back("metrics.opt=true");
   const bool config_stdin = std::find(a.configs.begin(), a.configs.end(), "-") != a.configs.end();
   if (config_stdin && a.trace == "-") throw InputError("--config", "--config - and --trace - cannot both read stdin");
-  ReplayConfig cfg =
-      with_inputs(a.configs, "--config", false, [&](const std::vector<std::string>& p) { return load_replay_config(p, sets, a.system); });
+  ReplayConfig cfg = load_cli_config(a.configs, sets, a.system);
   if (a.print_config) {
     fmt::print("{}", replay_config_table().dump(cfg));
     return;
@@ -202,7 +201,13 @@ void run_replay_command(const ReplayArgs& a) {
   std::function<void(int, int)> progress;
   const bool tty = isatty(fileno(stderr)) != 0;
   if ((a.progress || tty) && !a.quiet)
-    progress = [](int f, int n) { fmt::print(stderr, "\rframe {}/{} ({:.0f}%)", f, n, 100.0 * f / n); };
+    progress = [tty, last = -1](int f, int n) mutable {  // a log gets a line each 10 %, never a "\r"
+      if (tty) return fmt::print(stderr, "\rframe {}/{} ({:.0f}%)", f, n, 100.0 * f / n);
+      const int tenth = n > 0 ? static_cast<int>(10.0 * f / n) : 10;
+      if (tenth == last) return;
+      last = tenth;
+      fmt::print(stderr, "frame {}/{} ({:.0f}%)\n", f, n, 100.0 * f / n);
+    };
   ReplayResult r;
   if (a.clock == "real") {
     RealClockOptions ro{progress};
@@ -231,7 +236,7 @@ void run_replay_command(const ReplayArgs& a) {
     r = run_replay(cfg, trace, *scene, env);
   }
   if (a.speed != 1.0) r.summary["trace"]["speed"] = a.speed;
-  if (progress) fmt::print(stderr, "\r{:40}\r", "");
+  if (progress && tty) fmt::print(stderr, "\r{:40}\r", "");
   if (const std::string blind = blind_replay_warning(r.metrics, trace, cfg); !blind.empty()) warn(blind);
   if (!a.summary.empty()) write_output(a.summary, r.summary.dump(2) + "\n");
   if (!a.frames.empty()) write_output_via(a.frames, [&](const std::string& p) { r.metrics.write_frames_csv(p); });

@@ -2,11 +2,11 @@
 // (docs/report.md). The page is built by src/sim/run/report_runs.h.
 #include <fmt/format.h>
 
-#include <cstdio>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "cli/cli_io.h"
 #include "cli/commands.h"
 #include "core/error.h"
 #include "sim/run/compare.h"
@@ -39,15 +39,11 @@ void run_report_command(const ReportArgs& a) {
     throw InputError("--frames", fmt::format("{} frames CSVs for {} runs: give one per run, in order", a.frames.size(),
                                              a.runs.size()));
   if (a.out.empty()) throw InputError("-o", "an output file is required (-o report.html, or -o - for stdout)");
-  std::unique_ptr<FILE, int (*)(FILE*)> f(nullptr, &std::fclose);
-  if (a.out != "-") {  // opened before reading the runs: a bad path fails first
-    f.reset(std::fopen(a.out.c_str(), "wb"));
-    if (!f) throw InputError("-o", "'" + a.out + "': cannot open for writing");
-  }
+  check_output("-o", a.out);  // before reading the runs: a bad path fails first
   std::vector<ReportRun> runs;
   for (std::size_t i = 0; i < a.runs.size(); ++i) {
     nlohmann::json s = load_json_file(a.runs[i]);
-    if (!s.is_object() || !(s.contains("vtsim_version") || s.contains("latency_ms")))
+    if (!s.is_object() || !(s.contains("provenance") || s.contains("vtsim_version") || s.contains("latency_ms")))
       throw InputError(a.runs[i], "not a replay summary (no \"vtsim_version\" or \"latency_ms\"; write one with vtsim replay --summary)");
     runs.push_back({a.names.empty() ? report_run_name(a.runs[i]) : a.names[i], std::move(s), {}});
     if (!a.frames.empty() && !a.frames[i].empty()) runs.back().frames = read_run_frames(a.frames[i]);
@@ -59,13 +55,7 @@ void run_report_command(const ReportArgs& a) {
         runs[i].name = a.runs[i];
         break;
       }
-  const std::string html = html_runs_report(runs);
-  if (a.out == "-") {
-    fmt::print("{}", html);
-    return;
-  }
-  if (std::fwrite(html.data(), 1, html.size(), f.get()) != html.size() || std::fflush(f.get()) != 0)
-    throw InputError("-o", "'" + a.out + "': write failed");
+  write_output(a.out, html_runs_report(runs));  // whole or not at all: a failed run leaves the old page
 }
 
 }  // namespace

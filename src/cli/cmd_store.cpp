@@ -48,14 +48,17 @@ void parse_store_size(const std::string& s, std::uint64_t& w, std::uint64_t& h) 
   }
 }
 
-// Percentage on stderr, rewritten in place, when stderr is a terminal or --progress was given.
+// Percentage on stderr when stderr is a terminal (rewritten in place) or --progress was given (a
+// line each 10 %, no "\r" in a log).
 ProgressFn progress_printer(const char* what, bool forced) {
-  if (!forced && !::isatty(2)) return {};
-  return [what, last = -1](double f) mutable {
+  const bool tty = stderr_is_terminal();
+  if (!forced && !tty) return {};
+  return [what, tty, last = -1](double f) mutable {
     const int pct = static_cast<int>(f * 100.0);
-    if (pct == last) return;
+    if (pct == last || (!tty && pct / 10 == last / 10 && pct < 100)) return;
     last = pct;
-    fmt::print(stderr, "\r{}: {:3d}%{}", what, pct, pct >= 100 ? "\n" : "");
+    if (tty) fmt::print(stderr, "\r{}: {:3d}%{}", what, pct, pct >= 100 ? "\n" : "");
+    else fmt::print(stderr, "{}: {:3d}%\n", what, pct);
     std::fflush(stderr);
   };
 }
@@ -445,6 +448,7 @@ void register_store_extract(CLI::App* store) {
   c->add_option("--layer", o->layer, "Layer index")->capture_default_str();
   c->add_option("--level", o->level, "Mip level")->capture_default_str();
   c->callback([o] {
+    check_output("--output", o->out);  // before the work
     const TileStore s = TileStore::open(o->path);
     for (const std::string& w : s.header().warnings) warn(w);
     const Image8 img = extract_level(s, o->layer, o->level);

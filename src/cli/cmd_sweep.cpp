@@ -10,6 +10,7 @@
 
 #include "cli/cli_io.h"
 #include "cli/commands.h"
+#include "core/atomic_file.h"
 #include "core/error.h"
 #include "sim/sweep/sweep.h"
 #include "sim/sweep/sweep_table.h"
@@ -30,6 +31,7 @@ struct SweepArgs {
 void run_sweep_command(const SweepArgs& a) {
   if (a.spec.empty()) throw InputError("sweep", "a spec file is required: vtsim sweep SPEC.toml -o OUT (docs/sweep.md)");
   if (a.jobs < 0) throw InputError("--jobs", "must be >= 0 (0: one per core)");
+  check_output_dir("-o", a.out);  // before the work: created (its last level) once the inputs are read
   const SweepSpec spec = load_sweep_spec(a.spec);
   SweepOptions o;
   o.out_dir = a.out;
@@ -93,6 +95,7 @@ void register_sweep_commands(CLI::App& app) {
   m->add_option("shards", *merge_dirs, "shard directories (every shard of one spec, once)")->required();
   m->add_option("-o,--out", *merge_out, "output directory")->required();
   m->callback([merge_dirs, merge_out] {
+    check_output_dir("-o", *merge_out);
     merge_sweep(*merge_dirs, *merge_out);
     fmt::print("merged {} shards into {}/rows.jsonl, rows.csv, report.html, sweep.json\n", merge_dirs->size(), *merge_out);
   });
@@ -138,6 +141,7 @@ struct TuneArgs {
 
 void run_tune_command(const TuneArgs& a) {
   if (a.jobs < 0) throw InputError("--jobs", "must be >= 0 (0: one per core)");
+  check_output_dir("-o", a.out);  // before the search: created (its last level) once it is done
   const SweepSpec spec = load_sweep_spec(a.spec);
   std::vector<std::string> trace_warnings;
   const std::vector<Trace> traces = load_sweep_traces(spec, &trace_warnings);
@@ -192,13 +196,9 @@ void run_tune_command(const TuneArgs& a) {
   }
   const int rec = recommended_config(spec, r.front);
   out["recommended"] = rec;
-  std::error_code ec;
-  std::filesystem::create_directories(a.out, ec);
-  if (ec) throw InputError(a.out, "cannot create the output directory: " + ec.message());
+  make_output_dir("-o", a.out);
   const auto write = [&] {
-    std::ofstream f(std::filesystem::path(a.out) / "tune.json", std::ios::binary | std::ios::trunc);
-    f << out.dump(2) << "\n";
-    if (!f.flush()) throw InputError(a.out + "/tune.json", "write failed");
+    write_output((std::filesystem::path(a.out) / "tune.json").string(), out.dump(2) + "\n");
   };
   if (!a.store.empty() && rec >= 0) {
     write();  // the search's result is kept if the real-clock check fails (or is interrupted)

@@ -161,6 +161,7 @@ void register_gen(CLI::App* trace) {
   auto* o_jump_heading = c->add_option("--jump-heading", a->jump_heading, "teleport: jump direction in degrees");
   auto* o_radius = c->add_option("--radius", a->radius, "orbit: radius in metres");
   c->callback([=] {
+    check_output("--output", a->out);  // before the work
     const TraceKind kind = parse_trace_kind(a->kind, "kind");
     TraceGenParams p = default_gen_params(kind);
     const bool duration_given = o_duration->count() > 0;
@@ -287,6 +288,7 @@ void register_import(CLI::App* trace) {
   c->add_option("--resample", a->resample, "Resample to this frame rate (Hz) after the transform");
   a->rs.add(c);
   c->callback([a] {
+    check_output("--output", a->out);  // before the work
     ImportOptions o = a->read.options();
     a->tf.apply(o);
     TraceLoadReport rep;
@@ -341,6 +343,8 @@ void register_export(CLI::App* trace) {
   c->add_option("--camera", a->camera, "Camera axes to write in, as for import (default: the format's)");
   c->add_flag("--allow-repairs", a->allow_repairs, kAllowRepairsHelp);
   c->callback([a] {
+    check_output("--output", a->out);  // before the work
+    check_output("--times", a->times);
     const TraceFormat& format = parse_trace_format(a->format, "--format");
     const Trace t = load_cli_trace(a->in, a->allow_repairs);
     ExportOptions o;
@@ -374,6 +378,7 @@ void register_resample(CLI::App* trace) {
   a->rs.add(c);
   c->add_flag("--allow-repairs", a->allow_repairs, kAllowRepairsHelp);
   c->callback([a] {
+    check_output("--output", a->out);  // before the work
     const Trace in = load_cli_trace(a->in, a->allow_repairs);
     ResampleOptions ro;
     ro.fps = a->fps;
@@ -383,6 +388,34 @@ void register_resample(CLI::App* trace) {
     const Trace t = resample(in, ro, &rr);
     print_resample_report(rr, ro.fps, a->rs);
     save_trace(t, a->out);
+  });
+}
+
+void register_cut(CLI::App* trace) {
+  struct Args {
+    std::string in, out;
+    double from_s = 0.0, to_s = 0.0;
+    bool allow_repairs = false;
+  };
+  auto a = std::make_shared<Args>();
+  auto* c = trace->add_subcommand("cut", "Crop a trace to the poses between two times");
+  c->footer(
+      "Keeps the poses from --from to --to (seconds, the trace's own times, kept as they are), with a\n"
+      "pose interpolated at each end unless one is stored there; writes a native trace.\n"
+      "Example: vtsim trace cut walk.csv --from 30 --to 60 -o walk_30_60.csv");
+  c->add_option("input", a->in, "Input trace (native; other formats are detected and imported with defaults; - for stdin)")
+      ->required();
+  c->add_option("-o,--output", a->out, "Output native trace (- for stdout)")->required();
+  c->add_option("--from", a->from_s, "Start time, s (at or after the trace's first pose)")->required();
+  c->add_option("--to", a->to_s, "End time, s (after --from, at or before the trace's last pose)")->required();
+  c->add_flag("--allow-repairs", a->allow_repairs, kAllowRepairsHelp);
+  c->callback([a] {
+    check_output("--output", a->out);
+    const Trace in = load_cli_trace(a->in, a->allow_repairs);
+    const Trace t = cut_trace(in, a->from_s, a->to_s);
+    save_trace(t, a->out);
+    if (a->out != "-")
+      fmt::print(stderr, "wrote {} poses ({} s to {} s) to {}\n", t.poses.size(), a->from_s, a->to_s, a->out);
   });
 }
 
@@ -587,12 +620,13 @@ void register_level_walk(CLI::App* trace) {
 }  // namespace
 
 void register_trace_commands(CLI::App& app) {
-  auto* trace = app.add_subcommand("trace", "Generate, import, export, resample and inspect camera traces");
+  auto* trace = app.add_subcommand("trace", "Generate, import, export, resample, cut and inspect camera traces");
   trace->require_subcommand(1);
   register_gen(trace);
   register_import(trace);
   register_export(trace);
   register_resample(trace);
+  register_cut(trace);
   register_info(trace);
   register_level_walk(trace);
 }

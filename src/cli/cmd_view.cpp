@@ -5,12 +5,14 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "cli/cli_io.h"
 #include "cli/commands.h"
+#include "cli/config_load.h"
 #include "cli/trace_load.h"
 #include "core/error.h"
 #include "core/camera.h"
@@ -19,6 +21,7 @@
 #include "sim/view/scene_heightfield.h"
 #include "sim/trace/trace_import.h"
 #include "sim/view/view_image.h"
+#include "sim/run/replay.h"
 
 namespace vtsim::cli {
 
@@ -48,6 +51,8 @@ struct ViewOptions {
   double time_s = -1.0;    // ... or at this time (interpolated)
   bool size_given = false;
   bool json = false;       // print the results as JSON on stdout instead of the text
+  std::vector<std::string> configs, sets;  // -c / --set: the scene and [view] of a replay config
+  std::set<std::string> given;             // the flags the command line gave (they win over the config)
 };
 
 glm::dvec3 parse_pos(const std::string& s) {
@@ -83,15 +88,55 @@ void parse_view_size(const std::string& s, int& w, int& h) {
 }
 
 void run_view(const ViewOptions& o) {
+  check_output("--out", o.out);  // before the work
   SceneConfig cfg = o.mesh;  // the --mesh-* flags; every other field is set below
-  cfg.kind = find_scene(o.scene).name;
-  cfg.size_x_m = cfg.size_y_m = o.terrain_size_m;
-  cfg.texels_per_m = o.texels_per_m;
-  cfg.file = cfg.kind == "mesh" ? o.obj : o.heightmap;  // the two options predate SceneConfig::file
-  cfg.spacing_m = o.spacing_m;
-  cfg.height_scale_m = o.height_scale_m;
-  cfg.z0_m = o.z0_m;
-  cfg.seed = o.seed;
+  ViewParams vp;
+  int tile_size = o.tile_size;
+  const bool from_config = !o.configs.empty() || !o.sets.empty();
+  if (!from_config) {
+    cfg.kind = find_scene(o.scene).name;
+    cfg.size_x_m = cfg.size_y_m = o.terrain_size_m;
+    cfg.texels_per_m = o.texels_per_m;
+    cfg.file = cfg.kind == "mesh" ? o.obj : o.heightmap;  // the two options predate SceneConfig::file
+    cfg.spacing_m = o.spacing_m;
+    cfg.height_scale_m = o.height_scale_m;
+    cfg.z0_m = o.z0_m;
+    cfg.seed = o.seed;
+    vp.divisor = o.divisor;
+    vp.lod_bias = o.lod_bias;
+    vp.anisotropic = o.aniso > 0.0f;
+    if (vp.anisotropic) vp.max_aniso = o.aniso;
+    vp.near_m = o.near_m;
+    vp.far_m = o.far_m;
+  } else {  // the replay's scene, [view] and tile size; a flag given on the command line wins
+    const ReplayConfig rc = load_cli_config(o.configs, o.sets, "", o.trace == "-");
+    const auto given = [&](const char* flag) { return o.given.count(flag) > 0; };
+    cfg = scene_config_of(rc);
+    if (given("--scene")) cfg.kind = find_scene(o.scene).name;
+    if (given("--terrain-size")) cfg.size_x_m = cfg.size_y_m = o.terrain_size_m;
+    if (given("--texels-per-m")) cfg.texels_per_m = o.texels_per_m;
+    if (cfg.kind == "mesh" ? given("--obj") : given("--heightmap")) cfg.file = cfg.kind == "mesh" ? o.obj : o.heightmap;
+    if (given("--spacing")) cfg.spacing_m = o.spacing_m;
+    if (given("--height-scale")) cfg.height_scale_m = o.height_scale_m;
+    if (given("--z0")) cfg.z0_m = o.z0_m;
+    if (given("--seed")) cfg.seed = o.seed;
+    if (given("--mesh-loader")) cfg.mesh_loader = o.mesh.mesh_loader;
+    if (given("--mesh-unit")) cfg.mesh_unit_m = o.mesh.mesh_unit_m;
+    if (given("--mesh-up")) cfg.mesh_up = o.mesh.mesh_up;
+    if (given("--mesh-uv-set")) cfg.mesh_uv_set = o.mesh.mesh_uv_set;
+    if (given("--mesh-no-uv")) cfg.mesh_no_uv = o.mesh.mesh_no_uv;
+    if (given("--mesh-planar")) cfg.mesh_planar_m = o.mesh.mesh_planar_m;
+    vp = view_params(rc.view);
+    if (given("--divisor")) vp.divisor = o.divisor;
+    if (given("--lod-bias")) vp.lod_bias = o.lod_bias;
+    if (given("--aniso")) {
+      vp.anisotropic = o.aniso > 0.0f;
+      if (vp.anisotropic) vp.max_aniso = o.aniso;
+    }
+    if (given("--near")) vp.near_m = o.near_m;
+    if (given("--far")) vp.far_m = o.far_m;
+    if (!given("--tile-size")) tile_size = rc.texture.tile_size;
+  }
   if (o.zoom < 1 || o.zoom > 64) throw InputError("--zoom", "must be in [1, 64]");
   // Checked whether or not the scene reads them (the generated heightfield has no height scale).
   if (!(o.spacing_m > 0.0) || !std::isfinite(o.spacing_m)) throw InputError("--spacing", "must be finite and > 0");
@@ -107,6 +152,7 @@ void run_view(const ViewOptions& o) {
   try {
     scene = make_scene(cfg);
   } catch (const InputError& e) {  // the config key, as the user typed it here
+    if (from_config) throw;          // the config's key names it
     static const std::pair<const char*, const char*> kMeshFlags[] = {
         {"mesh_loader", "--mesh-loader"}, {"mesh_unit_m", "--mesh-unit"},  {"mesh_up", "--mesh-up"},
         {"mesh_uv_set", "--mesh-uv-set"}, {"mesh_no_uv", "--mesh-no-uv"}, {"mesh_planar_m", "--mesh-planar"}};
@@ -116,6 +162,7 @@ void run_view(const ViewOptions& o) {
     throw InputError(cfg.kind == "mesh" ? "--obj" : "--heightmap", std::string(e.what()).substr(e.where().size() + 2));
   }
   for (const std::string& w : scene->load_warnings()) warn(w);
+  const std::string scene_name = from_config ? cfg.kind : o.scene;
   const double build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_build).count();
   if (o.agl) {
     double ground = 0.0;
@@ -145,14 +192,6 @@ void run_view(const ViewOptions& o) {
   }
   const Camera cam = make_camera(pose, width, height);
 
-  ViewParams vp;
-  vp.divisor = o.divisor;
-  vp.lod_bias = o.lod_bias;
-  vp.anisotropic = o.aniso > 0.0f;
-  if (vp.anisotropic) vp.max_aniso = o.aniso;
-  vp.near_m = o.near_m;
-  vp.far_m = o.far_m;
-
   ViewBuffer vb;
   const auto t0 = std::chrono::steady_clock::now();
   scene->render(cam, vp, vb);
@@ -160,9 +199,9 @@ void run_view(const ViewOptions& o) {
   const TextureExtent ext = scene->texture();
   const int levels = mip_level_count(ext);
   std::vector<TileUse> tiles;
-  aggregate_feedback(vb, o.tile_size, levels, tiles);
+  aggregate_feedback(vb, tile_size, levels, tiles);
   const auto t2 = std::chrono::steady_clock::now();
-  const std::size_t seam_tiles = o.seams ? add_level_seams(vb, o.tile_size, levels, tiles) : 0;
+  const std::size_t seam_tiles = o.seams ? add_level_seams(vb, tile_size, levels, tiles) : 0;
   write_level_image(o.out, vb, levels, o.zoom);
 
   const double pixels = static_cast<double>(vb.width) * vb.height;
@@ -174,14 +213,14 @@ void run_view(const ViewOptions& o) {
   const double aggregate_ms = std::chrono::duration<double, std::milli>(t2 - t1).count();
   if (o.json) {
     nlohmann::json j;
-    j["scene"] = {{"kind", o.scene}, {"texture", {ext.width, ext.height}}, {"levels", levels}, {"build_ms", build_ms}};
+    j["scene"] = {{"kind", scene_name}, {"texture", {ext.width, ext.height}}, {"levels", levels}, {"build_ms", build_ms}};
     j["camera"] = {{"pos_m", {pos.x, pos.y, pos.z}}, {"fwd", {cam.fwd.x, cam.fwd.y, cam.fwd.z}}, {"vfov_deg", cam.vfov_deg()},
                    {"hfov_deg", cam.hfov_deg()}, {"image", {width, height}}};
     if (!o.trace.empty()) j["camera"]["trace"] = {{"path", o.trace}, {"t_s", pose.t_s}};
     j["buffer"] = {{"size", {vb.width, vb.height}}, {"divisor", vb.divisor}, {"samples", vb.samples.size()}, {"sky", c.sky},
                    {"clipped", c.clipped}, {"backfacing", c.backfacing}, {"outside_texture", c.outside_texture},
                    {"untextured", c.untextured}};
-    j["tiles"] = {{"tile_size", o.tile_size}, {"touched", tiles.size()}, {"level_seam", seam_tiles}};
+    j["tiles"] = {{"tile_size", tile_size}, {"touched", tiles.size()}, {"level_seam", seam_tiles}};
     nlohmann::json lv = nlohmann::json::array();
     for (int l = 0; l < levels; ++l)
       if (per_level[static_cast<std::size_t>(l)] > 0)
@@ -192,7 +231,7 @@ void run_view(const ViewOptions& o) {
     fmt::print("{}\n", j.dump(2));
     return;
   }
-  fmt::print("scene {}: texture {}x{} texels, {} levels (built in {:.1f} ms)\n", o.scene, ext.width, ext.height, levels,
+  fmt::print("scene {}: texture {}x{} texels, {} levels (built in {:.1f} ms)\n", scene_name, ext.width, ext.height, levels,
              build_ms);
   if (o.trace.empty())
     fmt::print("camera ({:.3f}, {:.3f}, {:.3f}) m, yaw {} pitch {} roll {} deg, vfov {} (hfov {:.2f}) deg, image {}x{}\n",
@@ -206,10 +245,10 @@ void run_view(const ViewOptions& o) {
              vb.width, vb.height, vb.divisor, vb.samples.size(), 100.0 * static_cast<double>(vb.samples.size()) / pixels,
              c.sky, c.clipped, c.backfacing, c.outside_texture, c.untextured);
   if (o.seams)
-    fmt::print("touched tiles ({} texels): {} ({} sampled + {} level-seam tiles)\n", o.tile_size, tiles.size(),
+    fmt::print("touched tiles ({} texels): {} ({} sampled + {} level-seam tiles)\n", tile_size, tiles.size(),
                tiles.size() - seam_tiles, seam_tiles);
   else
-    fmt::print("touched tiles ({} texels): {}\n", o.tile_size, tiles.size());
+    fmt::print("touched tiles ({} texels): {}\n", tile_size, tiles.size());
   for (int l = 0; l < levels; ++l)
     if (per_level[static_cast<std::size_t>(l)] > 0)
       fmt::print("  level {:2}: {:8} samples {:6} tiles\n", l, per_level[static_cast<std::size_t>(l)],
@@ -270,7 +309,10 @@ void register_view_commands(CLI::App& app) {
   cmd->add_flag("--json", opt->json, "print the results as JSON on stdout instead of the text");
   cmd->add_flag("--seams", opt->seams, "also count level-seam tiles (add_level_seams)");
   cmd->add_option("--zoom", opt->zoom, "upscale the buffer image by this factor")->capture_default_str();
-  cmd->callback([opt]() {
+  add_config_options(cmd, opt->configs, opt->sets,
+                     "; view reads [scene], [view], texture.tile_size and the texture's size, a flag given wins");
+  cmd->callback([opt, cmd]() {
+    opt->given = flags_given(cmd);
     try {
       run_view(*opt);
     } catch (const std::invalid_argument& e) {

@@ -106,7 +106,7 @@ void run_compare(const VtCompareArgs& a) {
       std::vector<std::string> sets = a.sets;
       sets.push_back("throttle.policy=" + policy);
       const ReplayConfig cfg = load_replay_config(a.configs, sets, "vt");
-      if (!a.quiet) fmt::print(stderr, "\r{:<60}", fmt::format("{} / {}", name, policy));
+      if (!a.quiet) progress_line(fmt::format("vt compare: {} / {}", name, policy));
       const ReplayResult r = run_replay(cfg, trace, *scene);
       const auto& s = r.summary;
       double max_bias = 0;
@@ -136,7 +136,7 @@ void run_compare(const VtCompareArgs& a) {
                       {"max_clamp", max_clamp}});
     }
   }
-  if (!a.quiet) fmt::print(stderr, "\r{:60}\r", "");
+  if (!a.quiet) progress_done();
 
   std::string md;
   md += fmt::format("Pool {} pages of {}+2×{} texels, disk `{}`, upload {} tiles/frame, RAM {} MiB, view divisor {}, scene `{}`.\n\n",

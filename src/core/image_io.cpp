@@ -16,6 +16,7 @@
 
 #include <fmt/format.h>
 
+#include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/input_file.h"
 
@@ -428,11 +429,21 @@ WriteResult write_file(const std::string& path, int width, int height, int chann
                        const void* pixels, bool unassociated_alpha) {
   const abi::Api& a = api();
   ErrorBuf err{};
-  const abi::Status s = a.write_file(path.c_str(), width, height, channels, to_abi(type), pixels,
-                                     unassociated_alpha ? 1 : 0, err.data(), err.size());
   WriteResult r;
-  r.status = s == abi::kOk ? WriteStatus::ok : s == abi::kCannotCreate ? WriteStatus::cannot_create : WriteStatus::failed;
-  r.error = err.data();
+  try {
+    // Whole or not at all: the module writes a temporary that keeps the extension (the format
+    // comes from it), renamed over `path` once the image is written.
+    AtomicFile out(path, /*keep_extension=*/true);
+    if (out.temp_path() != out.path()) out.close_fd();
+    const abi::Status s = a.write_file(out.temp_path().c_str(), width, height, channels, to_abi(type), pixels,
+                                       unassociated_alpha ? 1 : 0, err.data(), err.size());
+    r.status = s == abi::kOk ? WriteStatus::ok : s == abi::kCannotCreate ? WriteStatus::cannot_create : WriteStatus::failed;
+    r.error = err.data();
+    if (r.status == WriteStatus::ok) out.commit();
+  } catch (const InputError& e) {
+    r.status = WriteStatus::failed;
+    r.error = e.what();
+  }
   return r;
 }
 

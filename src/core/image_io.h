@@ -181,7 +181,8 @@ struct WriteResult {
 };
 
 // Writes a width x height x channels image of `type` (row-major, interleaved) to `path`; the format
-// comes from the extension. unassociated_alpha: the alpha channel is not premultiplied in.
+// comes from the extension. unassociated_alpha: the alpha channel is not premultiplied in. Whole or
+// not at all (core/atomic_file.h): a failed write leaves an existing `path` as it was.
 WriteResult write_file(const std::string& path, int width, int height, int channels, PixelType type,
                        const void* pixels, bool unassociated_alpha);
 

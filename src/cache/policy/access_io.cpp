@@ -2,12 +2,12 @@
 
 #include <fmt/format.h>
 
-#include <fstream>
 #include <stdexcept>
 #include <string>
 #include <string_view>
 
 #include "cache/policy/i_replacement.h"
+#include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/input_file.h"
 #include "core/text.h"
@@ -84,7 +84,11 @@ AccessLog parse_accesses(std::string_view text, const std::string& name) {
 AccessLog read_access_file(const std::string& path) {
   const std::string text =
       read_regular_file(path, kMaxAccessFileBytes, "split the sequence, or sample it (vtsim mrc --shards)");
-  return parse_accesses(text, path);
+  AccessLog log = parse_accesses(text, path);
+  if (log.accesses.empty())  // a curve of nothing is all zeros: an empty input is a mistake, not a result
+    throw InputError(path, text.empty() ? "is empty: an access file holds one access per line ('key [size]')"
+                                        : "holds no access (only comments, blank or 'frame' lines)");
+  return log;
 }
 
 std::string format_accesses(const AccessLog& log) {
@@ -104,11 +108,7 @@ std::string format_accesses(const AccessLog& log) {
 }
 
 void write_access_file(const std::string& path, const AccessLog& log) {
-  const std::string text = format_accesses(log);
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw InputError(path, "cannot open for writing");
-  out << text;
-  if (!out.flush()) throw InputError(path, "write failed");
+  write_file_atomic(path, format_accesses(log));
 }
 
 }  // namespace vtsim

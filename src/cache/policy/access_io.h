@@ -20,7 +20,8 @@ inline constexpr std::uint64_t kMaxAccessFileBytes = std::uint64_t{2} << 30;
 
 // Parses the text of an access file; `name` is the path used in messages. Throws InputError.
 AccessLog parse_accesses(std::string_view text, const std::string& name);
-// Reads a regular file (core/input_file.h) of at most kMaxAccessFileBytes. Throws InputError.
+// Reads a regular file (core/input_file.h) of at most kMaxAccessFileBytes. Throws InputError, also
+// when it holds no access (an empty input is an error, README.md "Conventions").
 AccessLog read_access_file(const std::string& path);
 
 // The text parse_accesses reads back to the same log: a comment header, keys in 0x-hex with

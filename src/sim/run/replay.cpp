@@ -10,7 +10,7 @@
 
 namespace vtsim {
 
-std::unique_ptr<IScene> make_scene_from_config(const ReplayConfig& cfg) {
+SceneConfig scene_config_of(const ReplayConfig& cfg) {
   SceneConfig sc;
   sc.kind = cfg.scene.kind;
   sc.texels_per_m = cfg.texture.texels_per_m;
@@ -26,7 +26,11 @@ std::unique_ptr<IScene> make_scene_from_config(const ReplayConfig& cfg) {
   sc.mesh_uv_set = static_cast<int>(cfg.scene.mesh_uv_set);
   sc.mesh_no_uv = cfg.scene.mesh_no_uv;
   sc.mesh_planar_m = cfg.scene.mesh_planar_m;
-  auto scene = make_scene(sc);
+  return sc;
+}
+
+std::unique_ptr<IScene> make_scene_from_config(const ReplayConfig& cfg) {
+  auto scene = make_scene(scene_config_of(cfg));
   const TextureExtent e = scene->texture();
   if (e.width != cfg.texture.width || e.height != cfg.texture.height)
     throw InputError("config", fmt::format("field 'texture.width': the scene's texture is {}×{} texels, the config "

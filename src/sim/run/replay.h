@@ -8,11 +8,15 @@
 #include "core/trace.h"
 #include "sim/run/frame_loop.h"
 #include "sim/run/replay_config.h"
+#include "sim/view/scene.h"
 
 namespace vtsim {
 
 class IScene;
 
+// The scene parameters a config names, over the config's texture (what make_scene_from_config
+// builds; `vtsim view -c` starts from them).
+SceneConfig scene_config_of(const ReplayConfig& cfg);
 // The scene a config names, over the config's texture; throws InputError when the scene's
 // texture differs from texture.width × height.
 std::unique_ptr<IScene> make_scene_from_config(const ReplayConfig& cfg);

@@ -43,9 +43,9 @@ double rh_config_number(const ReportConfig& cfg, std::string_view key) {
   return std::nan("");
 }
 
-// "0.1.0 (commit 0b8eebf307ea)" from the summary's provenance (schema vtsim-summary/1), or the
-// top-level vtsim_version of older summaries.
-std::string rh_version(const nlohmann::json& s) {
+}  // namespace
+
+std::string summary_version(const nlohmann::json& s) {
   const auto text = [](const nlohmann::json& o, const char* key) {
     const auto it = o.find(key);
     return it != o.end() && it->is_string() ? it->get_ref<const std::string&>() : std::string("?");
@@ -58,6 +58,8 @@ std::string rh_version(const nlohmann::json& s) {
   }
   return text(s, "vtsim_version");
 }
+
+namespace {
 
 std::string rh_config_value(const ReportConfig& cfg, std::string_view key) {
   for (const auto& [k, v] : cfg)
@@ -202,7 +204,7 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m, cons
   h += fmt::format("<p>trace <code>{}</code>: {} frames, {:.1f} s at {:.4g} Hz; vtsim {}. Metrics are defined in docs/metrics.md, "
                    "the charts in docs/report.md.</p>\n",
                    escape(trace.value("name", "")), trace.value("frames", 0), num(s, "trace", "duration_s"), fps,
-                   escape(rh_version(s)));
+                   escape(summary_version(s)));
   h += "<div class=\"top\"><table>\n";
   h += row("disk read", fmt::format("{:.3f} MB/s ({:.0f} bytes)", num(s, "bandwidth", "disk_read_MBps"), num(s, "bandwidth", "disk_read_bytes")));
   h += row("decoded / uploaded", fmt::format("{:.3f} / {:.3f} MB/s", num(s, "bandwidth", "decoded_MBps"), num(s, "bandwidth", "upload_MBps")));

@@ -144,7 +144,7 @@ std::string html_runs_report(const std::vector<ReportRun>& runs) {
                      "<td class=\"num\">{:.1f} s</td><td>{}</td></tr>\n",
                      chart_colour(i), html_escape(runs[i].name), html_escape(s.value("system", "?")), html_escape(s.value("clock", "?")),
                      html_escape(tr.value("name", "?")), tr.value("frames", 0), rr_num(s, {"trace", "duration_s"}),
-                     html_escape(s.value("vtsim_version", "?")));
+                     html_escape(summary_version(s)));
   }
   h += "</table>\n<div class=\"charts\">\n";
   std::vector<std::string> names;

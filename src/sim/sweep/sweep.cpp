@@ -18,6 +18,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/hash.h"
 #include "core/input_file.h"
@@ -46,19 +47,8 @@ double process_cpu_s() {
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
-// Writes a file whole or not at all: a temporary beside it, then rename.
-void write_atomic(const fs::path& path, const std::string& text) {
-  const fs::path tmp = path.string() + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw InputError(tmp.string(), "cannot open for writing");
-    out << text;
-    if (!out.flush()) throw InputError(tmp.string(), "write failed");
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) throw InputError(path.string(), "cannot rename " + tmp.string() + " over it: " + ec.message());
-}
+// Writes a file whole or not at all: a temporary beside it, then rename (core/atomic_file.h).
+void write_atomic(const fs::path& path, const std::string& text) { write_file_atomic(path.string(), text); }
 
 nlohmann::json parse_json(const std::string& text, const std::string& where) {
   try {
@@ -496,8 +486,9 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
   const fs::path out(opts.out_dir);
   const fs::path parts = out / "parts";
   std::error_code ec;
-  fs::create_directories(parts, ec);
-  if (ec) throw InputError(opts.out_dir, "cannot create the output directory: " + ec.message());
+  make_output_dir("-o", opts.out_dir);  // the last level only: a missing parent is refused
+  fs::create_directory(parts, ec);
+  if (ec) throw InputError(parts.string(), "cannot create the directory: " + ec.message());
   const fs::path shard_file = out / "shard.json";
   if (fs::exists(shard_file)) {
     const nlohmann::json old = parse_json(read_regular_file(shard_file.string(), kMaxJsonBytes, "not a shard file"),
@@ -520,7 +511,8 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
 
   // Restart: the tasks whose part is on disk are done (a part is renamed into place whole).
   for (const auto& f : fs::directory_iterator(parts))
-    if (f.path().extension() == ".tmp") fs::remove(f.path(), ec);
+    if (is_atomic_temp_name(f.path().filename().string()) || f.path().extension() == ".tmp")  // ".tmp": older builds' name
+      fs::remove(f.path(), ec);
   SweepRunStats st;
   st.input_warnings = std::move(trace_warnings);
   st.rows = e - b;
@@ -700,9 +692,7 @@ void merge_sweep(const std::vector<std::string>& shard_dirs, const std::string& 
     at = e;
   }
   if (at != R) throw InputError(dir_of(at), fmt::format("work items {}..{} are missing from parts/ {}", at, R, kRedo));
-  std::error_code ec;
-  fs::create_directories(out_dir, ec);
-  if (ec) throw InputError(out_dir, "cannot create the output directory: " + ec.message());
+  make_output_dir("-o", out_dir);
   write_joined(meta, std::move(rows), fs::path(out_dir), cost);
 }
 

@@ -93,6 +93,27 @@ Trace resample(const Trace& in, const ResampleOptions& o, ResampleReport* report
   return out;
 }
 
+Trace cut_trace(const Trace& in, double from_s, double to_s) {
+  const auto& ps = in.poses;
+  if (ps.empty()) throw InputError(in.name, "cut_trace: the trace has no poses");
+  const double t0 = ps.front().t_s, t1 = ps.back().t_s;
+  if (!std::isfinite(from_s)) throw InputError("--from", "must be a finite time in seconds");
+  if (!std::isfinite(to_s)) throw InputError("--to", "must be a finite time in seconds");
+  if (!(from_s < to_s)) throw InputError("--from", fmt::format("{} s is not before --to {} s", from_s, to_s));
+  if (from_s < t0 || from_s >= t1)
+    throw InputError("--from", fmt::format("{} s is outside the trace, which runs from {} s to {} s", from_s, t0, t1));
+  if (to_s > t1) throw InputError("--to", fmt::format("{} s is after the trace's end at {} s (it starts at {} s)", to_s, t1, t0));
+  Trace out = in;
+  out.poses.clear();
+  out.poses.push_back(sample_trace(in, from_s));
+  out.poses.back().t_s = from_s;
+  const auto first = std::upper_bound(ps.begin(), ps.end(), from_s, [](double t, const Pose& p) { return t < p.t_s; });
+  for (auto it = first; it != ps.end() && it->t_s < to_s; ++it) out.poses.push_back(*it);
+  out.poses.push_back(sample_trace(in, to_s));
+  out.poses.back().t_s = to_s;
+  return out;
+}
+
 Pose sample_trace(const Trace& trace, double t_s) {
   const auto& ps = trace.poses;
   if (ps.empty()) throw InputError(trace.name, "sample_trace: the trace has no poses");

@@ -45,6 +45,12 @@ inline Trace resample(const Trace& in, double fps) {
 // poses around t; the first or last pose outside the trace (clamped). O(log n). Gaps interpolate.
 Pose sample_trace(const Trace& trace, double t_s);
 
+// The part of a trace from from_s to to_s (seconds, the trace's own times, kept): the poses
+// strictly inside, and a pose at each end, the stored one or sample_trace's interpolation. Image
+// size, name and source are kept. Throws InputError("--from" / "--to", ...) unless
+// t_first <= from_s < to_s <= t_last, both finite. The input must satisfy validate_trace.
+Trace cut_trace(const Trace& in, double from_s, double to_s);
+
 // Slerp from a (u = 0) to b (u = 1) along the shorter arc (b and -b are the same rotation); the
 // angle comes from atan2, accurate for tiny and near-opposite rotations alike. Unit inputs.
 glm::dquat slerp_shortest(const glm::dquat& a, const glm::dquat& b, double u);

@@ -107,29 +107,35 @@ bool LineReader::next(std::string_view& line) {
 
 TextFileOut::TextFileOut(const std::string& path)
     : stdout_(path == "-"), where_(stdout_ ? "stdout" : path) {
-  if (stdout_) {
-    f_ = stdout;
-    return;
-  }
-  f_ = std::fopen(path.c_str(), "wb");
-  if (!f_) throw InputError(path, fmt::format("cannot create: {}", std::strerror(errno)));
+  if (!stdout_) file_ = std::make_unique<AtomicFile>(path);
 }
 
-TextFileOut::~TextFileOut() {
-  if (f_ && !stdout_) std::fclose(f_);
-}
+TextFileOut::~TextFileOut() = default;
 
 void TextFileOut::write(std::string_view s) {
-  if (std::fwrite(s.data(), 1, s.size(), f_) != s.size())
-    throw InputError(where_, fmt::format("write failed: {}", std::strerror(errno)));
+  if (closed_) throw InputError(where_, "write after close");
+  if (stdout_) {
+    if (std::fwrite(s.data(), 1, s.size(), stdout) != s.size())
+      throw InputError(where_, fmt::format("write failed: {}", std::strerror(errno)));
+    return;
+  }
+  buffer_.append(s);
+  if (buffer_.size() >= (std::size_t{1} << 16)) {
+    file_->write(buffer_);
+    buffer_.clear();
+  }
 }
 
 void TextFileOut::close() {
-  if (!f_) return;
-  if (std::fflush(f_) != 0) throw InputError(where_, fmt::format("write failed: {}", std::strerror(errno)));
-  std::FILE* f = f_;
-  f_ = nullptr;
-  if (!stdout_ && std::fclose(f) != 0) throw InputError(where_, fmt::format("write failed: {}", std::strerror(errno)));
+  if (closed_) return;
+  closed_ = true;
+  if (stdout_) {
+    if (std::fflush(stdout) != 0) throw InputError(where_, fmt::format("write failed: {}", std::strerror(errno)));
+    return;
+  }
+  file_->write(buffer_);
+  buffer_.clear();
+  file_->commit();
 }
 
 bool is_blank(std::string_view s) { return trim(s).empty(); }

@@ -6,12 +6,14 @@
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include <glm/gtc/quaternion.hpp>
 
+#include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/text.h"
 #include "sim/trace/trace_io.h"
@@ -59,13 +61,15 @@ class LineReader {
   std::uint64_t file_bytes_ = 0;
 };
 
-// A text file written in pieces; "-" is stdout. Throws InputError(path, "cannot create: <reason>")
-// when it cannot be created and InputError(path, or "stdout", "write failed: <reason>") when a
-// write, the flush or the close fails. Not thread-safe.
+// A text file written in pieces; "-" is stdout. A file is written whole or not at all
+// (core/atomic_file.h): a temporary beside it, renamed over it by close(); without close() (an
+// exception on its way) the previous file stays. Throws InputError(path, "cannot create ...") when
+// it cannot be created and InputError(path, or "stdout", "write failed: <reason>") when a write,
+// the flush or the close fails. Not thread-safe.
 class TextFileOut {
  public:
   explicit TextFileOut(const std::string& path);
-  ~TextFileOut();  // closes a file close() did not (unchecked: an exception is on its way)
+  ~TextFileOut();  // drops a file close() did not commit (an exception is on its way)
   TextFileOut(const TextFileOut&) = delete;
   TextFileOut& operator=(const TextFileOut&) = delete;
 
@@ -73,8 +77,9 @@ class TextFileOut {
   void close();  // flushes and closes, checking both
 
  private:
-  std::FILE* f_ = nullptr;
-  bool stdout_ = false;
+  std::unique_ptr<AtomicFile> file_;  // null for stdout
+  std::string buffer_;                // written to file_ by 64 KiB
+  bool stdout_ = false, closed_ = false;
   std::string where_;
 };
 

@@ -16,6 +16,7 @@
 
 #include <fmt/format.h>
 
+#include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/host_memory.h"
 #include "core/image_io.h"
@@ -113,20 +114,13 @@ StoreWriter::StoreWriter(const std::string& out_path, const StoreSpec& spec) : o
   written_.assign(static_cast<std::size_t>(n), 0);
   end_ = buf_start_ = header_.data_offset;
 
-  const fs::path out(out_path);
-  const fs::path dir = out.has_parent_path() ? out.parent_path() : fs::path(".");
-  std::string tmpl = dir.string();
-  tmpl.append("/.").append(out.filename().string()).append(".tmp-XXXXXX");
-  fd_ = ::mkstemp(tmpl.data());
-  if (fd_ < 0) throw InputError(out_path, "cannot create a temporary file in " + dir.string() + ": " + errno_text());
-  tmp_path_ = tmpl;
-  ::fchmod(fd_, 0644);
+  // Written whole or not at all: a temporary beside the store, renamed over it by commit().
+  file_ = std::make_unique<AtomicFile>(out_path);
+  fd_ = file_->fd();
+  tmp_path_ = file_->temp_path();
 }
 
-StoreWriter::~StoreWriter() {
-  if (fd_ >= 0) ::close(fd_);
-  if (!committed_ && !tmp_path_.empty()) ::unlink(tmp_path_.c_str());
-}
+StoreWriter::~StoreWriter() = default;  // file_ removes the temporary unless committed
 
 EncodedTile StoreWriter::encode(TileKey k, const std::uint8_t* texels) const {
   EncodedTile t;
@@ -195,20 +189,11 @@ void StoreWriter::commit() {
   write_all(fd_, idx.data(), idx.size(), header_.index_offset, tmp_path_);
   const std::vector<std::uint8_t> head = encode_header(header_);
   write_all(fd_, head.data(), head.size(), 0, tmp_path_);
-  if (::ftruncate(fd_, static_cast<off_t>(end_)) != 0) throw InputError(tmp_path_, "ftruncate failed: " + errno_text());
-  if (::fsync(fd_) != 0) throw InputError(tmp_path_, "fsync failed: " + errno_text());
-  ::close(fd_);
+  if (tmp_path_ != out_path_ && ::ftruncate(fd_, static_cast<off_t>(end_)) != 0)
+    throw InputError(tmp_path_, "ftruncate failed: " + errno_text());
   fd_ = -1;
-  if (::rename(tmp_path_.c_str(), out_path_.c_str()) != 0)
-    throw InputError(out_path_, "cannot rename " + tmp_path_ + " into place: " + errno_text());
+  file_->commit();  // fsync, rename over the store, fsync the directory
   committed_ = true;
-  const fs::path out(out_path_);
-  const std::string dir = out.has_parent_path() ? out.parent_path().string() : ".";
-  const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (dfd >= 0) {  // make the rename itself durable
-    ::fsync(dfd);
-    ::close(dfd);
-  }
 }
 
 // ---- parallel, ordered encoding ----------------------------------------------------------------

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "core/atomic_file.h"
 #include "core/tile_key.h"
 #include "stream/store/i_codec.h"
 #include "stream/store/store_format.h"
@@ -78,7 +79,8 @@ class StoreWriter {
   void flush_buffer();
 
   std::string out_path_, tmp_path_;
-  int fd_ = -1;
+  std::unique_ptr<AtomicFile> file_;  // the temporary the store is written to
+  int fd_ = -1;                       // file_'s descriptor until commit()
   bool committed_ = false;
   store::StoreHeader header_;
   std::vector<std::unique_ptr<ICodec>> codecs_;  // per layer
