@@ -197,6 +197,14 @@ TEST_CASE("runtime: bad calls are refused with an exception naming the call") {
   CHECK(call_of([&] { rt.request(TileKey(5, 0, 0, 0)); }).find("layer(s)") != std::string::npos);
   rt.request(TileKey(0, 0, 8191, 8191));  // the last tile is inside
   rt.end_frame(gpu);
+  // A span buffer that cannot give its samples; one kind of feedback a frame.
+  rt.begin_frame(5);
+  SpanBuffer bare;
+  CHECK(call_of([&] { rt.set_feedback(bare); }).find("neither its samples") != std::string::npos);
+  rt.request(TileKey(0, 2, 1, 1));
+  bare.has_samples = true;
+  CHECK(call_of([&] { rt.set_feedback(bare); }).find("already has request()s") != std::string::npos);
+  rt.end_frame(gpu);
   // Time running backwards.
   rt.begin_frame(10);
   rt.end_frame(gpu);

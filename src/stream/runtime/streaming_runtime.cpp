@@ -115,6 +115,11 @@ void StreamingRuntime::request(TileKey key) {
 void StreamingRuntime::set_feedback(SpanBuffer& spans, bool fresh) {
   require(Phase::begun, "set_feedback");
   if (have_requests_) throw RuntimeCallError("set_feedback", "this frame already has request()s: give one kind of feedback a frame");
+  // A span that straddles a page is expanded into its samples: from the buffer's own, or
+  // re-rendered by the scene that rendered it (core/view_spans.h).
+  if (!spans.has_samples && !spans.scene)
+    throw RuntimeCallError("set_feedback", "the span buffer has neither its samples (has_samples) nor the scene that rendered it "
+                                           "(scene): fill one, or hand the feedback as request()s");
   spans_ = &spans;
   if (fresh) finest_needed_ = finest_level(spans, num_levels_);
 }

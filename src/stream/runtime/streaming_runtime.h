@@ -141,7 +141,8 @@ class StreamingRuntime {
   // more (VT priority is by samples). Throws RuntimeCallError for a key outside the texture.
   void request(TileKey key);
   // The feedback as a span buffer (vtsim's renderer, sim/view): `fresh` false reuses the previous
-  // buffer's finest level (feedback not rendered this frame). Replaces the requests.
+  // buffer's finest level (feedback not rendered this frame). Throws RuntimeCallError when the
+  // frame has requests, or when the buffer has neither its samples nor its scene.
   void set_feedback(SpanBuffer& spans, bool fresh = true);
   // The rest of the frame: plan_uploads then commit_uploads.
   const FrameUpdates& end_frame(IUploadSink& sink);
