@@ -267,6 +267,12 @@ void Clipmap::emit_prefetch(std::int64_t fu, std::int64_t fv, int finest_active,
   }
 }
 
+bool Clipmap::accepts(TileKey key) const {
+  const int l = static_cast<int>(key.level());
+  if (l >= num_levels() || static_cast<int>(key.layer()) >= p_.layers) return false;
+  return in_window(levels_[static_cast<std::size_t>(l)], key.x(), key.y());
+}
+
 bool Clipmap::commit(TileKey key, Evicted* evicted) {
   const int l = static_cast<int>(key.level());
   if (l >= num_levels() || static_cast<int>(key.layer()) >= p_.layers) return false;

@@ -104,6 +104,8 @@ class Clipmap final : public IResidency {
     bool sampled = false;
   };
   bool commit(TileKey key, Evicted* evicted = nullptr);
+  // What commit(key) would answer now, without its effects.
+  bool accepts(TileKey key) const;
 
   bool resident(TileKey key) const;  // that layer of that tile is in VRAM and in its window
   bool level_complete(int level) const { return levels_[static_cast<std::size_t>(level)].missing == 0; }

@@ -16,6 +16,7 @@
 #include "sim/run/provenance.h"
 #include "sim/run/render_ahead.h"
 #include "sim/run/resources.h"
+#include "sim/run/runtime_setup.h"
 #include "sim/run/systems.h"
 #include "sim/trace/trace_resample.h"
 #include "sim/view/scene.h"
@@ -150,43 +151,13 @@ const FrameView& ViewStream::frame(int f, bool keep_samples) {
 // ---- SystemRun ----
 
 SystemRun::SystemRun(const ReplayConfig& cfg, const FramePlan& plan, const IScene& scene, const ReplayEnv& env)
-    : cfg_(cfg), plan_(plan), env_(env), system_(make_system(cfg, scene.texture())) {
+    : cfg_(cfg), plan_(plan), env_(env) {
+  RuntimeParts parts = runtime_parts(cfg, scene.texture(), plan.period_s, env.executor, env.sizer);
+  sim_ = dynamic_cast<const SimExecutor*>(parts.owned_executor.get());
+  rt_ = std::make_unique<StreamingRuntime>(std::move(parts));
+  system_ = &rt_->system();
+  pipe_ = &rt_->pipeline();
   num_levels_ = system_->num_levels();
-  finest_needed_ = num_levels_;
-  TileSizer sizer = env.sizer;
-  if (!sizer) {
-    std::vector<TileSizes> by_layer;
-    for (const auto& L : cfg.texture.layers.specs) by_layer.push_back({tile_disk_bytes(cfg, L), tile_decoded_bytes(cfg, L)});
-    sizer = [by_layer](TileKey k) { return by_layer[k.layer() < by_layer.size() ? k.layer() : 0]; };
-  }
-  // The system's own tiles first: produced ones (no disk; their normal decoded size), then the
-  // ones it sizes itself; the rest as the texture's layers. Called once per new request.
-  sizer = [base = std::move(sizer), sys = system_.get()](TileKey k) {
-    ProduceWork w;
-    if (sys->produced(k, w)) {
-      TileSizes s = base(k);
-      s.disk_bytes = 0;
-      s.produce = w;
-      return s;
-    }
-    TileSizes s;
-    if (sys->tile_sizes(k, s.disk_bytes, s.decoded_bytes)) return s;
-    return base(k);
-  };
-  IExecutor* exec = env.executor;
-  if (!exec) {
-    sim_ = std::make_unique<SimExecutor>(disk_model(cfg.disk), cfg.decode, static_cast<std::size_t>(cfg.io.max_in_flight),
-                                         cfg.io.faults, cfg.produce);
-    exec = sim_.get();
-  }
-  PipelineConfig pc;
-  pc.ram_bytes = static_cast<std::uint64_t>(cfg.ram.capacity_MiB * 1048576.0);
-  pc.max_retries = cfg.io.max_retries;
-  pc.retry_backoff_frames = cfg.io.retry_backoff_frames;
-  pc.thrash_frames = cfg.metrics.thrash_frames;
-  pc.ram_policy = cfg.ram.policy;
-  pc.produce_tiles_per_frame = cfg.produce.tiles_per_frame;
-  pipe_ = std::make_unique<Pipeline>(pc, *exec, sizer);
   accesses_ = env.accesses;
   if (!accesses_ && cfg.metrics.opt) {
     own_accesses_ = std::make_unique<AccessLogs>();
@@ -196,19 +167,7 @@ SystemRun::SystemRun(const ReplayConfig& cfg, const FramePlan& plan, const IScen
     pipe_->record_ram_accesses(&accesses_->ram);
     system_->record_pool_accesses(&accesses_->pool);
   }
-  const ThrottlePolicyInfo* policy = throttle_policies().find(cfg.throttle.policy);
-  if (!policy) throw InputError("config", "field 'throttle.policy': " + throttle_policies().unknown(cfg.throttle.policy));
-  throttle_ = policy->make(cfg.throttle);
-
-  // The upload budget the config and the link allow per frame.
-  budget_ = UploadBudget{cfg.upload.bytes_per_frame < 0 ? 0 : static_cast<std::uint64_t>(cfg.upload.bytes_per_frame),
-                         cfg.upload.tiles_per_frame < 0 ? 0 : cfg.upload.tiles_per_frame};
   link_Bps_ = cfg.upload.link_MBps * 1e6;
-  if (cfg.upload.link_MBps > 0) {
-    const auto link_bytes = static_cast<std::uint64_t>(cfg.upload.link_MBps * 1e6 * plan.period_s);
-    budget_.bytes = budget_.bytes ? std::min(budget_.bytes, link_bytes) : link_bytes;
-  }
-  service_ = service_Bps();
   res_.metrics.set_system_columns(system_->frame_counter_names());
   if (env_.on_start) env_.on_start(*system_);
 }
@@ -234,47 +193,18 @@ void SystemRun::add_cache_bounds(nlohmann::json& s) const {
   }
 }
 
-// What the pipeline can bring into VRAM per second: its bottleneck (for throttling).
-double SystemRun::service_Bps() const {
-  double mean_disk = 0, mean_dec = 0;
-  const auto& layers = cfg_.texture.layers.specs;
-  for (const auto& L : layers) {
-    mean_disk += static_cast<double>(tile_disk_bytes(cfg_, L));
-    mean_dec += static_cast<double>(tile_decoded_bytes(cfg_, L));
-  }
-  mean_disk /= static_cast<double>(layers.size());
-  mean_dec /= static_cast<double>(layers.size());
-  double service;
-  ProduceWork full;
-  if (system_->full_tile_work(full)) {
-    // A produced system's tiles are rendered, not read: the production servers (and their
-    // per-frame budget) are its bottleneck, so a level whose backlog takes longer than the
-    // deadline to produce is clamped (issue 27: "the system says which level falls behind and
-    // the throttle clamps it"). Its brush mips' reads are small beside them and not counted.
-    const ProduceModel& m = cfg_.produce;
-    const double tile_s = produce_ns(m, full) * 1e-9;
-    service = m.workers > 0 && tile_s > 0 ? m.workers * mean_dec / tile_s : std::numeric_limits<double>::infinity();
-    if (m.tiles_per_frame > 0) service = std::min(service, m.tiles_per_frame * mean_dec / plan_.period_s);
-  } else {
-    service = disk_throughput_Bps(disk_model(cfg_.disk), mean_disk) * (mean_dec / mean_disk);
-    service = std::min(service, decode_throughput_Bps(cfg_.decode, mean_dec));
-  }
-  if (budget_.bytes) service = std::min(service, static_cast<double>(budget_.bytes) / plan_.period_s);
-  if (budget_.tiles) service = std::min(service, budget_.tiles * mean_dec / plan_.period_s);
-  return std::isfinite(service) ? service : 0.0;  // 0: unlimited
-}
-
 int SystemRun::block_shift() const { return std::bit_width(static_cast<unsigned>(cfg_.texture.tile_size)) - 1; }
 
 bool SystemRun::keep_samples() const { return !system_->uses_spans() || system_->wants_samples(); }
 
-bool SystemRun::may_keep_samples() const { return keep_samples() || throttle_->may_bias(); }
+bool SystemRun::may_keep_samples() const { return keep_samples() || rt_->throttle().may_bias(); }
 
 void SystemRun::begin_frame(int f, Ticks now) {
   frame_ = f;
   now_ = now;
   c0_ = pipe_->counters();
-  pipe_->begin_frame(f, now);
+  rt_->begin_frame(now);
+  if (rt_->frame() != f) throw std::logic_error("SystemRun::begin_frame: frames out of order");
 }
 
 // Cuts, fast turns and the velocity (for look-ahead) between the previous pose and this one.
@@ -294,54 +224,36 @@ glm::dvec3 SystemRun::motion(int f, FrameRow& row) {
   return vel;
 }
 
-// The policy sees the backlog, the pool and the service rate, and sets the clamp and bias.
-void SystemRun::throttle(const glm::dvec3& velocity, const FrameView& view, FrameRow& row) {
-  const SpanBuffer& fb = *view.feedback;
-  const SystemFrame sf{frame_, now_, view.pose, velocity, fb.has_samples ? &fb.view : nullptr, finest_needed_, &fb};
-  system_->begin_frame(sf);
-  system_->missing_bytes_by_level(missing_);
-  ThrottleInput ti;
-  ti.frame = frame_;
-  ti.now = now_;
-  ti.frame_period_s = plan_.period_s;
-  ti.num_levels = num_levels_;
-  ti.finest_needed = finest_needed_;
-  ti.coarsest_clamp = system_->coarsest_clamp();
-  ti.missing_bytes_by_level = missing_;
-  ti.service_Bps = service_;
-  ti.discontinuity = cut_;
-  ti.pool_occupancy = system_->pool_occupancy();
-  ti.pool_pressure = system_->pool_pressure();
-  system_->pool_demand(ti.pool_demand_by_level, ti.pool_slots);
-  const ThrottleDecision dec = throttle_->update(ti);
-  if (dec.clamp != clamp_ || dec.bias != bias_)
-    res_.metrics.add_throttle_change({frame_, row.t_s, clamp_, dec.clamp, dec.bias, dec.reason});
-  clamp_ = dec.clamp;
-  bias_ = dec.bias;
-  system_->apply_throttle(dec);
-}
+// The runtime's upload sink: each tile the system accepted, with its slot.
+class SystemRun::Uploads final : public IUploadSink {
+ public:
+  Uploads(SystemRun& run, FrameRow& row) : run_(run), row_(row) {}
+  void upload(const TileUpload& u) override { run_.on_upload(u, row_); }
 
-// Commits the frame's uploads; each accepted tile's latency is recorded.
-void SystemRun::commit_uploads(FrameRow& row) {
-  for (const UploadItem& u : uploads_) {
-    if (!system_->commit(u.key, frame_)) continue;
-    TileLatency lat;
-    lat.total = now_ - u.needed_time;
-    lat.frames = frame_ - u.needed_frame;
-    lat.queue = u.queue_ticks;
-    lat.io = u.io_ticks;
-    lat.decode_wait = u.decode_wait_ticks;
-    lat.decode = u.decode_ticks;
-    lat.upload_wait = u.ram_ticks;
-    lat.upload = transfer_ticks(u.bytes, link_Bps_);
-    lat.level = static_cast<std::uint8_t>(u.key.level());
-    lat.ram_hit = u.ram_hit;
-    res_.metrics.add_latency(lat);
-    level_upload_[u.key.level()] += u.bytes;
-    row.upload_bytes += u.bytes;
-    ++row.uploads;
-    if (env_.on_upload) env_.on_upload(u, system_->vram_slot(u.key));
-  }
+ private:
+  SystemRun& run_;
+  FrameRow& row_;
+};
+
+// An upload the system accepts: its latency is recorded, then the environment copies it.
+void SystemRun::on_upload(const TileUpload& t, FrameRow& row) {
+  const UploadItem& u = *t.item;
+  TileLatency lat;
+  lat.total = now_ - u.needed_time;
+  lat.frames = frame_ - u.needed_frame;
+  lat.queue = u.queue_ticks;
+  lat.io = u.io_ticks;
+  lat.decode_wait = u.decode_wait_ticks;
+  lat.decode = u.decode_ticks;
+  lat.upload_wait = u.ram_ticks;
+  lat.upload = transfer_ticks(u.bytes, link_Bps_);
+  lat.level = static_cast<std::uint8_t>(u.key.level());
+  lat.ram_hit = u.ram_hit;
+  res_.metrics.add_latency(lat);
+  level_upload_[u.key.level()] += u.bytes;
+  row.upload_bytes += u.bytes;
+  ++row.uploads;
+  if (env_.on_upload) env_.on_upload(u, t.slot);
 }
 
 const SpanLevels& SystemRun::popin_levels(const SpanBuffer& spans, PopinShare* share, const ResidencyFingerprint* fp,
@@ -368,26 +280,24 @@ const SpanLevels& SystemRun::popin_levels(const SpanBuffer& spans, PopinShare* s
 }
 
 void SystemRun::step(const FrameView& view, PopinShare* share) {
-  if (view.fresh) finest_needed_ = finest_level(*view.feedback, num_levels_);
+  rt_->set_feedback(*view.feedback, view.fresh);
   FrameRow row;
   row.frame = frame_;
   row.t_s = view.pose->t_s - plan_.t0_s;
   const glm::dvec3 velocity = motion(frame_, row);
-  if (system_->wants_samples()) materialise_samples(*view.feedback);
-  throttle(velocity, view, row);
-
-  needs_.clear();
-  system_->emit_needs(needs_);
-  pipe_->set_needs(needs_);
-  pipe_->dispatch();
-
-  uploads_.clear();
-  pipe_->take_uploads(budget_, uploads_);
+  rt_->set_camera(*view.pose, velocity, cut_);
+  // The system, the throttle, needs, dispatch, the uploads within the budget.
+  rt_->plan_uploads();
+  const FrameUpdates& fu = rt_->updates();
+  if (fu.throttle_changed) res_.metrics.add_throttle_change({frame_, row.t_s, clamp_, fu.clamp, fu.feedback_bias, fu.reason});
+  clamp_ = fu.clamp;
+  bias_ = fu.feedback_bias;
+  const std::vector<UploadItem>& uploads = rt_->planned_uploads();
   // Pop-in is measured on what the screen samples before and after this frame's commits.
   // With a share, runs in the same state (equal fingerprints) resolve the spans once.
   const SpanBuffer& mb = *view.popin;
   if (share && share->spans() != &mb) throw std::logic_error("SystemRun::step: the pop-in share is not on this frame's spans");
-  const bool has_before = view.measured && !uploads_.empty();
+  const bool has_before = view.measured && !uploads.empty();
   ResidencyFingerprint fp_before, fp_after;
   const bool shared_before = share && has_before && system_->fingerprint(fp_before);
   const SpanLevels* before = nullptr;
@@ -395,7 +305,8 @@ void SystemRun::step(const FrameView& view, PopinShare* share) {
     system_->set_mark_sampled(false);
     before = &popin_levels(mb, share, shared_before ? &fp_before : nullptr, false, lv_before_);
   }
-  commit_uploads(row);
+  Uploads sink(*this, row);
+  rt_->commit_uploads(sink);
   if (view.measured) {
     system_->set_mark_sampled(true);
     const bool shared_after = share && system_->fingerprint(fp_after);
@@ -417,10 +328,10 @@ void SystemRun::step(const FrameView& view, PopinShare* share) {
   const PipelineCounters& c1 = pipe_->counters();
   row.clamp = clamp_;
   row.bias = bias_;
-  row.finest_needed = finest_needed_;
+  row.finest_needed = rt_->finest_needed();
   row.disk_bytes = c1.disk_bytes - c0_.disk_bytes;
   row.decoded_bytes = c1.decoded_bytes - c0_.decoded_bytes;
-  row.needs = static_cast<std::uint32_t>(needs_.size());
+  row.needs = static_cast<std::uint32_t>(rt_->needs());
   row.live_requests = static_cast<std::uint32_t>(pipe_->live_requests());
   row.ram_bytes = pipe_->ram_bytes_used();
   row.throttled_needs = system_->throttled_needs();
@@ -498,7 +409,7 @@ ReplayResult SystemRun::summarize(const RunCost& cost) {
                  {"decode_error", c.fault_by_kind[static_cast<int>(Fault::decode_error)]},
                  {"bad_record", c.fault_by_kind[static_cast<int>(Fault::bad_record)]}};
   if (c.produce_requests > 0) {
-    const SimExecutor* sim = sim_.get();
+    const SimExecutor* sim = sim_;
     s["produce"] = {{"requests", c.produce_requests},
                     {"submitted", c.produce_submitted},
                     {"produced", c.produced},

@@ -29,6 +29,7 @@
 #include "sim/run/replay_config.h"
 #include "stream/exec/i_executor.h"
 #include "stream/exec/pipeline.h"
+#include "stream/runtime/streaming_runtime.h"
 
 namespace vtsim {
 
@@ -157,19 +158,24 @@ struct RunCost {
   int render_threads = 0;
 };
 
+// One streaming system stepped on the view: a StreamingRuntime (stream/runtime/streaming_runtime.h,
+// the engine's API) driven frame by frame, with the replay's measurements around it (pop-in
+// before and after the runtime's uploads, latency per upload, one metrics row per frame). Both
+// clocks run through it, so the runtime an engine calls is the one the replays measure.
 class SystemRun {
  public:
   // The system run.system names over the scene's texture, a pipeline on env.executor (null: a
-  // simulated executor from the config's device models), the throttle policy throttle.policy.
-  // Throws InputError for a config the registries refuse. cfg, plan and env are referenced, not
-  // copied: they must outlive the run.
+  // simulated executor from the config's device models), the throttle policy throttle.policy
+  // (runtime_parts, sim/run/runtime_setup.h). Throws InputError for a config the registries
+  // refuse. cfg, plan and env are referenced, not copied: they must outlive the run.
   SystemRun(const ReplayConfig& cfg, const FramePlan& plan, const IScene& scene, const ReplayEnv& env);
   ~SystemRun();
   SystemRun(const SystemRun&) = delete;
   SystemRun& operator=(const SystemRun&) = delete;
 
-  IStreamingSystem& system() { return *system_; }
-  const IStreamingSystem& system() const { return *system_; }
+  IStreamingSystem& system() { return rt_->system(); }
+  const IStreamingSystem& system() const { return rt_->system(); }
+  StreamingRuntime& runtime() { return *rt_; }
   // Spans of the view never cross a tile: log2 of the tile size, rounded down.
   int block_shift() const;
   // Whether this system reads every sample of the next frame (not only spans).
@@ -192,13 +198,12 @@ class SystemRun {
 
  private:
   glm::dvec3 motion(int f, FrameRow& row);
-  void throttle(const glm::dvec3& velocity, const FrameView& view, FrameRow& row);
-  void commit_uploads(FrameRow& row);
+  class Uploads;  // the runtime's upload sink: latency per tile, then ReplayEnv::on_upload
+  void on_upload(const TileUpload& u, FrameRow& row);
   // The resident levels of the pop-in spans now, into `own` or from the share's entry of the same
   // state; `marking`: the lookup marks what it samples (applied from the entry on a share).
   const SpanLevels& popin_levels(const SpanBuffer& spans, PopinShare* share, const ResidencyFingerprint* fp, bool marking,
                                  SpanLevels& own);
-  double service_Bps() const;
   void add_cache_bounds(nlohmann::json& summary) const;
 
   const ReplayConfig& cfg_;
@@ -206,12 +211,10 @@ class SystemRun {
   const ReplayEnv& env_;
   std::unique_ptr<AccessLogs> own_accesses_;  // metrics.opt without env.accesses: recorded here
   AccessLogs* accesses_ = nullptr;             // where the levels' accesses go (null: not recorded)
-  std::unique_ptr<IStreamingSystem> system_;
-  std::unique_ptr<SimExecutor> sim_;
-  std::unique_ptr<Pipeline> pipe_;
-  std::unique_ptr<IThrottlePolicy> throttle_;
-  UploadBudget budget_;
-  double service_ = 0.0;
+  std::unique_ptr<StreamingRuntime> rt_;
+  const SimExecutor* sim_ = nullptr;  // the runtime's executor when simulated
+  IStreamingSystem* system_ = nullptr;  // the runtime's
+  Pipeline* pipe_ = nullptr;            // the runtime's
   int num_levels_ = 1;
   double link_Bps_ = 0.0;
 
@@ -221,15 +224,11 @@ class SystemRun {
   PipelineCounters c0_;
   int clamp_ = 0;
   double bias_ = 0.0;
-  int finest_needed_ = 0;
   bool in_turn_ = false;
   bool cut_ = true;  // the first frame has no predecessor: treat it as a cut
   SpanLevels lv_before_, lv_after_;
   std::vector<std::uint64_t> marks_;  // popin_levels: the marks of a lookup offered to a share
   PopinShare::Counts share_counts_;
-  std::vector<Need> needs_;
-  std::vector<UploadItem> uploads_;
-  std::vector<std::uint64_t> missing_;
   std::uint64_t level_upload_[TileKey::kMaxLevels] = {};
   ReplayResult res_;
 };

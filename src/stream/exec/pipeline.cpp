@@ -320,6 +320,34 @@ void Pipeline::take_uploads(const UploadBudget& budget, std::vector<UploadItem>&
   for (const UploadItem& u : out) requests_.erase(u.key);
 }
 
+void Pipeline::return_uploads(std::vector<UploadItem>::iterator first, std::vector<UploadItem>::iterator last) {
+  for (auto it = first; it != last; ++it) {
+    UploadItem& u = *it;
+    Request q;
+    q.id = next_id_++;
+    q.key = u.key;
+    q.state = State::waiting_upload;
+    q.needed = true;
+    q.ram_hit = u.ram_hit;
+    q.prefetched_entry = u.prefetched;
+    q.priority = 0;
+    q.sizes = sizer_(u.key);
+    q.sizes.decoded_bytes = u.bytes;
+    q.needed_frame = u.needed_frame;
+    q.needed_time = u.needed_time;
+    q.in_ram_time = now_ - u.ram_ticks;
+    q.timing.submitted = u.needed_time;
+    q.timing.read_start = u.needed_time + u.queue_ticks;
+    q.timing.read_end = q.timing.read_start + u.io_ticks;
+    q.timing.decode_start = q.timing.read_end + u.decode_wait_ticks;
+    q.timing.decode_end = q.timing.decode_start + u.decode_ticks;
+    q.data = std::move(u.data);
+    --counters_.uploads;
+    counters_.upload_bytes -= u.bytes;
+    requests_.insert_or_assign(u.key, std::move(q));
+  }
+}
+
 std::size_t Pipeline::queued() const {
   std::size_t n = 0;
   for (const auto& [k, q] : requests_) n += q.state == State::queued;

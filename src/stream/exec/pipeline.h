@@ -138,6 +138,10 @@ class Pipeline {
   void dispatch();
   // Chooses uploads by priority within the budget (and removes them from the pipeline).
   void take_uploads(const UploadBudget& budget, std::vector<UploadItem>& out);
+  // Uploads taken and not made (the engine's copy failed): back into the pipeline, waiting for
+  // upload first in line, with their history and data, as if never taken (the upload counters
+  // are taken back). A tile no longer needed at the next set_needs is dropped as usual.
+  void return_uploads(std::vector<UploadItem>::iterator first, std::vector<UploadItem>::iterator last);
 
   // The caller evicted a resident tile from VRAM: nothing to do here (the RAM copy, if any, stays).
   bool in_ram(TileKey key) const { return ram_any_ ? ram_any_->contains(key) : ram_.contains(key); }

@@ -106,6 +106,14 @@ void ClipmapSystem::emit_needs(std::vector<Need>& out) {
   if (prefetch_) cm_.emit_prefetch(fu_, fv_, finest_active_, out);
 }
 
+void ClipmapSystem::clip_windows(std::vector<ClipWindow>& out) const {
+  out.clear();
+  for (int l = 0; l < cm_.num_levels(); ++l) {
+    const Clipmap::Window w = cm_.window(l);
+    out.push_back({w.x0, w.y0, w.w, w.h});
+  }
+}
+
 bool ClipmapSystem::commit(TileKey key, int frame) {
   Clipmap::Evicted ev;
   if (!cm_.commit(key, &ev)) return false;

@@ -48,6 +48,8 @@ class ClipmapSystem final : public IStreamingSystem {
   void emit_needs(std::vector<Need>& out) override;
   std::uint32_t throttled_needs() const override { return throttled_; }
   bool commit(TileKey key, int frame) override;
+  bool accepts(TileKey key) const override { return cm_.accepts(key); }
+  void clip_windows(std::vector<ClipWindow>& out) const override;
   void set_mark_sampled(bool on) override { cm_.set_mark_sampled(on); }
   bool fingerprint(ResidencyFingerprint& out) const override { return cm_.fingerprint(out); }
   void record_marks(std::vector<std::uint64_t>* out) const override { cm_.record_marks(out); }

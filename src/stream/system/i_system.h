@@ -42,6 +42,21 @@ struct SystemSetup {
   int thrash_frames = 60;                    // evicted then needed within this many frames = thrash
 };
 
+// A change of the page table the screen samples through (virtual texturing), in the order made:
+// `page` (layer 0) maps to physical pool slot `slot`, or is unmapped (slot -1: samples fall back to
+// its finest resident ancestor). What an engine mirrors into its page-table texture.
+struct PageTableUpdate {
+  TileKey page;
+  std::int64_t slot = -1;
+};
+
+// A clipmap level's window (clip stack, Tanner 1998): origin and size in tiles of the level. Tile
+// (x, y) of the window lives at toroidal slot (x mod w, y mod h) of the level's texture.
+struct ClipWindow {
+  std::int64_t x0 = 0, y0 = 0, w = 0, h = 0;
+  bool operator==(const ClipWindow&) const = default;
+};
+
 struct SystemFrame {
   int frame = 0;
   Ticks now = 0;
@@ -64,7 +79,11 @@ class IStreamingSystem : public IResidency {
   virtual std::uint32_t throttled_needs() const = 0;
   // An uploaded tile becomes resident; false if it is no longer wanted (stale).
   virtual bool commit(TileKey key, int frame) = 0;
-  // Where a tile that commit() just accepted lives in VRAM: its physical pool slot (virtual
+  // Whether commit(key, ...) would accept the tile now (true) or find it stale (false): exactly
+  // commit's answer, without its effects. The streaming runtime asks it before handing a tile to
+  // the engine's upload, and commits only once the upload returned.
+  virtual bool accepts(TileKey key) const = 0;
+  // Where a tile that commit() accepts (or just accepted) lives in VRAM: its physical pool slot (virtual
   // texturing: every layer of a page shares one slot), or -1 when the key alone places it (the
   // clipmap's toroidal windows). The real clock copies the tile's texels there.
   virtual std::int64_t vram_slot(TileKey) const { return -1; }
@@ -100,6 +119,11 @@ class IStreamingSystem : public IResidency {
   // The pages complete in a physical page pool, each with its slot (what a page table maps: the
   // real clock checks its VRAM arena against them); empty for a system without a pool.
   virtual void pool_pages(std::vector<std::pair<TileKey, std::uint32_t>>& out) const { out.clear(); }
+  // Opt-in: from now on, every change of the page table (map, unmap) appends a PageTableUpdate to
+  // `log`, in order; null stops. A system without a page table records nothing.
+  virtual void record_page_table(std::vector<PageTableUpdate>* /*log*/) {}
+  // Each level's clipmap window, finest level first; empty for a system without windows.
+  virtual void clip_windows(std::vector<ClipWindow>& out) const { out.clear(); }
   // Opt-in: from now on, every page of the pool this system wants each frame appends an Access
   // {page key bits, 1} to `log`, and each frame opens a frame in it (docs/metrics.md, "Pool hits
   // and misses"). Null stops. A system without a pool records nothing.

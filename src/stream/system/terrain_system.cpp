@@ -249,6 +249,23 @@ void TerrainSystem::emit_needs(std::vector<Need>& out) {
   }
 }
 
+bool TerrainSystem::accepts(TileKey key) const {
+  if (key.layer() == kBrushLayer) {
+    const int m = static_cast<int>(key.level());
+    if (m >= t_.brush_tree_levels || key.x() >= sectors_ || key.y() >= t_.brushes_per_sector) return false;
+    return needed_[idx(m, static_cast<int>(key.x()), static_cast<int>(key.y()))] != 0;
+  }
+  return cm_.accepts(key);
+}
+
+void TerrainSystem::clip_windows(std::vector<ClipWindow>& out) const {
+  out.clear();
+  for (int l = 0; l < cm_.num_levels(); ++l) {
+    const Clipmap::Window w = cm_.window(l);
+    out.push_back({w.x0, w.y0, w.w, w.h});
+  }
+}
+
 bool TerrainSystem::commit(TileKey key, int) {
   if (key.layer() == kBrushLayer) {
     const int m = static_cast<int>(key.level());

@@ -98,6 +98,8 @@ class TerrainSystem final : public IStreamingSystem {
   void emit_needs(std::vector<Need>& out) override;
   std::uint32_t throttled_needs() const override { return 0; }
   bool commit(TileKey key, int frame) override;
+  bool accepts(TileKey key) const override;
+  void clip_windows(std::vector<ClipWindow>& out) const override;
   bool produced(TileKey key, ProduceWork& work) const override;
   bool full_tile_work(ProduceWork& work) const override;
   bool tile_sizes(TileKey key, std::uint64_t& disk_bytes, std::uint64_t& decoded_bytes) const override;

@@ -96,7 +96,10 @@ VtSystem::VtSystem(const SystemSetup& s, const VtConfig& c)
 
 void VtSystem::on_removed(const PagePool::Removed& r) {
   const auto layers = static_cast<std::uint64_t>(std::popcount(r.mask));
-  if (r.complete) pt_.unmap(r.page);
+  if (r.complete) {
+    pt_.unmap(r.page);
+    if (pt_log_) pt_log_->push_back({r.page, -1});
+  }
   if (r.reason == PagePool::Removal::kEvicted) {
     evicted_layers_ += layers;
     if (!r.sampled) evicted_unsampled_layers_ += layers;
@@ -461,11 +464,19 @@ bool VtSystem::commit(TileKey key, int frame) {
   }
   if (c.complete) {
     pt_.map(page, c.slot);
+    if (pt_log_) pt_log_->push_back({page, static_cast<std::int64_t>(c.slot)});
     requested_.erase(page.bits);
     ++pages_mapped_;
     peak_occupied_ = std::max<std::uint64_t>(peak_occupied_, pool_.occupied());
   }
   return true;
+}
+
+bool VtSystem::accepts(TileKey key) const {
+  // PagePool::commit: a reserved page, a layer of the pool's mask.
+  const int layer = static_cast<int>(key.layer());
+  if (layer >= s_.layers) return false;
+  return pool_.reserved(page_key(static_cast<int>(key.level()), key.x(), key.y()));
 }
 
 std::int64_t VtSystem::vram_slot(TileKey key) const {

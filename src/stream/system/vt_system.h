@@ -76,6 +76,8 @@ class VtSystem final : public IStreamingSystem {
   void emit_needs(std::vector<Need>& out) override;
   std::uint32_t throttled_needs() const override { return throttled_tiles_; }
   bool commit(TileKey key, int frame) override;
+  bool accepts(TileKey key) const override;
+  void record_page_table(std::vector<PageTableUpdate>* log) override { pt_log_ = log; }
   std::int64_t vram_slot(TileKey key) const override;
   void set_mark_sampled(bool on) override { mark_sampled_ = on; }
   bool uses_spans() const override { return true; }
@@ -219,6 +221,7 @@ class VtSystem final : public IStreamingSystem {
   std::uint64_t pool_misses_ = 0;          // not complete: in no slot, reserved, or filling
   std::uint64_t pool_misses_no_slot_ = 0;  // of those, in no slot and with no reservation yet
   AccessLog* pool_log_ = nullptr;          // record_pool_accesses
+  std::vector<PageTableUpdate>* pt_log_ = nullptr;  // record_page_table
 };
 
 }  // namespace vtsim
