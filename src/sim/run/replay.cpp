@@ -27,6 +27,7 @@ std::unique_ptr<IScene> make_scene_from_config(const ReplayConfig& cfg) {
   sc.mesh_no_uv = cfg.scene.mesh_no_uv;
   sc.mesh_planar_m = cfg.scene.mesh_planar_m;
   auto scene = make_scene(sc);
+  if (cfg.view.lod_model == "gpu") scene = make_gpu_model_scene(std::move(scene));
   const TextureExtent e = scene->texture();
   if (e.width != cfg.texture.width || e.height != cfg.texture.height)
     throw InputError("config", fmt::format("field 'texture.width': the scene's texture is {}×{} texels, the config "
