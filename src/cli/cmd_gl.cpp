@@ -36,6 +36,7 @@ namespace gl_cmd {
 struct GlOptions {
   std::string scene = "town";
   std::string file;
+  double mesh_unit_m = 1.0;  // mesh (assimp): metres per file unit
   unsigned long long seed = 1;
   int noise_posts = 1025;
   double shift_m = 0.0;      // the whole world and the camera moved by (shift, shift, 0)
@@ -65,6 +66,7 @@ SceneConfig scene_config(const GlOptions& o) {
   SceneConfig cfg;
   cfg.kind = find_scene(o.scene).name;
   cfg.file = o.file;
+  cfg.mesh_unit_m = o.mesh_unit_m;
   cfg.seed = o.seed;
   cfg.noise_posts = o.noise_posts;
   if (!std::isfinite(o.shift_m) || std::abs(o.shift_m) > 1e9) throw InputError("--shift", "must be finite, |shift| <= 1e9 m");
@@ -270,6 +272,7 @@ void run_check(const GlOptions& o) { run_render(o); }
 void add_common(CLI::App* cmd, const std::shared_ptr<GlOptions>& opt) {
   cmd->add_option("--scene", opt->scene, "plane | heightfield | town | mesh")->capture_default_str();
   cmd->add_option("--file", opt->file, "scene file (heightfield image, mesh)");
+  cmd->add_option("--mesh-unit", opt->mesh_unit_m, "mesh (assimp): metres per file unit; Quake 3: 0.0254")->capture_default_str();
   cmd->add_option("--seed", opt->seed, "generated heightfield / town seed")->capture_default_str();
   cmd->add_option("--noise-posts", opt->noise_posts, "generated heightfield posts a side")->capture_default_str();
   cmd->add_option("--shift", opt->shift_m, "move the world and the camera by (shift, shift, 0) m (far-from-origin check)")
