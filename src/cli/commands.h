@@ -34,6 +34,7 @@ void register_tune_commands(CLI::App& app);
 void register_mrc_commands(CLI::App& app);
 void register_report_commands(CLI::App& app);
 void register_atlas_commands(CLI::App& app);
+void register_gl_commands(CLI::App& app);
 // `vtsim help [CMD...]` and `vtsim completion bash`, generated from the commands registered before.
 void register_help_commands(CLI::App& app);
 // The bash completion script for `app`'s commands and options (every subcommand, every flag).

@@ -57,6 +57,7 @@ int main(int argc, char** argv) {
   vtsim::cli::register_mrc_commands(app);
   vtsim::cli::register_report_commands(app);
   vtsim::cli::register_atlas_commands(app);
+  vtsim::cli::register_gl_commands(app);
   vtsim::cli::register_help_commands(app);  // last: they walk the commands above
   try {
     app.parse(argc, argv);

@@ -31,6 +31,7 @@ SceneConfig scene_config_of(const ReplayConfig& cfg) {
 
 std::unique_ptr<IScene> make_scene_from_config(const ReplayConfig& cfg) {
   auto scene = make_scene(scene_config_of(cfg));
+  if (cfg.view.lod_model == "gpu") scene = make_gpu_model_scene(std::move(scene));
   const TextureExtent e = scene->texture();
   if (e.width != cfg.texture.width || e.height != cfg.texture.height)
     throw InputError("config", fmt::format("field 'texture.width': the scene's texture is {}×{} texels, the config "

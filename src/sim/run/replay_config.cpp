@@ -29,7 +29,7 @@ constexpr FormatInfo kFormats[] = {
     {"bc1", 0.5},   {"bc3", 1.0},  {"bc4", 0.5}, {"bc5", 1.0}, {"bc7", 1.0},
 };
 
-// A validator for a text field taking one of a few words (the scene.mesh_* choices).
+// A validator for a text field taking one of a few words (the scene.mesh_* and view.lod_model choices).
 std::function<void(const std::string&)> one_of_mesh(std::vector<std::string> words) {
   return [words](const std::string& v) {
     std::string list;
@@ -145,6 +145,9 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
                              "(one core); -1 = auto (one per core up to 8; sim clock only)"))
         .add(cfg::real<C>("view.near_m", at(&C::view, &ViewConfig::near_m), 1e-6, 1e6, "near clip, m"))
         .add(cfg::real<C>("view.far_m", at(&C::view, &ViewConfig::far_m), 1e-3, 1e12, "far clip, m"))
+        .add(cfg::text<C>("view.lod_model", at(&C::view, &ViewConfig::lod_model), one_of_mesh({"analytic", "gpu"}),
+                          "analytic: footprint per full-resolution pixel; gpu: a GPU feedback pass's request (2x2-quad "
+                          "differences at feedback resolution, bias -log2(divisor); docs/gpu.md)"))
         .add(cfg::integer<C>("clipmap.clipsize", at(&C::clipmap, &ClipmapConfig::clipsize), 1, 1 << 20, "N: clip stack window side, texels (multiple of the tile)"))
         .add(cfg::real<C>("clipmap.update_threshold_tiles", at(&C::clipmap, &ClipmapConfig::update_threshold_tiles), 0.0, 64.0,
                           "hysteresis before a window recentres, tiles (Unity Clipmap UpdateThreshold)"))

@@ -14,6 +14,7 @@
 #include "core/registry.h"
 #include "core/view.h"
 #include "core/view_spans.h"
+#include "sim/view/gpu_model.h"
 
 namespace vtsim {
 
@@ -40,6 +41,12 @@ class IScene : public ISampleSource {
   // scenes whose render_spans leaves has_samples false; the default throws std::logic_error.
   void render_pixels(const SpanBuffer& sb, std::uint32_t pixel, std::uint32_t count,
                      std::vector<ViewSample>& out) const override;
+
+  // The surface the ray through full-resolution pixel position (px, py) meets first, classified
+  // as render() classifies a sample, with its plane and affine texel map (gpu_model.h: the GPU
+  // feedback model extrapolates a quad partner's texel coordinates on it). The default throws
+  // std::logic_error (a scene the GPU model does not draw).
+  virtual void surface_at(const Camera& cam, const ViewParams& params, double px, double py, SurfaceHit& hit) const;
 
   // What the scene's reader left out of its input file, one line each naming the file and the
   // count ("town.obj: 3 of 1200 triangles skipped: zero area"), for the CLI to print as warnings;

@@ -348,3 +348,38 @@ std::unique_ptr<IScene> make_heightfield_scene(const SceneConfig& cfg, TextureEx
 }
 
 }  // namespace vtsim
+
+namespace vtsim {
+
+// render()'s classification and texel map for one ray (gpu_model.h).
+void HeightfieldScene::surface_at(const Camera& cam, const ViewParams& p, double px, double py, SurfaceHit& out) const {
+  out = SurfaceHit{};
+  const double f = cam.focal_px;
+  const glm::dvec3 d = cam.ray_dir(px, py);
+  const Hit h = cast(cam.pos_m, d, p.near_m / f);
+  if (!h.found) {
+    out.kind = h.clipped ? SurfaceHit::clipped : SurfaceHit::none;
+    return;
+  }
+  if (h.t > p.far_m / f) {
+    out.kind = SurfaceHit::clipped;
+    return;
+  }
+  const double s = hf_.spacing_m, tpm = tex_.texels_per_m;
+  out.n = glm::dvec3(-h.b / s, -h.c / s, 1.0);
+  if (!(glm::dot(d, out.n) < 0.0)) {
+    out.kind = SurfaceHit::backfacing;
+    return;
+  }
+  out.p = cam.pos_m + h.t * d;
+  out.tu = (cam.pos_m.x - tex_.x0_m + h.t * d.x) * tpm;
+  out.tv = (cam.pos_m.y - tex_.y0_m + h.t * d.y) * tpm;
+  out.gu = glm::dvec3(tpm, 0.0, 0.0);
+  out.gv = glm::dvec3(0.0, tpm, 0.0);
+  std::int64_t u = 0, v = 0;
+  out.kind = detail::texel_index(out.tu, tex_.extent.width, u) && detail::texel_index(out.tv, tex_.extent.height, v)
+                 ? SurfaceHit::sample
+                 : SurfaceHit::outside_texture;
+}
+
+}  // namespace vtsim

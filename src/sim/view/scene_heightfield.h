@@ -46,6 +46,7 @@ Heightfield generate_heightfield(int posts, double spacing_m, double amplitude_m
 class HeightfieldScene final : public IScene {
  public:
   HeightfieldScene(Heightfield hf, const GroundTexture& tex);
+  void surface_at(const Camera& cam, const ViewParams& params, double px, double py, SurfaceHit& hit) const override;
   TextureExtent texture() const override { return tex_.extent; }
   void render(const Camera& cam, const ViewParams& params, ViewBuffer& out) const override;
 

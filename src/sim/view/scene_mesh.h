@@ -44,6 +44,7 @@ class MeshScene final : public IScene {
   // mesh, indices out of range, non-finite data or more than 2^31 − 1 triangles, and
   // InputError("texture", ...) for an extent below 1 or above 2^52 texels a side.
   MeshScene(const Mesh& mesh, TextureExtent extent);
+  void surface_at(const Camera& cam, const ViewParams& params, double px, double py, SurfaceHit& hit) const override;
   TextureExtent texture() const override { return extent_; }
   void render(const Camera& cam, const ViewParams& params, ViewBuffer& out) const override;
   // Spans without materialising samples: the same rasterisation, then per row run of a front face

@@ -17,6 +17,7 @@ struct GroundTexture {
 class PlaneScene final : public IScene {
  public:
   PlaneScene(const GroundTexture& tex, double plane_z_m) : tex_(tex), z_(plane_z_m) {}
+  void surface_at(const Camera& cam, const ViewParams& params, double px, double py, SurfaceHit& hit) const override;
   TextureExtent texture() const override { return tex_.extent; }
   void render(const Camera& cam, const ViewParams& params, ViewBuffer& out) const override;
   // Spans without materialising samples: per row, the batch arithmetic of render(), then a
