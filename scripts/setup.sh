@@ -11,7 +11,7 @@ cd "$here"
 # --no-install-recommends would leave them out, failing find_package(OpenImageIO).
 PKGS=(build-essential cmake pkg-config git
       libopenimageio-dev openimageio-tools libglm-dev doctest-dev libcli11-dev nlohmann-json3-dev
-      libtomlplusplus-dev libfmt-dev libzstd-dev liblz4-dev libassimp-dev libxxhash-dev fio python3 ninja-build)
+      libtomlplusplus-dev libfmt-dev libzstd-dev liblz4-dev liburing-dev libassimp-dev libxxhash-dev fio python3 ninja-build)
 
 . scripts/packages.sh
 ensure_packages "${PKGS[@]}"

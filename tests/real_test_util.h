@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "stream/exec/i_executor.h"
+#include "stream/exec/io_pool.h"
 #include "stream/store/tile_store.h"
 #include "test_util.h"
 
@@ -88,6 +89,17 @@ bool eventually(Pred pred, double seconds = 10.0) {
 inline TileJob tile_job(const TileStore& s, RequestId id, TileKey k, std::uint64_t prio = 0) {
   const TileLocation loc = s.locate(k);
   return TileJob{id, k, loc.read_bytes, loc.decoded_bytes, prio};
+}
+
+// The IO pool's engines: the IO-pool, fault and real-replay tests run on each.
+inline constexpr IoEngine kIoEngines[] = {IoEngine::psync, IoEngine::io_uring};
+
+// An IO pool's config on `engine`, with `depth` reads in flight per worker on io_uring.
+inline IoPoolConfig pool_config(IoEngine engine, int threads, int depth = 1, bool direct = true, bool verify = true) {
+  IoPoolConfig c{threads, direct, verify};
+  c.engine = engine;
+  c.queue_depth = depth;
+  return c;
 }
 
 // Runs `vtsim ARGS` with stderr through a file in `dir` (run_vtsim_capture).
