@@ -112,7 +112,7 @@ TEST_CASE("injected EIO: every read fails as io_error with nothing read, naming 
   const TileStore store = TileStore::open(test::small_store());
   FaultConfig f;
   f.io_error_rate = 1.0;
-  for (const IoEngine engine : test::kIoEngines)
+  for (const IoEngine engine : test::io_engines_here())
   for (const JobResult& r : run_jobs(store, f, some_keys(store, 30), engine)) {
     CHECK(r.outcome == JobOutcome::failed);
     CHECK(r.fault == Fault::io_error);
@@ -125,7 +125,7 @@ TEST_CASE("injected short reads: every read fails as short_read") {
   const TileStore store = TileStore::open(test::small_store());
   FaultConfig f;
   f.short_read_rate = 1.0;
-  for (const IoEngine engine : test::kIoEngines)
+  for (const IoEngine engine : test::io_engines_here())
   for (const JobResult& r : run_jobs(store, f, some_keys(store, 30), engine)) {
     CHECK(r.outcome == JobOutcome::failed);
     CHECK(r.fault == Fault::short_read);
@@ -137,7 +137,7 @@ TEST_CASE("injected corruption: every record fails its checksum, nothing corrupt
   const TileStore store = TileStore::open(test::small_store());
   FaultConfig f;
   f.checksum_rate = 1.0;
-  for (const IoEngine engine : test::kIoEngines)
+  for (const IoEngine engine : test::io_engines_here())
   for (const JobResult& r : run_jobs(store, f, some_keys(store, 30), engine)) {
     CHECK(r.outcome == JobOutcome::failed);
     CHECK(r.fault == Fault::checksum);
@@ -151,7 +151,7 @@ TEST_CASE("injected slow reads: the tile arrives, late") {
   FaultConfig f;
   f.slow_rate = 1.0;
   f.slow_ms = 30;
-  for (const IoEngine engine : test::kIoEngines)
+  for (const IoEngine engine : test::io_engines_here())
   for (const JobResult& r : run_jobs(store, f, some_keys(store, 6), engine)) {
     CHECK(r.outcome == JobOutcome::ready);
     CHECK(r.read_end - r.read_start >= 30'000'000);
@@ -197,7 +197,7 @@ TEST_CASE("a store truncated under a running executor: the lost records fail as 
   test::RealScratch dir;
   const std::string p = dir.file("trunc.vts");
   std::filesystem::copy_file(test::small_store(), p);
-  for (const IoEngine engine : test::kIoEngines) {
+  for (const IoEngine engine : test::io_engines_here()) {
   CAPTURE(engine_name(engine));
   const TileStore store = TileStore::open(p);  // the whole file: copied again for each engine
   ThreadedExecutorConfig c;
