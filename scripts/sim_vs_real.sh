@@ -4,7 +4,9 @@
 #   scripts/sim_vs_real.sh [OUT_DIR] [RUNS]      (default out/sim_vs_real, 3 real runs per trace)
 # Makes a 16384² store (albedo zstd + normal lz4; ~2 min) if OUT_DIR has none, calibrates
 # (`vtsim calibrate`), then replays two traces in both clocks with the same config (the profile)
-# and prints the table. Extra replay options: VTSIM_SETS="--set k=v ...".
+# and prints the table. Extra replay options: VTSIM_SETS="--set k=v ...". Extra calibrate options:
+# VTSIM_CALIBRATE="--engine io_uring --queue-depth 16" (the profile then sets io.engine and
+# io.queue_depth, so the real runs read with io_uring and the simulated disk has that depth).
 # VTSIM_SYSTEM=clipmap (default): no border, the standard walk and drive traces (§6).
 # VTSIM_SYSTEM=vt: pages with a 4-texel border, the town walk at 1× and 4× (§7a).
 # VTSIM_SYSTEM=terrain: the seed-002 terrain (docs/examples/terrain.toml), no store: the [produce]
@@ -65,7 +67,8 @@ store=$out/terrain16k-b$border.vts
 if [ ! -f "$store" ]; then
   "$vtsim" store gen -o "$store" --size 16384x16384 --tile 128 --border $border --layers albedo:zstd,normal:lz4 --seed 1
 fi
-"$vtsim" calibrate --store "$store" -o "$out/profile.toml" -q
+# shellcheck disable=SC2086  # VTSIM_CALIBRATE is a word list
+"$vtsim" calibrate --store "$store" -o "$out/profile.toml" -q ${VTSIM_CALIBRATE:-}
 # shellcheck disable=SC2206  # VTSIM_SETS is a word list
 common=(--system "$system" --store "$store" --config "$out/profile.toml" -q ${VTSIM_SETS:-})
 if [ "$system" = clipmap ]; then

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "stream/exec/i_executor.h"
+#include "stream/exec/io_pool.h"
 #include "stream/store/tile_store.h"
 #include "test_util.h"
 
@@ -88,6 +89,26 @@ bool eventually(Pred pred, double seconds = 10.0) {
 inline TileJob tile_job(const TileStore& s, RequestId id, TileKey k, std::uint64_t prio = 0) {
   const TileLocation loc = s.locate(k);
   return TileJob{id, k, loc.read_bytes, loc.decoded_bytes, prio};
+}
+
+// The IO pool's engines the IO-pool, fault and real-replay tests run on: psync, and io_uring where
+// the kernel allows it (a seccomp filter, e.g. a container's, may refuse io_uring_setup; the
+// fallback itself is tested by forcing the failure, test_io_pool.cpp).
+inline const std::vector<IoEngine>& io_engines_here() {
+  static const std::vector<IoEngine> engines = [] {
+    std::vector<IoEngine> e{IoEngine::psync};
+    if (io_uring_unavailable().empty()) e.push_back(IoEngine::io_uring);
+    return e;
+  }();
+  return engines;
+}
+
+// An IO pool's config on `engine`, with `depth` reads in flight per worker on io_uring.
+inline IoPoolConfig pool_config(IoEngine engine, int threads, int depth = 1, bool direct = true, bool verify = true) {
+  IoPoolConfig c{threads, direct, verify};
+  c.engine = engine;
+  c.queue_depth = depth;
+  return c;
 }
 
 // Runs `vtsim ARGS` with stderr through a file in `dir` (run_vtsim_capture).

@@ -19,8 +19,11 @@ using vtsim::test::eventually;
 
 namespace {
 
-std::vector<JobResult> run_jobs(const TileStore& store, const FaultConfig& f, const std::vector<TileKey>& keys) {
+std::vector<JobResult> run_jobs(const TileStore& store, const FaultConfig& f, const std::vector<TileKey>& keys,
+                                IoEngine engine = IoEngine::psync) {
   ThreadedExecutorConfig c;
+  c.io_engine = engine;
+  c.queue_depth = 4;
   c.io_threads = 2;
   c.decode_workers = 1;
   c.capacity = 4096;
@@ -109,7 +112,8 @@ TEST_CASE("injected EIO: every read fails as io_error with nothing read, naming 
   const TileStore store = TileStore::open(test::small_store());
   FaultConfig f;
   f.io_error_rate = 1.0;
-  for (const JobResult& r : run_jobs(store, f, some_keys(store, 30))) {
+  for (const IoEngine engine : test::io_engines_here())
+  for (const JobResult& r : run_jobs(store, f, some_keys(store, 30), engine)) {
     CHECK(r.outcome == JobOutcome::failed);
     CHECK(r.fault == Fault::io_error);
     CHECK(r.bytes_read == 0);
@@ -121,7 +125,8 @@ TEST_CASE("injected short reads: every read fails as short_read") {
   const TileStore store = TileStore::open(test::small_store());
   FaultConfig f;
   f.short_read_rate = 1.0;
-  for (const JobResult& r : run_jobs(store, f, some_keys(store, 30))) {
+  for (const IoEngine engine : test::io_engines_here())
+  for (const JobResult& r : run_jobs(store, f, some_keys(store, 30), engine)) {
     CHECK(r.outcome == JobOutcome::failed);
     CHECK(r.fault == Fault::short_read);
     CHECK(r.bytes_read < store.locate(r.key).stored_bytes);
@@ -132,7 +137,8 @@ TEST_CASE("injected corruption: every record fails its checksum, nothing corrupt
   const TileStore store = TileStore::open(test::small_store());
   FaultConfig f;
   f.checksum_rate = 1.0;
-  for (const JobResult& r : run_jobs(store, f, some_keys(store, 30))) {
+  for (const IoEngine engine : test::io_engines_here())
+  for (const JobResult& r : run_jobs(store, f, some_keys(store, 30), engine)) {
     CHECK(r.outcome == JobOutcome::failed);
     CHECK(r.fault == Fault::checksum);
     CHECK(r.bytes_read == store.locate(r.key).read_bytes);  // the read happened; its bytes were bad
@@ -145,7 +151,8 @@ TEST_CASE("injected slow reads: the tile arrives, late") {
   FaultConfig f;
   f.slow_rate = 1.0;
   f.slow_ms = 30;
-  for (const JobResult& r : run_jobs(store, f, some_keys(store, 6))) {
+  for (const IoEngine engine : test::io_engines_here())
+  for (const JobResult& r : run_jobs(store, f, some_keys(store, 6), engine)) {
     CHECK(r.outcome == JobOutcome::ready);
     CHECK(r.read_end - r.read_start >= 30'000'000);
     CHECK(r.data);
@@ -190,9 +197,13 @@ TEST_CASE("a store truncated under a running executor: the lost records fail as 
   test::RealScratch dir;
   const std::string p = dir.file("trunc.vts");
   std::filesystem::copy_file(test::small_store(), p);
-  const TileStore store = TileStore::open(p);
+  for (const IoEngine engine : test::io_engines_here()) {
+  CAPTURE(engine_name(engine));
+  const TileStore store = TileStore::open(p);  // the whole file: copied again for each engine
   ThreadedExecutorConfig c;
   c.io_threads = 2;
+  c.io_engine = engine;
+  c.queue_depth = 4;
   c.capacity = 4096;
   ThreadedExecutor ex(store, c);
   const std::uint64_t cut = store.header().data_offset + (store.header().file_bytes - store.header().data_offset) / 2;
@@ -223,6 +234,10 @@ TEST_CASE("a store truncated under a running executor: the lost records fail as 
   CHECK(ex_msgs[0].find("short read") != std::string::npos);
   CHECK(ex_msgs[0].find("file truncated?") != std::string::npos);
   CHECK(ex_msgs[0].find("tile (") != std::string::npos);
+  ex.shutdown();
+  std::filesystem::remove(p);
+  std::filesystem::copy_file(test::small_store(), p);
+  }
 }
 
 TEST_CASE("a record corrupted on disk fails its checksum, and one that passes its checksum but does not decode is a decode error") {

@@ -46,9 +46,13 @@ TEST_CASE("direct_io_aligned: buffer address, offset and size must all be multip
 TEST_CASE("io pool: every record read with aligned buffers, offsets and sizes, byte for byte the file's") {
   const TileStore store = TileStore::open(test::small_store());
   const auto file = test::file_bytes(store.path());
+  for (const IoEngine engine : test::io_engines_here()) {
+  CAPTURE(engine_name(engine));
   WallClock clock;
   Sink sink;
-  IoPool pool(store, IoPoolConfig{3, true}, clock, std::ref(sink));
+  IoPool pool(store, test::pool_config(engine, 3, 4), clock, std::ref(sink));
+  CHECK(pool.engine() == engine);
+  CHECK(pool.engine_warning().empty());  // io_uring works here, registered buffers included
   // O_DIRECT is checked once at open: either on, or off with the reason.
   CHECK((pool.direct() || !pool.warning().empty()));
   MESSAGE("O_DIRECT " << (pool.direct() ? "on" : "off: " + pool.warning()));
@@ -65,15 +69,21 @@ TEST_CASE("io pool: every record read with aligned buffers, offsets and sizes, b
     CHECK(r.read_start <= r.read_end);
     CHECK(std::equal(r.record.data(), r.record.data() + r.bytes_read, file.begin() + static_cast<std::ptrdiff_t>(loc.offset)));
   }
+  // io_uring reads land in each worker's registered arena (while it has a free slot).
+  if (engine == IoEngine::io_uring)
+    CHECK(std::any_of(sink.results.begin(), sink.results.end(), [](const ReadResult& r) { return r.record.in_arena(); }));
   CHECK(pool.stop().empty());
   CHECK(pool.state() == IoPool::State::stopped);
+  }
 }
 
 TEST_CASE("io pool: buffered reads when O_DIRECT is not wanted (the fallback path) are the same bytes") {
   const TileStore store = TileStore::open(test::small_store());
+  for (const IoEngine engine : test::io_engines_here()) {
+  CAPTURE(engine_name(engine));
   WallClock clock;
   Sink sink;
-  IoPool pool(store, IoPoolConfig{1, false}, clock, std::ref(sink));
+  IoPool pool(store, test::pool_config(engine, 1, 2, /*direct=*/false), clock, std::ref(sink));
   CHECK_FALSE(pool.direct());
   CHECK(pool.warning().empty());  // not refused: not asked for
   const TileKey k(1, 2, 3, 1);
@@ -84,6 +94,7 @@ TEST_CASE("io pool: buffered reads when O_DIRECT is not wanted (the fallback pat
   CHECK(sink.results[0].fault == Fault::none);
   CHECK(std::equal(sink.results[0].record.data(), sink.results[0].record.data() + loc.stored_bytes,
                    file.begin() + static_cast<std::ptrdiff_t>(loc.offset)));
+  }
 }
 
 TEST_CASE("O_DIRECT fallback: a filesystem that refuses O_DIRECT gives buffered reads and a warning") {
@@ -104,12 +115,14 @@ TEST_CASE("io pool: verify checks the checksum on the IO worker, verify = false 
   const TileStore store = TileStore::open(test::small_store());
   FaultConfig fc;
   fc.checksum_rate = 1.0;  // every payload gets a flipped byte after the read
+  for (const IoEngine engine : test::io_engines_here())
   for (const bool verify : {true, false}) {
+    CAPTURE(engine_name(engine));
     CAPTURE(verify);
     WallClock clock;
     Sink sink;
     FaultLayer faults(fc);
-    IoPool pool(store, IoPoolConfig{1, true, verify}, clock, std::ref(sink), &faults);
+    IoPool pool(store, test::pool_config(engine, 1, 2, true, verify), clock, std::ref(sink), &faults);
     const TileKey k(0, 0, 1, 1);
     REQUIRE(pool.submit(ReadRequest{1, k, 0}));
     REQUIRE(eventually([&] { return sink.size() == 1; }));
@@ -126,13 +139,16 @@ TEST_CASE("io pool: verify checks the checksum on the IO worker, verify = false 
 
 TEST_CASE("io pool: queued requests are served by priority, then submission order") {
   const TileStore store = TileStore::open(test::small_store());
+  // One read in flight (io_uring at depth 1), so the queue fills while the first one is read.
+  for (const IoEngine engine : test::io_engines_here()) {
+  CAPTURE(engine_name(engine));
   WallClock clock;
   Sink sink;
   FaultConfig fc;
   fc.slow_rate = 1.0;  // every read takes 40 ms: the queue fills while the first one is read
   fc.slow_ms = 40;
   FaultLayer faults(fc);
-  IoPool pool(store, IoPoolConfig{1, true}, clock, std::ref(sink), &faults);
+  IoPool pool(store, test::pool_config(engine, 1), clock, std::ref(sink), &faults);
   REQUIRE(pool.submit(ReadRequest{1, TileKey(0, 0, 0, 0), 0}));
   REQUIRE(eventually([&] { return pool.active() == 1; }));
   REQUIRE(pool.submit(ReadRequest{2, TileKey(0, 0, 1, 0), 5}));
@@ -144,17 +160,20 @@ TEST_CASE("io pool: queued requests are served by priority, then submission orde
   std::vector<RequestId> order;
   for (const auto& r : sink.results) order.push_back(r.id);
   CHECK(order == std::vector<RequestId>{1, 3, 5, 2, 4});
+  }
 }
 
 TEST_CASE("io pool: cancel drops queued requests (no read, no result) and not the one under way") {
   const TileStore store = TileStore::open(test::small_store());
+  for (const IoEngine engine : test::io_engines_here()) {
+  CAPTURE(engine_name(engine));
   WallClock clock;
   Sink sink;
   FaultConfig fc;
   fc.slow_rate = 1.0;
   fc.slow_ms = 30;
   FaultLayer faults(fc);
-  IoPool pool(store, IoPoolConfig{1, true}, clock, std::ref(sink), &faults);
+  IoPool pool(store, test::pool_config(engine, 1), clock, std::ref(sink), &faults);
   REQUIRE(pool.submit(ReadRequest{1, TileKey(0, 0, 0, 0), 0}));
   REQUIRE(eventually([&] { return pool.active() == 1; }));
   for (RequestId id = 2; id <= 5; ++id) REQUIRE(pool.submit(ReadRequest{id, TileKey(0, 0, static_cast<std::int64_t>(id), 0), 0}));
@@ -170,10 +189,14 @@ TEST_CASE("io pool: cancel drops queued requests (no read, no result) and not th
   for (const auto& r : sink.results) ids.push_back(r.id);
   CHECK(ids == std::vector<RequestId>{1, 2, 5});
   CHECK(faults.injected().slow == 3);  // cancelled requests were never read
+  }
 }
 
-TEST_CASE("io pool: reads in flight never exceed the thread count") {
+TEST_CASE("io pool: reads in flight never exceed the thread count (psync) or threads x queue depth (io_uring), and reach it") {
   const TileStore store = TileStore::open(test::small_store());
+  for (const IoEngine engine : test::io_engines_here()) {
+  CAPTURE(engine_name(engine));
+  const int depth = engine == IoEngine::io_uring ? 3 : 1;
   WallClock clock;
   std::atomic<int> max_active{0};
   std::atomic<std::size_t> done{0};
@@ -182,7 +205,7 @@ TEST_CASE("io pool: reads in flight never exceed the thread count") {
   fc.slow_ms = 5;
   FaultLayer faults(fc);
   IoPool* self = nullptr;
-  IoPool pool(store, IoPoolConfig{2, true}, clock,
+  IoPool pool(store, test::pool_config(engine, 2, depth), clock,
               [&](ReadResult&&) {
                 int a = self->active(), m = max_active.load();
                 while (a > m && !max_active.compare_exchange_weak(m, a)) {
@@ -198,20 +221,26 @@ TEST_CASE("io pool: reads in flight never exceed the thread count") {
     seen = std::max(seen, pool.active());
     return done.load() == 40;
   }));
-  CHECK(max_active.load() <= 2);
-  CHECK(seen <= 2);
+  CHECK(max_active.load() <= 2 * depth);
+  CHECK(seen <= 2 * depth);
   CHECK(max_active.load() >= 1);
+  CHECK(pool.queue_depth() == depth);
+  // 40 requests of 5 ms each: a worker fills its ring, so more reads are in flight than threads.
+  if (engine == IoEngine::io_uring) CHECK(seen > 2);
+  }
 }
 
 TEST_CASE("io pool: stop with reads under way returns the queued requests, delivers the rest and joins") {
   const TileStore store = TileStore::open(test::small_store());
+  for (const IoEngine engine : test::io_engines_here()) {
+  CAPTURE(engine_name(engine));
   WallClock clock;
   Sink sink;
   FaultConfig fc;
   fc.slow_rate = 1.0;
   fc.slow_ms = 5000;  // a read "takes" 5 s: stop must not wait for that
   FaultLayer faults(fc);
-  IoPool pool(store, IoPoolConfig{2, true}, clock, std::ref(sink), &faults);
+  IoPool pool(store, test::pool_config(engine, 2), clock, std::ref(sink), &faults);
   for (RequestId id = 1; id <= 10; ++id) REQUIRE(pool.submit(ReadRequest{id, TileKey(1, 0, static_cast<std::int64_t>(id), 0), id}));
   REQUIRE(eventually([&] { return pool.active() == 2; }));
   const auto t0 = std::chrono::steady_clock::now();
@@ -228,13 +257,16 @@ TEST_CASE("io pool: stop with reads under way returns the queued requests, deliv
   CHECK(pool.state() == IoPool::State::stopped);
   CHECK_FALSE(pool.submit(ReadRequest{11, TileKey(1, 0, 0, 0), 0}));
   CHECK(pool.stop().empty());  // idempotent
+  }
 }
 
 TEST_CASE("io pool: a key outside the store is a bad_record result naming the tile, not a crash") {
   const TileStore store = TileStore::open(test::small_store());
+  for (const IoEngine engine : test::io_engines_here()) {
+  CAPTURE(engine_name(engine));
   WallClock clock;
   Sink sink;
-  IoPool pool(store, IoPoolConfig{1, true}, clock, std::ref(sink));
+  IoPool pool(store, test::pool_config(engine, 1, 4), clock, std::ref(sink));
   REQUIRE(pool.submit(ReadRequest{1, TileKey(0, 0, 500, 0), 0}));
   REQUIRE(pool.submit(ReadRequest{2, TileKey(9, 0, 0, 0), 0}));
   REQUIRE(eventually([&] { return sink.size() == 2; }));
@@ -242,6 +274,7 @@ TEST_CASE("io pool: a key outside the store is a bad_record result naming the ti
     CHECK(r.fault == Fault::bad_record);
     CHECK(r.bytes_read == 0);
     CHECK(r.error.find("outside the store") != std::string::npos);
+  }
   }
 }
 
@@ -255,6 +288,17 @@ TEST_CASE("io pool: warm workers read once each before the constructor returns, 
   IoPool pool(store, IoPoolConfig{3, true, true, /*buffers=*/5, /*warm=*/true}, clock, std::ref(sink), &faults);
   CHECK(pool.warmed() == 3);        // the constructor waited for every worker, each read whole
   CHECK(pool.free_buffers() == 5);  // the reserve, and the warm reads gave theirs back
+  if (io_uring_unavailable().empty()) {  // io_uring: each worker warms through its ring; its arena holds its depth and its share of the reserve
+    IoPoolConfig c = test::pool_config(IoEngine::io_uring, 3, 2);
+    c.buffers = 5;
+    c.warm = true;
+    Sink ring_sink;
+    IoPool ring(store, c, clock, std::ref(ring_sink), &faults);
+    CHECK(ring.warmed() == 3);
+    CHECK(ring.free_buffers() == 3 * (2 + 2));
+    CHECK(ring_sink.size() == 0);
+    CHECK(faults.injected().io_error == 0);
+  }
   CHECK(sink.size() == 0);
   CHECK(faults.injected().io_error == 0);
   // The warm reads used the coarsest tile; its first real read is still attempt 0 of its plan.
@@ -309,3 +353,46 @@ TEST_CASE("io and decode pools: a worker count outside 1..1024 is an InputError 
 }
 
 TEST_SUITE_END();
+
+TEST_CASE("io_uring fallback: a kernel without io_uring or a seccomp that refuses it reads with psync and says why") {
+  const TileStore store = TileStore::open(test::small_store());
+  const auto file = test::file_bytes(store.path());
+  for (const int err : {ENOSYS, EPERM}) {
+    CAPTURE(err);
+    IoPoolConfig c = test::pool_config(IoEngine::io_uring, 2, 8);
+    c.fail_ring_errno = err;
+    WallClock clock;
+    Sink sink;
+    IoPool pool(store, c, clock, std::ref(sink));
+    CHECK(pool.engine() == IoEngine::psync);
+    CHECK(pool.queue_depth() == 1);
+    CHECK(pool.engine_warning().find("io_uring_queue_init failed") != std::string::npos);
+    CHECK(pool.engine_warning().find(err == ENOSYS ? "no io_uring" : "seccomp") != std::string::npos);
+    CHECK(pool.engine_warning().find("reading with psync") != std::string::npos);
+    CHECK(io_uring_unavailable(err) == pool.engine_warning());
+    const TileKey k(0, 1, 1, 0);
+    REQUIRE(pool.submit(ReadRequest{1, k, 0}));
+    REQUIRE(eventually([&] { return sink.size() == 1; }));
+    const TileLocation loc = store.locate(k);
+    CHECK(sink.results[0].fault == Fault::none);
+    CHECK(std::equal(sink.results[0].record.data(), sink.results[0].record.data() + loc.stored_bytes,
+                     file.begin() + static_cast<std::ptrdiff_t>(loc.offset)));
+  }
+  // Where the kernel refuses io_uring the engine tests run on psync only: say so.
+  const std::string refused = io_uring_unavailable();
+  WARN_MESSAGE(refused.empty(), refused);
+}
+
+TEST_CASE("io_uring: a queue depth outside 1..1024 is an InputError naming io.queue_depth") {
+  const TileStore store = TileStore::open(test::small_store());
+  WallClock clock;
+  Sink sink;
+  for (const int d : {0, -1, 1025}) {
+    CAPTURE(d);
+    CHECK_THROWS_WITH_AS(IoPool(store, test::pool_config(IoEngine::io_uring, 1, d), clock, std::ref(sink)),
+                         doctest::Contains("io.queue_depth: must be in 1..1024"), InputError);
+  }
+  // psync ignores the depth (one read per thread).
+  IoPool p(store, test::pool_config(IoEngine::psync, 1, 0), clock, std::ref(sink));
+  CHECK(p.queue_depth() == 1);
+}

@@ -4,6 +4,8 @@
 // (`vtsim replay --clock real`, `vtsim calibrate`) works end to end.
 #include <doctest/doctest.h>
 
+#include <set>
+
 #include <map>
 
 #include "real_test_util.h"
@@ -141,7 +143,9 @@ TEST_CASE("apply_speed: the trace plays faster in both clocks, and a bad factor 
 
 TEST_CASE("real clock: a short replay completes with every needed tile resident, byte-exact in the VRAM arena") {
   const TileStore store = TileStore::open(test::small_store());
-  const ReplayConfig cfg = bound_cfg(store);
+  for (const IoEngine engine : test::io_engines_here()) {
+  CAPTURE(engine_name(engine));
+  const ReplayConfig cfg = bound_cfg(store, {"io.engine=" + std::string(engine_name(engine)), "io.queue_depth=8"});
   const Trace trace = still_trace(1.5);
   const auto scene = make_scene_from_config(cfg);
   RealRun run = run_real_replay(cfg, trace, *scene, store);
@@ -179,7 +183,11 @@ TEST_CASE("real clock: a short replay completes with every needed tile resident,
     if (!arena.peek(k).empty()) want_bytes += store.locate(k).read_bytes;
   CHECK(s["bandwidth"]["disk_read_bytes"].get<std::uint64_t>() == want_bytes);
 
+  CHECK(s["real_clock"]["io_engine"] == std::string(engine_name(engine)));
+  CHECK(s["real_clock"]["io_queue_depth"] == (engine == IoEngine::io_uring ? 8 : 1));
+  CHECK(s["real_clock"]["io_engine_warning"] == "");
   check_sim_reads_the_same(cfg, trace, *scene, store, run, "cache", "requests");
+  }
 }
 
 TEST_CASE("real clock: a moving camera streams, cancels and still ends consistent") {
@@ -207,9 +215,11 @@ TEST_CASE("real clock: a moving camera streams, cancels and still ends consisten
 
 TEST_CASE("real clock with injected faults: retried or failed, every fault counted by kind, nothing crashes") {
   const TileStore store = TileStore::open(test::small_store());
+  for (const IoEngine engine : test::io_engines_here()) {
+  CAPTURE(engine_name(engine));
   const ReplayConfig cfg = bound_cfg(store, {"io.fault_rate=0.2", "io.fault.short_read_rate=0.1", "io.fault.checksum_rate=0.1",
                                              "io.fault.slow_rate=0.1", "io.fault.slow_ms=20", "io.max_retries=1",
-                                             "io.retry_backoff_frames=1"});
+                                             "io.retry_backoff_frames=1", "io.engine=" + std::string(engine_name(engine))});
   const auto scene = make_scene_from_config(cfg);
   const RealRun run = run_real_replay(cfg, still_trace(1.5), *scene, store);
   const auto& f = run.result.summary["faults"];
@@ -231,6 +241,7 @@ TEST_CASE("real clock with injected faults: retried or failed, every fault count
     if (got.empty()) continue;
     const auto want = test::decoded(store, k);
     CHECK(std::equal(want.begin(), want.end(), got.begin()));  // nothing corrupt reached VRAM
+  }
   }
 }
 
@@ -529,6 +540,29 @@ TEST_CASE("vtsim replay --clock real and vtsim calibrate: end to end, and the pr
   r = test::run_cli(dir, "replay --clock wall" + common);
   CHECK(r.code == 2);
   CHECK(r.err.find("--clock") != std::string::npos);
+  // io_uring refused (as a kernel without it, or a seccomp filter, would): psync, with a warning
+  // naming why; --werror makes that warning fail the run (exit 1).
+  for (const char* err : {"ENOSYS", "EPERM"}) {
+    CAPTURE(err);
+    const std::string env = std::string("VTSIM_TEST_IO_URING_ERRNO=") + err + " ";
+    const std::string args = " replay --clock real" + common + " --set io.engine=io_uring --summary " + dir.file("fb.json");
+    r = test::run_capture(env + VTSIM_CLI + args + " 2>" + dir.file("stderr.txt"), dir.file("stderr.txt"));
+    CHECK(r.code == 0);
+    CHECK(r.err.find("io_uring_queue_init failed") != std::string::npos);
+    CHECK(r.err.find(std::string(err) == "ENOSYS" ? "no io_uring" : "seccomp") != std::string::npos);
+    CHECK(r.err.find("reading with psync") != std::string::npos);
+    const auto fb = nlohmann::json::parse(test::slurp(dir.file("fb.json")));
+    CHECK(fb["real_clock"]["io_engine"] == "psync");
+    CHECK(fb["real_clock"]["io_engine_warning"].get<std::string>().find("io_uring_queue_init failed") != std::string::npos);
+    r = test::run_capture(env + VTSIM_CLI + args + " --werror 2>" + dir.file("stderr.txt"), dir.file("stderr.txt"));
+    CHECK(r.code == 1);
+  }
+  r = test::run_cli(dir, "replay --clock real" + common + " --set io.queue_depth=0");
+  CHECK(r.code == 2);
+  CHECK(r.err.find("io.queue_depth") != std::string::npos);
+  r = test::run_cli(dir, "replay --clock real" + common + " --set io.engine=libaio");
+  CHECK(r.code == 2);
+  CHECK(r.err.find("io.engine") != std::string::npos);
   r = test::run_cli(dir, "replay --clock real --speed 0" + common);
   CHECK(r.code == 2);
   CHECK(r.err.find("--speed") != std::string::npos);
@@ -543,6 +577,32 @@ TEST_CASE("vtsim replay --clock real and vtsim calibrate: end to end, and the pr
   const auto j = nlohmann::json::parse(r.out);
   CHECK(j["clock"] == "simulated");
   CHECK(j["bandwidth"]["uploads"].get<int>() > 0);
+
+  // io_uring (where the kernel allows it): depth points (io_threads threads x depth), a profile
+  // with the engine and the depth.
+  if (io_uring_unavailable().empty()) {
+  r = test::run_cli(dir, "calibrate --quick --seconds 0.05 -q --io-threads 2 --engine io_uring --queue-depth 8 --json --store " +
+                             test::small_store() + " -o " + dir.file("u.toml"));
+  REQUIRE(r.code == 0);
+  const auto cj = nlohmann::json::parse(r.out);
+  std::set<int> depths;
+  for (const auto& p : cj["reads"]) {
+    depths.insert(p["depth"].get<int>());
+    CHECK(p["concurrency"].get<int>() == 2 * p["depth"].get<int>());
+    CHECK(p["MBps"].get<double>() > 0);
+  }
+  CHECK(depths == std::set<int>{1, 8});
+  const std::string uprof = test::slurp(dir.file("u.toml"));
+  CHECK(uprof.find("engine = \"io_uring\"") != std::string::npos);
+  CHECK(uprof.find("queue_depth = 8") != std::string::npos);
+  CHECK(cj["profile"]["disk.channels"] == 2);
+  CHECK(cj["profile"]["disk.queue_depth"] == 8);
+  r = test::run_cli(dir, "replay --clock sim --config " + dir.file("u.toml") + common + " --json");
+  CHECK(r.code == 0);
+  }
+  r = test::run_cli(dir, "calibrate --quick -q --engine io_uring --queue-depth 0 --store " + test::small_store());
+  CHECK(r.code == 2);
+  CHECK(r.err.find("--queue-depth") != std::string::npos);
 }
 
 TEST_CASE("calibrate: one point per size and concurrency, a fitted model that reproduces the measured bandwidth") {

@@ -41,6 +41,27 @@ TEST_CASE("sim executor: latencies overlap across channels, transfers share one 
   CHECK(out[1].read_end == 3'000'000);  // its transfer waits for the bus
 }
 
+TEST_CASE("sim executor: a disk with queue depth keeps channels x queue_depth reads in service (io_uring)") {
+  // 2 channels x depth 3, 1 ms latency, unlimited bus: 7 reads start 6 at once, the 7th when one ends.
+  SimExecutor ex(DiskModel{1000.0, 0.0, 2, 3}, DecodeModel{}, 16);
+  for (RequestId id = 1; id <= 7; ++id) ex.submit(job(id, 1000, 1000));
+  std::vector<JobResult> out;
+  ex.collect(10'000'000, out);
+  REQUIRE(out.size() == 7);
+  for (std::size_t i = 0; i < 6; ++i) CHECK(out[i].read_end == 1'000'000);
+  CHECK(out[6].read_start == 1'000'000);
+  CHECK(out[6].read_end == 2'000'000);
+  CHECK(disk_slots(DiskModel{1000.0, 0.0, 2, 3}) == 6);
+  CHECK(disk_slots(DiskModel{1000.0, 0.0, 0, 3}) == 0);  // unlimited
+  // Little's law over the slots, capped by the bus: 6 x 1000 B / 1 ms = 6 MB/s; a 4 MB/s bus caps it.
+  CHECK(disk_throughput_Bps(DiskModel{1000.0, 0.0, 2, 3}, 1000) == doctest::Approx(6e6));
+  CHECK(disk_throughput_Bps(DiskModel{1000.0, 4.0, 2, 3}, 1000) == doctest::Approx(4e6));
+  DiskConfig dc;
+  dc.channels = 4;
+  dc.queue_depth = 16;
+  CHECK(disk_slots(disk_model(dc)) == 64);
+}
+
 TEST_CASE("sim executor: queued jobs start by priority, then submission order") {
   SimExecutor ex(DiskModel{0.0, 1.0, 1}, DecodeModel{}, 16);  // 1 MB/s: 1000 bytes = 1 ms
   ex.submit(job(1, 1000, 1000, 9));  // starts at once: the channel is free

@@ -23,6 +23,8 @@ namespace {
 struct CalibrateArgs {
   std::string store, out;
   int io_threads = 4, decode_workers = 2;
+  std::string engine = "psync";  // io.engine the profile is for
+  int queue_depth = 16;          // io.queue_depth (io_uring)
   double seconds = 0.4;
   bool buffered = false, quick = false, quiet = false, json = false, produce = false;
   int produce_workers = 2;
@@ -121,24 +123,35 @@ void run_calibrate(const CalibrateArgs& a) {
   o.seconds_per_point = a.quick ? std::min(a.seconds, 0.1) : a.seconds;
   o.seed = a.seed;
   if (a.quick) o.concurrency = {1, a.io_threads};
+  try {
+    o.engine = io_engines().at(a.engine).engine;
+  } catch (const std::invalid_argument& e) {
+    throw InputError("--engine", e.what());
+  }
+  if (a.queue_depth < 1 || a.queue_depth > 1024) throw InputError("--queue-depth", fmt::format("{} is outside 1..1024", a.queue_depth));
+  o.queue_depth = a.queue_depth;
+  if (a.quick) o.depths = {1, a.queue_depth};
   const bool tty = isatty(fileno(stderr)) != 0;
   const Calibration c = calibrate(store, o, calibrate_progress(a.quiet, tty));
   if (!a.quiet && tty) fmt::print(stderr, "\r{:60}\r", "");
   if (!c.direct_warning.empty()) warn(c.direct_warning);
+  if (!c.engine_warning.empty()) warn(c.engine_warning);
   const std::string toml = profile_toml(c, a.store);
   if (!a.out.empty()) write_output(a.out, toml);
   if (a.json) {
     nlohmann::json j;
     for (const auto& p : c.reads)
       j["reads"].push_back({{"bytes", p.bytes}, {"concurrency", p.concurrency}, {"reads", p.reads}, {"MBps", p.MBps},
-                            {"mean_us", p.mean_us}, {"p50_us", p.p50_us}, {"p95_us", p.p95_us}, {"p99_us", p.p99_us}});
+                            {"depth", p.depth}, {"mean_us", p.mean_us}, {"p50_us", p.p50_us}, {"p95_us", p.p95_us}, {"p99_us", p.p99_us}});
     for (const auto& p : c.decodes)
       j["decode"].push_back({{"what", p.what}, {"workers", p.workers}, {"tiles", p.tiles}, {"us_per_tile", p.us_per_tile},
                              {"tiles_per_s", p.tiles_per_s}, {"decoded_MBps", p.decoded_MBps}});
     j["profile"] = {{"disk.latency_us", c.disk.latency_us}, {"disk.bandwidth_MBps", c.disk.bandwidth_MBps},
-                    {"disk.channels", c.disk.channels}, {"decode.per_tile_us", c.decode.per_tile_us},
+                    {"disk.channels", c.disk.channels}, {"disk.queue_depth", c.disk.queue_depth},
+                    {"decode.per_tile_us", c.decode.per_tile_us},
                     {"decode.throughput_MBps", c.decode.throughput_MBps}, {"decode.workers", c.decode.workers},
-                    {"io.threads", c.io_threads}, {"io.direct", c.direct}};
+                    {"io.threads", c.io_threads}, {"io.direct", c.direct}, {"io.engine", std::string(engine_name(c.engine))},
+                    {"io.queue_depth", c.queue_depth}};
     j["notes"] = c.notes;
     fmt::print("{}\n", j.dump(2));
   } else if (a.out.empty()) {
@@ -169,6 +182,9 @@ void register_calibrate_commands(CLI::App& app) {
   c->add_flag("--cpu-time", a->cpu_time, "with --samples: fit each tile's production-thread CPU time instead of its wall time");
   c->add_option("--output,-o", a->out, "write the profile (TOML config keys) here (- for stdout); default: print it");
   c->add_option("--io-threads", a->io_threads, "IO pool threads the profile is for (io.threads)")->capture_default_str();
+  c->add_option("--engine", a->engine, "IO engine the profile is for (io.engine): psync | io_uring")->capture_default_str();
+  c->add_option("--queue-depth", a->queue_depth, "io_uring: reads in flight per IO thread the profile is for (io.queue_depth)")
+      ->capture_default_str();
   c->add_option("--decode-workers", a->decode_workers, "decode workers the profile is for (decode.workers)")->capture_default_str();
   c->add_option("--seconds", a->seconds, "measuring time per point, s")->capture_default_str();
   c->add_option("--seed", a->seed, "seed of the random offsets and tile sample")->capture_default_str();

@@ -140,7 +140,11 @@ std::string format_summary(const nlohmann::json& s) {
     } else {
       out += fmt::format("  real clock  {} IO threads ({}), {} decode workers; start-up {:.2f} s; {} late frames (max {:.1f} ms); "
                          "VRAM arena: {:.1f} MB copied in {:.1f} ms\n",
-                         rc["io_threads"].get<int>(), rc["o_direct"].get<bool>() ? "O_DIRECT" : "page cache",
+                         rc["io_threads"].get<int>(),
+                         std::string(rc["o_direct"].get<bool>() ? "O_DIRECT" : "page cache") +
+                             (rc.value("io_engine", std::string("psync")) == "io_uring"
+                                  ? fmt::format(", io_uring depth {}", rc.value("io_queue_depth", 0))
+                                  : std::string(", psync")),
                          rc["decode_workers"].get<int>(), rc.value("startup_s", 0.0), rc["late_frames"].get<std::uint64_t>(),
                          rc["max_late_ms"].get<double>(),
                          static_cast<double>(rc["vram_arena"]["bytes"].get<std::uint64_t>()) / 1e6,
@@ -218,6 +222,7 @@ void run_replay_command(const ReplayArgs& a) {
     const nlohmann::json& rc = r.summary["real_clock"];
     const std::string warning = rc["o_direct_warning"].get<std::string>();
     if (!warning.empty()) warn(warning);
+    if (const std::string w = rc.value("io_engine_warning", std::string()); !w.empty()) warn(w);
     if (const auto& failed = rc["failed_tiles"]; !failed.empty()) {
       std::string list;
       for (std::size_t i = 0; i < failed.size() && i < 3; ++i)

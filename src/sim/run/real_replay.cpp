@@ -171,6 +171,8 @@ RealRun run_real(const ReplayConfig& cfg, const Trace& trace, const IScene& scen
   xc.decode_workers = cfg.decode.workers;
   xc.capacity = static_cast<std::size_t>(cfg.io.max_in_flight);
   xc.direct = cfg.io.direct;
+  xc.io_engine = io_engines().at(cfg.io.engine).engine;
+  xc.queue_depth = cfg.io.queue_depth;
   xc.faults = cfg.io.faults;
   xc.tile_memory_bytes = static_cast<std::uint64_t>(cfg.ram.capacity_MiB * 1048576.0);
 
@@ -292,6 +294,9 @@ RealRun run_real(const ReplayConfig& cfg, const Trace& trace, const IScene& scen
   rc["max_in_flight"] = cfg.io.max_in_flight;
   rc["o_direct"] = exec.direct();
   rc["o_direct_warning"] = exec.direct_warning();
+  rc["io_engine"] = std::string(engine_name(exec.io_engine()));
+  rc["io_queue_depth"] = exec.io_queue_depth();
+  rc["io_engine_warning"] = exec.io_engine_warning();
   rc["startup_s"] = startup_s;
   rc["late_frames"] = late_frames;
   rc["first_late_frames"] = late_list;

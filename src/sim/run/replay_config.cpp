@@ -4,6 +4,7 @@
 #include "core/tile_key.h"
 #include "sim/run/systems.h"
 #include "sim/view/scene.h"
+#include "stream/exec/io_engine.h"
 #include "stream/store/i_codec.h"
 
 #include <fmt/format.h>
@@ -199,6 +200,8 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
         .add(cfg::real<C>("disk.bandwidth_MBps", at(&C::disk, &DiskConfig::bandwidth_MBps), -1.0, 1e9,
                           "transfer bandwidth, MB/s; 0 = unlimited; -1 = preset"))
         .add(cfg::integer<C>("disk.channels", at(&C::disk, &DiskConfig::channels), -1, 1 << 16, "requests in service at once; 0 = unlimited; -1 = preset"))
+        .add(cfg::integer<C>("disk.queue_depth", at(&C::disk, &DiskConfig::queue_depth), -1, 1024,
+                             "requests in service per channel (io_uring: io.queue_depth); -1 or 0 = preset (1)"))
         .add(cfg::real<C>("decode.throughput_MBps", at(&C::decode, &DecodeModel::throughput_MBps), 0.0, kInf, "decoded MB/s per worker; 0 = free"))
         .add(cfg::real<C>("decode.per_tile_us", at(&C::decode, &DecodeModel::per_tile_us), 0.0, 1e9, "fixed decode cost per tile, us"))
         .add(cfg::integer<C>("decode.workers", at(&C::decode, &DecodeModel::workers), 0, 1024, "decode workers; 0 = unlimited"))
@@ -211,8 +214,12 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
         .add(cfg::integer<C>("io.max_retries", at(&C::io, &IoConfig::max_retries), 0, 100, "retries of a faulted tile before it fails"))
         .add(cfg::integer<C>("io.retry_backoff_frames", at(&C::io, &IoConfig::retry_backoff_frames), 0, 100000, "frames before a retry"))
         .add(cfg::integer<C>("io.threads", at(&C::io, &IoConfig::threads), 1, 256,
-                             "real clock: IO pool threads, = reads in flight at once (Yao 2007 §4-3)"))
+                             "real clock: IO pool threads (Yao 2007 §4-3); reads in flight at once: this, x io.queue_depth with io_uring"))
         .add(cfg::boolean<C>("io.direct", at(&C::io, &IoConfig::direct), "real clock: unbuffered O_DIRECT reads (Yao 2007 §4-3); false = page cache"))
+        .add(cfg::choice<C>("io.engine", at(&C::io, &IoConfig::engine), io_engines(),
+                            "real clock: how an IO thread reads (no io_uring in the kernel: psync, with a warning)"))
+        .add(cfg::integer<C>("io.queue_depth", at(&C::io, &IoConfig::queue_depth), 1, 1024,
+                             "real clock, io.engine = io_uring: reads in flight per IO thread"))
         .add(cfg::real<C>("io.fault_rate", at(&C::io, &IoConfig::faults, &FaultConfig::io_error_rate), 0.0, 1.0,
                           "probability that a read fails with EIO (injected, both clocks)"))
         .add(cfg::integer<C>("io.fault_seed", at(&C::io, &IoConfig::faults, &FaultConfig::seed), 0, std::numeric_limits<std::int64_t>::max(),
@@ -326,6 +333,7 @@ std::string config_reference_markdown() {
   section("`throttle.policy`: MaxTextureLOD and residency policies", throttle_policies().markdown("policy"));
   section("`ram.policy`, `vt.pool_policy`: replacement policies", replacement_policies().markdown("policy"));
   section("`disk.preset`: disk presets", disk_presets().markdown("preset"));
+  section("`io.engine`: IO engines (real clock)", io_engines().markdown("engine"));
   section("`vtsim store build --codec`: tile codecs", codecs().markdown("codec"));
   return md;
 }

@@ -97,6 +97,8 @@ struct IoConfig {
   int retry_backoff_frames = 2;    // frames before a retry
   int threads = 4;                 // real clock: IO pool workers (reads in flight at once)
   bool direct = true;              // real clock: O_DIRECT reads (fallback with a warning)
+  std::string engine = "psync";    // real clock: the IO pool's engine (stream/exec/io_pool.h io_engines(); psync | io_uring)
+  int queue_depth = 16;            // real clock, io_uring: reads in flight per IO thread (the ring's depth)
   FaultConfig faults{.slow_ms = 50.0};  // injected faults (io.fault_rate, io.fault.*), both clocks
 };
 

@@ -1,12 +1,14 @@
 #include "stream/exec/calibrate.h"
 
 #include <fmt/format.h>
+#include <liburing.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <ctime>
 #include <latch>
 #include <limits>
@@ -18,6 +20,7 @@
 #include "core/error.h"
 #include "stream/store/aligned_io.h"
 #include "stream/exec/decode_pool.h"
+#include "stream/exec/io_pool.h"
 #include "stream/store/i_codec.h"
 
 namespace vtsim {
@@ -77,6 +80,105 @@ ReadPoint measure_reads(const ReadFile& f, std::uint64_t lo, std::uint64_t hi, s
   ReadPoint p;
   p.bytes = bytes;
   p.concurrency = conc;
+  std::vector<double> all;
+  for (const auto& v : lat) all.insert(all.end(), v.begin(), v.end());
+  p.reads = all.size();
+  const double elapsed = std::chrono::duration<double>(t_end - t_begin).count();
+  p.MBps = elapsed > 0 ? static_cast<double>(p.reads) * bytes / elapsed / 1e6 : 0;
+  p.mean_us = all.empty() ? 0 : std::accumulate(all.begin(), all.end(), 0.0) / static_cast<double>(all.size());
+  p.p50_us = pct(all, 0.50);
+  p.p95_us = pct(all, 0.95);
+  p.p99_us = pct(all, 0.99);
+  return p;
+}
+
+// io_uring: `threads` threads, each with its own ring keeping `depth` reads of `bytes` in flight
+// (registered buffers and file, as the IO pool's io_uring engine) at uniform random aligned offsets
+// in [lo, hi), for `seconds`. A read's latency is submission to completion.
+ReadPoint measure_ring_reads(const ReadFile& f, std::uint64_t lo, std::uint64_t hi, std::uint32_t bytes, int threads, int depth,
+                             double seconds, std::uint64_t seed) {
+  const std::uint64_t slots = (hi - lo - bytes) / store::kAlign + 1;
+  std::vector<std::vector<double>> lat(static_cast<std::size_t>(threads));
+  std::vector<std::string> errors(static_cast<std::size_t>(threads));
+  std::latch start(threads + 1);
+  std::vector<std::thread> pool;
+  std::atomic<std::int64_t> last_end_ns{0};
+  for (int i = 0; i < threads; ++i)
+    pool.emplace_back([&, i] {
+      auto& mine = lat[static_cast<std::size_t>(i)];
+      io_uring ring{};
+      const int rc = io_uring_queue_init(static_cast<unsigned>(depth), &ring, 0);
+      AlignedBuffer buf(static_cast<std::size_t>(bytes) * static_cast<std::size_t>(depth));
+      int fixed_buf = 0, fixed_file = 0;
+      if (rc == 0) {
+        const iovec iov{buf.data(), buf.size()};
+        fixed_buf = io_uring_register_buffers(&ring, &iov, 1) == 0;
+        const int fd = f.fd();
+        fixed_file = io_uring_register_files(&ring, &fd, 1) == 0;
+      }
+      std::mt19937_64 rng(seed * 1000003u + static_cast<std::uint64_t>(i));
+      std::vector<Clock::time_point> issued(static_cast<std::size_t>(depth));
+      start.arrive_and_wait();
+      if (rc < 0) {
+        errors[static_cast<std::size_t>(i)] = std::string("io_uring_queue_init: ") + std::strerror(-rc);
+        return;
+      }
+      const auto deadline = Clock::now() + std::chrono::duration<double>(seconds);
+      auto issue = [&](int k) {
+        io_uring_sqe* e = io_uring_get_sqe(&ring);
+        std::uint8_t* dst = buf.data() + static_cast<std::size_t>(k) * bytes;
+        const std::uint64_t off = lo + (rng() % slots) * store::kAlign;
+        const int fd = fixed_file ? 0 : f.fd();
+        if (fixed_buf) io_uring_prep_read_fixed(e, fd, dst, bytes, off, 0);
+        else io_uring_prep_read(e, fd, dst, bytes, off);
+        if (fixed_file) io_uring_sqe_set_flags(e, IOSQE_FIXED_FILE);
+        io_uring_sqe_set_data64(e, static_cast<std::uint64_t>(k));
+        issued[static_cast<std::size_t>(k)] = Clock::now();
+      };
+      int in_flight = 0;
+      for (int k = 0; k < depth; ++k, ++in_flight) issue(k);
+      io_uring_submit(&ring);
+      while (in_flight > 0) {
+        io_uring_cqe* cqe = nullptr;
+        const int w = io_uring_wait_cqe(&ring, &cqe);
+        if (w == -EINTR) continue;
+        if (w < 0) {
+          errors[static_cast<std::size_t>(i)] = std::string("io_uring_wait_cqe: ") + std::strerror(-w);
+          break;
+        }
+        const auto b = Clock::now();
+        const int k = static_cast<int>(cqe->user_data);
+        const int res = cqe->res;
+        io_uring_cqe_seen(&ring, cqe);
+        --in_flight;
+        if (res != static_cast<int>(bytes)) {
+          if (errors[static_cast<std::size_t>(i)].empty())
+            errors[static_cast<std::size_t>(i)] = res < 0 ? std::string(std::strerror(-res)) : "short read";
+          continue;
+        }
+        mine.push_back(std::chrono::duration<double, std::micro>(b - issued[static_cast<std::size_t>(k)]).count());
+        std::int64_t ns = std::chrono::duration_cast<std::chrono::nanoseconds>(b.time_since_epoch()).count();
+        std::int64_t prev = last_end_ns.load();
+        while (ns > prev && !last_end_ns.compare_exchange_weak(prev, ns)) {
+        }
+        if (b < deadline && errors[static_cast<std::size_t>(i)].empty()) {
+          issue(k);
+          ++in_flight;
+          io_uring_submit(&ring);
+        }
+      }
+      io_uring_queue_exit(&ring);
+    });
+  start.arrive_and_wait();
+  const Clock::time_point t_begin = Clock::now();
+  for (auto& t : pool) t.join();
+  for (const auto& e : errors)
+    if (!e.empty()) throw InputError(f.path(), "calibration read failed: " + e);
+  const Clock::time_point t_end(std::chrono::duration_cast<Clock::duration>(std::chrono::nanoseconds(last_end_ns.load())));
+  ReadPoint p;
+  p.bytes = bytes;
+  p.concurrency = threads * depth;
+  p.depth = depth;
   std::vector<double> all;
   for (const auto& v : lat) all.insert(all.end(), v.begin(), v.end());
   p.reads = all.size();
@@ -350,12 +452,33 @@ Calibration calibrate(const TileStore& store, const CalibrateOptions& o, const C
   c.mean_read_bytes = store_mean_read_bytes(store);
   const auto typical = static_cast<std::uint32_t>(std::max<std::uint64_t>(store::kAlign, store::round_up(static_cast<std::uint64_t>(c.mean_read_bytes), store::kAlign)));
   const std::vector<std::uint32_t> sizes = calibration_sizes(o.sizes, typical, hi - lo);
-  const std::vector<int> conc = calibration_concurrency(o.concurrency, o.io_threads);
-  for (std::uint32_t s : sizes)
-    for (int k : conc) {
-      say(fmt::format("reads of {} KiB, {} in flight", s / 1024, k));
-      c.reads.push_back(measure_reads(d.file, lo, hi, s, k, o.seconds_per_point, o.seed + s + static_cast<std::uint64_t>(k)));
-    }
+  c.engine = o.engine;
+  if (o.engine == IoEngine::io_uring) {
+    checked_queue_depth(o.queue_depth);
+    c.engine_warning = io_uring_unavailable(o.fail_ring_errno);
+    if (!c.engine_warning.empty()) c.engine = IoEngine::psync;
+  }
+  if (c.engine == IoEngine::io_uring) {
+    c.queue_depth = o.queue_depth;
+    std::vector<int> depths = o.depths.empty() ? std::vector<int>{1, 4, 16, 32} : o.depths;
+    if (std::find(depths.begin(), depths.end(), o.queue_depth) == depths.end()) depths.push_back(o.queue_depth);
+    std::sort(depths.begin(), depths.end());
+    for (int k : depths)
+      if (k < 1 || k > 1024) throw InputError("--depths", fmt::format("{} is outside 1..1024", k));
+    for (std::uint32_t s : sizes)
+      for (int k : depths) {
+        say(fmt::format("reads of {} KiB, {} threads x depth {}", s / 1024, o.io_threads, k));
+        c.reads.push_back(measure_ring_reads(d.file, lo, hi, s, o.io_threads, k, o.seconds_per_point,
+                                             o.seed + s + static_cast<std::uint64_t>(k)));
+      }
+  } else {
+    const std::vector<int> conc = calibration_concurrency(o.concurrency, o.io_threads);
+    for (std::uint32_t s : sizes)
+      for (int k : conc) {
+        say(fmt::format("reads of {} KiB, {} in flight", s / 1024, k));
+        c.reads.push_back(measure_reads(d.file, lo, hi, s, k, o.seconds_per_point, o.seed + s + static_cast<std::uint64_t>(k)));
+      }
+  }
 
   // ---- decode ----
   const std::vector<std::vector<Sample>> by_layer = sample_decode_tiles(store, o.decode_sample, o.seed);
@@ -379,7 +502,11 @@ Calibration calibrate(const TileStore& store, const CalibrateOptions& o, const C
   }
 
   // ---- fit ----
-  c.disk = fit_disk_model(c.reads, o.io_threads, typical, &c.notes);
+  // The fit sees reads in flight (threads x depth); the model splits them back into channels (the
+  // IO threads) and the ring's depth.
+  c.disk = fit_disk_model(c.reads, o.io_threads * c.queue_depth, typical, &c.notes);
+  c.disk.channels = o.io_threads;
+  c.disk.queue_depth = c.queue_depth;
   c.decode = fit_decode_model(layer_us, layer_decoded, o.decode_workers, pool_tiles_per_s_at_w, c.notes);
   return c;
 }
@@ -393,8 +520,9 @@ std::string profile_toml(const Calibration& c, const std::string& store_path) {
   std::string t;
   t += fmt::format("# vtsim device profile: `vtsim calibrate --store {}` on {} at {}\n", store_path, host, when);
   t += "# Use with --config (or merge with --set) so the simulated clock predicts the real one (docs/real-engine.md).\n#\n";
-  t += fmt::format("# reads ({}, random offsets in the store file): size KiB, in flight, MB/s, latency mean/p50/p95/p99 us\n",
-                   c.direct ? "O_DIRECT" : "page cache");
+  t += fmt::format("# reads ({}, {}, random offsets in the store file): size KiB, in flight, MB/s, latency mean/p50/p95/p99 us\n",
+                   c.direct ? "O_DIRECT" : "page cache", c.engine == IoEngine::io_uring ? "io_uring" : "psync");
+  if (!c.engine_warning.empty()) t += "# " + c.engine_warning + "\n";
   for (const auto& p : c.reads)
     t += fmt::format("#   {:>6} {:>3} {:>9.1f} {:>9.1f} {:>9.1f} {:>9.1f} {:>9.1f}\n", p.bytes / 1024, p.concurrency, p.MBps, p.mean_us,
                      p.p50_us, p.p95_us, p.p99_us);
@@ -405,7 +533,9 @@ std::string profile_toml(const Calibration& c, const std::string& store_path) {
   t += "\n[disk]\n";
   t += fmt::format("latency_us = {:.2f}        # per-request latency, fitted\n", c.disk.latency_us);
   t += fmt::format("bandwidth_MBps = {:.2f}    # shared transfer bandwidth, fitted\n", c.disk.bandwidth_MBps);
-  t += fmt::format("channels = {}              # = io.threads: the IO pool's reads in flight\n", c.disk.channels);
+  t += fmt::format("channels = {}              # = io.threads: the IO pool's submitters\n", c.disk.channels);
+  t += fmt::format("queue_depth = {}           # = io.queue_depth with io_uring, 1 with psync: reads in flight per thread\n",
+                   c.disk.queue_depth);
   t += "\n[decode]\n";
   t += fmt::format("throughput_MBps = {:.2f}\n", c.decode.throughput_MBps);
   t += fmt::format("per_tile_us = {:.2f}\n", c.decode.per_tile_us);
@@ -413,6 +543,8 @@ std::string profile_toml(const Calibration& c, const std::string& store_path) {
   t += "\n[io]\n";
   t += fmt::format("threads = {}\n", c.io_threads);
   t += fmt::format("direct = {}\n", c.direct ? "true" : "false");
+  t += fmt::format("engine = \"{}\"\n", engine_name(c.engine));
+  if (c.engine == IoEngine::io_uring) t += fmt::format("queue_depth = {}\n", c.queue_depth);
   return t;
 }
 

@@ -24,6 +24,7 @@ DiskModel disk_model(const DiskConfig& c) {
   if (c.latency_us >= 0) d.latency_us = c.latency_us;
   if (c.bandwidth_MBps >= 0) d.bandwidth_MBps = c.bandwidth_MBps;
   if (c.channels >= 0) d.channels = c.channels;
+  if (c.queue_depth >= 1) d.queue_depth = c.queue_depth;
   return d;
 }
 
@@ -31,9 +32,9 @@ double disk_throughput_Bps(const DiskModel& d, double bytes_per_request) {
   constexpr double inf = std::numeric_limits<double>::infinity();
   const double bus = d.bandwidth_MBps > 0 ? d.bandwidth_MBps * 1e6 : inf;
   if (d.channels <= 0 || d.latency_us <= 0) return bus;
-  // Each channel completes one request per (latency + transfer); the bus caps the sum.
+  // Each request slot completes one request per (latency + transfer); the bus caps the sum.
   const double per_request_s = d.latency_us * 1e-6 + (bus == inf ? 0.0 : bytes_per_request / bus);
-  const double by_channels = d.channels * bytes_per_request / per_request_s;
+  const double by_channels = static_cast<double>(disk_slots(d)) * bytes_per_request / per_request_s;
   return std::min(bus, by_channels);
 }
 

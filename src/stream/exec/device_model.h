@@ -13,15 +13,23 @@
 
 namespace vtsim {
 
-// Disk: `channels` requests in service at once (the device's internal parallelism / queue depth).
-// A request first spends `latency_us` (seek, command, flash read — overlapped across channels),
-// then its bytes cross one shared transfer bus of `bandwidth_MBps`, first come first served.
-// So one request alone takes latency + bytes/bandwidth, and many saturate at the bandwidth.
+// Disk: `channels` submitters (the real clock's IO threads), each with up to `queue_depth`
+// requests in service (1: one pread at a time, as psync; io_uring: the ring's depth), so
+// channels x queue_depth requests are in service at once (disk_slots). A request first spends
+// `latency_us` (seek, command, flash read — overlapped across requests in service), then its bytes
+// cross one shared transfer bus of `bandwidth_MBps`, first come first served. So one request alone
+// takes latency + bytes/bandwidth, many saturate at the bandwidth, and at depth d a request's
+// service time grows as the bus queue ahead of it (calibrate measures it against depth).
 struct DiskModel {
   double latency_us = 80.0;        // per-request latency before transfer, microseconds
   double bandwidth_MBps = 3000.0;  // shared transfer bandwidth, MB/s (10^6 B/s); 0 = unlimited
-  int channels = 32;               // requests in service concurrently; 0 = unlimited
+  int channels = 32;               // submitters with requests in service; 0 = unlimited
+  int queue_depth = 1;             // requests in service per channel (io.queue_depth with io_uring)
 };
+// Requests in service at once: channels x queue_depth; 0 = unlimited.
+inline long long disk_slots(const DiskModel& d) {
+  return d.channels <= 0 ? 0 : static_cast<long long>(d.channels) * (d.queue_depth > 0 ? d.queue_depth : 1);
+}
 
 // Decode: `workers` identical servers; a tile takes per_tile_us + decoded_bytes / throughput.
 struct DecodeModel {
@@ -56,6 +64,7 @@ struct DiskConfig {
   double latency_us = -1.0;        // per-request latency, us; -1 = the preset's
   double bandwidth_MBps = -1.0;    // shared transfer bandwidth, MB/s; 0 = unlimited; -1 = the preset's
   int channels = -1;               // requests in service at once; 0 = unlimited; -1 = the preset's
+  int queue_depth = -1;            // requests in service per channel; -1 or 0 = the preset's (1)
 };
 // The preset with the overrides applied. Throws std::invalid_argument (Registry::at) for an
 // unknown preset.

@@ -64,7 +64,7 @@ bool SimExecutor::cancel(RequestId id) {
 }
 
 void SimExecutor::start_disk_jobs() {
-  while (!disk_queue_.empty() && (disk_.channels <= 0 || disk_active_ < disk_.channels)) {
+  while (!disk_queue_.empty() && (disk_.channels <= 0 || disk_active_ < disk_slots(disk_))) {
     const RequestId id = disk_queue_.begin()->second;
     disk_queue_.erase(disk_queue_.begin());
     Job& j = jobs_.at(id);

@@ -2,8 +2,8 @@
 // Simulated executor: tile reads and decodes timed by device models on an event queue of integer
 // ticks. Deterministic: the same submissions at the same times give the same results bit for bit.
 //
-// Disk (DiskModel): up to `channels` jobs in service; queued jobs start by (priority, submission
-// order) when a channel frees. A job spends latency_us, then transfers over one shared bus
+// Disk (DiskModel): up to channels x queue_depth jobs in service (disk_slots); queued jobs start by
+// (priority, submission order) when a slot frees. A job spends latency_us, then transfers over one shared bus
 // (first come first served), then frees its channel. Decode (DecodeModel): `workers` servers,
 // queued by (priority, submission order). Production (ProduceModel, stream/exec/produce.h): a
 // produced job (TileJob::produce) skips the disk and the decode — no latency, no bus, no IO fault,

@@ -19,7 +19,11 @@ ThreadedExecutor::ThreadedExecutor(const TileStore& store, const ThreadedExecuto
       store, workers, clock_, [this](DecodeResult&& r) { on_decoded(std::move(r)); }, /*verify=*/true, cfg.warm);
   if (const std::uint64_t count = reserved_pages(store, cfg); count > 0)
     for (std::uint32_t i = 0; i < store.layer_count(); ++i) decode_->reserve_tiles(store.tile_bytes(i), count);
-  io_ = std::make_unique<IoPool>(store, IoPoolConfig{cfg.io_threads, cfg.direct, /*verify=*/false, capacity_, cfg.warm}, clock_,
+  IoPoolConfig ic{cfg.io_threads, cfg.direct, /*verify=*/false, capacity_, cfg.warm};
+  ic.engine = cfg.io_engine;
+  ic.queue_depth = cfg.queue_depth;
+  ic.fail_ring_errno = cfg.fail_ring_errno;
+  io_ = std::make_unique<IoPool>(store, ic, clock_,
                                  [this](ReadResult&& r) { on_read(std::move(r)); }, &faults_);
   start_producers(cfg);
 }

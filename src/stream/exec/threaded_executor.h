@@ -52,6 +52,9 @@ struct ThreadedExecutorConfig {
   int decode_workers = 2;      // decode pool workers (decode.workers; 0 = hardware threads)
   std::size_t capacity = 64;   // jobs the pipeline may keep submitted (io.max_in_flight)
   bool direct = true;          // O_DIRECT (io.direct)
+  IoEngine io_engine = IoEngine::psync;  // how the IO workers read (io.engine)
+  int queue_depth = 16;        // io_uring: reads in flight per IO worker (io.queue_depth)
+  int fail_ring_errno = 0;     // test hook: io_uring setup fails with this errno (IoPoolConfig)
   FaultConfig faults;          // injected faults (io.fault_rate, io.fault.*)
   // Decoded tiles to hold buffers for, mapped and written up front, bytes (ram.capacity_MiB: the RAM cache's
   // tiles, plus `capacity` in flight); spread over the layers as a page needs them, at most the
@@ -108,6 +111,9 @@ class ThreadedExecutor final : public IExecutor {
 
   bool direct() const { return io_ && io_->direct(); }
   const std::string& direct_warning() const { return io_ ? io_->warning() : no_warning_; }
+  IoEngine io_engine() const { return io_ ? io_->engine() : IoEngine::psync; }
+  int io_queue_depth() const { return io_ ? io_->queue_depth() : 0; }
+  const std::string& io_engine_warning() const { return io_ ? io_->engine_warning() : no_warning_; }
   int io_threads() const { return io_ ? io_->threads() : 0; }
   int reads_under_way() const { return io_ ? io_->active() : 0; }  // diagnostics and tests
   int decode_workers() const { return decode_ ? decode_->workers() : 0; }

@@ -61,6 +61,17 @@ class WorkQueue {
     return item;
   }
 
+  // Takes the first task without waiting; nothing if the queue is empty or closed.
+  std::optional<Item> try_pop() {
+    std::lock_guard lock(m_);
+    if (state_.load(std::memory_order_relaxed) != State::open || q_.empty()) return std::nullopt;
+    auto it = q_.begin();
+    Item item = std::move(it->second);
+    where_.erase(item.id);
+    q_.erase(it);
+    return item;
+  }
+
   // Cancellation: removes a queued task (returns it); nothing if it is not queued (taken or unknown).
   std::optional<Task> remove(RequestId id) {
     std::lock_guard lock(m_);
