@@ -83,6 +83,26 @@ TEST_CASE("sweep resume: an edited OBJ is refused by name, --rerun-changed re-ru
   CHECK(test::slurp(o.out_dir + "/rows.csv") == test::slurp(fresh.out_dir + "/rows.csv"));
 }
 
+TEST_CASE("sweep resume: an OBJ read through assimp names its .mtl as an input, and an edited .mtl is refused") {
+  test::TempDir d;
+  resume_write(d.file("m.obj"), "mtllib m.mtl\nusemtl m\n" + resume_quad_obj(200.0));
+  resume_write(d.file("m.mtl"), "newmtl m\nKd 1 1 1\n");
+  resume_write(d.file("spec.toml"), "set = [\"scene.kind=mesh\", \"scene.file=" + d.file("m.obj") +
+                                        "\", \"scene.mesh_loader=assimp\", \"view.divisor=32\"]\n"
+                                        "generate = [\"walk duration_s=1 start_m=20,20 height_m=2\"]\n");
+  const SweepSpec spec = load_sweep_spec(d.file("spec.toml"));
+  SweepOptions o;
+  o.out_dir = d.file("out");
+  o.jobs = 1;
+  run_sweep(spec, o);
+  const nlohmann::json shard = nlohmann::json::parse(test::slurp(o.out_dir + "/shard.json"));
+  const std::string name = "scene.file " + d.file("m.obj") + " (assimp)";
+  REQUIRE(shard["inputs"].contains(name));
+  CHECK(shard["inputs"][name]["files"] == nlohmann::json::array({d.file("m.obj"), d.file("m.mtl")}));
+  resume_write(d.file("m.mtl"), "newmtl m\nKd 1 0 1\n");
+  CHECK(test::contains(resume_error(spec, o), name + " changed since"));
+}
+
 TEST_CASE("sweep resume: only the tasks that read a changed trace re-run, and a build change is named") {
   test::TempDir d;
   std::filesystem::copy_file(std::string(VTSIM_SOURCE_DIR) + "/traces/walk.csv", d.file("a.csv"));
