@@ -532,23 +532,23 @@ TEST_CASE("compare: a lower latency is not better when the served fraction fell 
   SUBCASE("served fraction unchanged: better") {
     const auto r = cmp(b, n);
     CHECK(row(r, "latency_ms.p95").verdict == Verdict::better);
-    CHECK(r.notes.empty());
+    for (const std::string& note : r.notes) CHECK_FALSE(contains(note, "not better"));
   }
   SUBCASE("served fraction fell: changed, with a note") {
     n["latency_ms"]["served_fraction"] = 0.61;
     const auto r = cmp(b, n);
     CHECK(row(r, "latency_ms.p95").verdict == Verdict::changed);
     CHECK(row(r, "latency_ms.served_fraction").verdict == Verdict::worse);
-    REQUIRE(r.notes.size() == 1);
-    CHECK(r.notes[0] == "1 latency value is lower but not better: the served fraction fell (0.98 -> 0.61) (a latency over "
-                        "fewer of the wanted tiles, docs/metrics.md)");
+    REQUIRE_FALSE(r.notes.empty());
+    CHECK(r.notes.back() == "1 latency value is lower but not better: the served fraction fell (0.98 -> 0.61) (a latency over "
+                            "fewer of the wanted tiles, docs/metrics.md)");
     CHECK(r.failed(false));
   }
   SUBCASE("more tiles throttled: changed") {
     n["throttle"]["requests_throttled"] = 168704;
     const auto r = cmp(b, n);
     CHECK(row(r, "latency_ms.p95").verdict == Verdict::changed);
-    CHECK(contains(r.notes.at(0), "more tiles were throttled, never requested (0 -> 168704)"));
+    CHECK(contains(r.notes.back(), "more tiles were throttled, never requested (0 -> 168704)"));
   }
   SUBCASE("a higher latency is worse whatever the served fraction") {
     n["latency_ms"]["p95"] = 800.0;
@@ -576,8 +576,8 @@ TEST_CASE("compare: directions come from the one table of docs/metrics.md") {
   // compare's default rules are the table's: every pattern of it resolves to its direction.
   for (const MetricDirectionRule& d : metric_direction_rules()) {
     CAPTURE(d.pattern);
-    std::string key = d.pattern;
-    for (std::size_t p; (p = key.find('*')) != std::string::npos;) key.replace(p, 1, "x");
+    std::string key;
+    for (const char* ch = d.pattern; *ch; ++ch) key.push_back(*ch == '*' ? 'x' : *ch);
     const Better want = d.direction == MetricDirection::lower    ? Better::lower
                         : d.direction == MetricDirection::higher ? Better::higher
                                                                  : Better::both;

@@ -119,7 +119,9 @@ TEST_CASE("sweep resume: only the tasks that read a changed trace re-run, and a 
   b.erase(b.find_last_of('\n', b.size() - 2) + 1);
   resume_write(d.file("b.csv"), b);
   const SweepSpec spec2 = load_sweep_spec(d.file("spec.toml"));
-  CHECK(test::contains(resume_error(spec2, o), "trace 1 (b.csv) changed since"));
+  const std::string err = resume_error(spec2, o);
+  CAPTURE(err);
+  CHECK(test::contains(err, "trace 1 (" + d.file("b.csv") + ") changed since"));
   o.rerun_changed = true;
   const SweepRunStats st = run_sweep(spec2, o);
   CHECK(st.rows_skipped == 1);

@@ -250,9 +250,7 @@ std::string html_runs_report(const std::vector<ReportRun>& runs) {
     for (const auto* v : c) differs |= !v || !c[0] || *v != *c[0];
     differing += differs;
     const MetricDirection dir = metric_direction(k);
-    rows += fmt::format("<tr{}><th title=\"{}\">{}</th>", differs ? " class=\"diff\"" : "",
-                        dir == MetricDirection::lower ? "lower is better" : dir == MetricDirection::higher ? "higher is better" : "no better direction",
-                        html_escape(k));
+    rows += fmt::format("<tr{}><th>{}</th>", differs ? " class=\"diff\"" : "", html_escape(k));
     for (std::size_t i = 0; i < c.size(); ++i) {
       if (!c[i]) {
         rows += "<td class=\"d\">–</td>";
