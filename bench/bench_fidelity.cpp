@@ -21,6 +21,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
@@ -107,7 +108,8 @@ Metrics extract(const ReplayResult& r) {
   m.lat_p50 = s["latency_ms"]["p50"].get<double>();
   m.lat_p95 = s["latency_ms"]["p95"].get<double>();
   m.disk = s["bandwidth"]["disk_read_MBps"].get<double>();
-  m.tts = s["popin"]["time_to_sharp_s"]["mean"].get<double>();
+  const auto& tts = s["popin"]["time_to_sharp_s"]["mean"];  // null: no event became sharp
+  m.tts = tts.is_number() ? tts.get<double>() : std::numeric_limits<double>::quiet_NaN();
   m.tiles = s["latency_ms"]["tiles"].get<double>();
   m.frames = s["trace"]["frames"].get<int>();
   double samples = 0;
@@ -127,7 +129,7 @@ struct Errors {
 Errors errors(const Metrics& m, const Metrics& ref) {
   return {100.0 * std::fabs(m.blurry - ref.blurry), std::fabs(m.deficit - ref.deficit), rel_pct(m.lat_p50, ref.lat_p50),
           rel_pct(m.lat_p95, ref.lat_p95),           rel_pct(m.disk, ref.disk),           rel_pct(m.pops, ref.pops),
-          std::fabs(m.tts - ref.tts)};
+          std::isnan(m.tts) && std::isnan(ref.tts) ? 0.0 : std::fabs(m.tts - ref.tts)};  // both without a time to sharp: equal
 }
 
 struct Setting {

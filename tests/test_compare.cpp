@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "sim/run/compare.h"
+#include "sim/run/metric_direction.h"
 #include "trace_test_util.h"
 
 using nlohmann::json;
@@ -133,12 +134,15 @@ TEST_CASE("compare: simulated metrics are exact with a direction") {
       CHECK(r.failed(false));
     }
   }
-  SUBCASE("hit ratio: higher is better") {
+  SUBCASE("hit ratio and visible pops: no direction (a starved pool raises the one and lowers the other)") {
+    for (double v : {0.4, 0.6}) {
+      json n = summary();
+      n["cache"]["ram_hit_ratio"] = v;
+      CHECK(row(cmp(b, n), "cache.ram_hit_ratio").verdict == Verdict::changed);
+    }
     json n = summary();
-    n["cache"]["ram_hit_ratio"] = 0.4;
-    CHECK(row(cmp(b, n), "cache.ram_hit_ratio").verdict == Verdict::worse);
-    n["cache"]["ram_hit_ratio"] = 0.6;
-    CHECK(row(cmp(b, n), "cache.ram_hit_ratio").verdict == Verdict::better);
+    n["popin"]["visible_pops"] = 800;
+    CHECK(row(cmp(b, n), "popin.visible_pops").verdict == Verdict::changed);
   }
   SUBCASE("strings compare exactly") {
     json n = summary();
@@ -433,11 +437,11 @@ TEST_CASE("compare: inputs are checked by descriptor: a FIFO, a directory, a dev
 
 TEST_CASE("compare: report text and JSON") {
   json n = summary();
-  n["popin"]["visible_pops"] = 1200;
+  n["popin"]["blurry_fraction_mean"] = 0.25;
   const auto r = cmp(summary(), n);
   const std::string text = format_report(r, false, false);
-  CHECK(contains(text, "popin.visible_pops"));
-  CHECK(contains(text, "+200 (+20.00%)"));
+  CHECK(contains(text, "popin.blurry_fraction_mean"));
+  CHECK(contains(text, "+0.04 (+19.05%)"));
   CHECK(contains(text, "WORSE"));
   CHECK(contains(text, "REGRESSION: 1 worse"));
   CHECK_FALSE(contains(text, "popin.mean_deficit"));  // same rows only with --all
@@ -446,7 +450,7 @@ TEST_CASE("compare: report text and JSON") {
   CHECK(j["result"] == "regression");
   CHECK(j["counts"]["worse"] == 1);
   REQUIRE(j["rows"].size() == 1);
-  CHECK(j["rows"][0]["key"] == "popin.visible_pops");
+  CHECK(j["rows"][0]["key"] == "popin.blurry_fraction_mean");
   CHECK(contains(format_report(cmp(summary(), summary()), false, false), "no differences"));
 }
 
@@ -515,4 +519,69 @@ TEST_CASE("compare: a real-clock run's metrics are wall-clock measurements, comp
   // ... and in the simulated clock any change is one.
   CHECK(cmp(doc("sim", 100.0, 1000), doc("sim", 110.0, 1000)).failed(false));
   CHECK(row(cmp(doc("sim", 100.0, 1000), doc("sim", 100.0, 1001)), "latency_ms.count").verdict == Verdict::changed);
+}
+
+TEST_CASE("compare: a lower latency is not better when the served fraction fell or more tiles were throttled") {
+  // HDD against NVMe: p95 716.7 -> 533.3 ms while fewer requests were served and 168,704 throttled.
+  json b = summary();
+  b["latency_ms"]["p95"] = 716.7;
+  b["latency_ms"]["served_fraction"] = 0.98;
+  b["throttle"]["requests_throttled"] = 0;
+  json n = b;
+  n["latency_ms"]["p95"] = 533.3;
+  SUBCASE("served fraction unchanged: better") {
+    const auto r = cmp(b, n);
+    CHECK(row(r, "latency_ms.p95").verdict == Verdict::better);
+    for (const std::string& note : r.notes) CHECK_FALSE(contains(note, "not better"));
+  }
+  SUBCASE("served fraction fell: changed, with a note") {
+    n["latency_ms"]["served_fraction"] = 0.61;
+    const auto r = cmp(b, n);
+    CHECK(row(r, "latency_ms.p95").verdict == Verdict::changed);
+    CHECK(row(r, "latency_ms.served_fraction").verdict == Verdict::worse);
+    REQUIRE_FALSE(r.notes.empty());
+    CHECK(r.notes.back() == "1 latency value is lower but not better: the served fraction fell (0.98 -> 0.61) (a latency over "
+                            "fewer of the wanted tiles, docs/metrics.md)");
+    CHECK(r.failed(false));
+  }
+  SUBCASE("more tiles throttled: changed") {
+    n["throttle"]["requests_throttled"] = 168704;
+    const auto r = cmp(b, n);
+    CHECK(row(r, "latency_ms.p95").verdict == Verdict::changed);
+    CHECK(contains(r.notes.back(), "more tiles were throttled, never requested (0 -> 168704)"));
+  }
+  SUBCASE("a higher latency is worse whatever the served fraction") {
+    n["latency_ms"]["p95"] = 800.0;
+    n["latency_ms"]["served_fraction"] = 0.61;
+    CHECK(row(cmp(b, n), "latency_ms.p95").verdict == Verdict::worse);
+  }
+}
+
+TEST_CASE("compare: directions come from the one table of docs/metrics.md") {
+  CHECK(metric_direction("latency_ms.p95") == MetricDirection::lower);
+  CHECK(metric_direction("latency_ms.served_fraction") == MetricDirection::higher);
+  CHECK(metric_direction("latency_ms.count") == MetricDirection::neither);
+  CHECK(metric_direction("latency_ms.censored.wait_ms.p95") == MetricDirection::neither);
+  CHECK(metric_direction("latency_ms.km.p95") == MetricDirection::lower);
+  CHECK(metric_direction("popin.blurry_fraction_mean") == MetricDirection::lower);
+  CHECK(metric_direction("popin.visible_pops") == MetricDirection::neither);
+  CHECK(metric_direction("bandwidth.disk_read_MBps") == MetricDirection::neither);
+  CHECK(metric_direction("bandwidth.wasted.cancelled_before_io") == MetricDirection::lower);
+  CHECK(metric_direction("cache.ram_hit_ratio") == MetricDirection::neither);
+  CHECK(metric_direction("cache.vram_thrash") == MetricDirection::lower);
+  CHECK(metric_direction("vt.pool.hits") == MetricDirection::neither);
+  CHECK(is_served_latency_key("latency_ms.stages_ms.io.p95"));
+  CHECK(is_served_latency_key("latency_ms.km.p95"));
+  CHECK_FALSE(is_served_latency_key("latency_ms.served_fraction"));
+  // compare's default rules are the table's: every pattern of it resolves to its direction.
+  for (const MetricDirectionRule& d : metric_direction_rules()) {
+    CAPTURE(d.pattern);
+    std::string key;
+    for (const char* ch = d.pattern; *ch; ++ch) key.push_back(*ch == '*' ? 'x' : *ch);
+    const Better want = d.direction == MetricDirection::lower    ? Better::lower
+                        : d.direction == MetricDirection::higher ? Better::higher
+                                                                 : Better::both;
+    CHECK(resolve_tolerance({}, default_tolerances(DocKind::summary), key).better == want);
+    CHECK(metric_direction(key) == d.direction);
+  }
 }

@@ -105,7 +105,7 @@ TEST_SUITE("report") {
     const std::string h = vtsim::html_runs_report({{"base", a, {}}, {"new <b>", b, {}}});
     CHECK(report_test_contains(h, "new &lt;b&gt;"));
     CHECK(report_test_contains(h, "<tr class=\"diff\"><th>latency_ms.p50</th>"));
-    CHECK(report_test_contains(h, "15 (+50.0 %)"));
+    CHECK(report_test_contains(h, "<td class=\"num d worse\">15 (+50.0 %)</td>"));  // latency: lower is better
     CHECK(report_test_contains(h, "<tr><th>config.k</th>"));
     CHECK(h.find("config.k") < h.find("latency_ms.p50"));  // config rows first
   }

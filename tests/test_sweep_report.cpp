@@ -52,7 +52,8 @@ std::pair<json, std::vector<json>> grid_sweep(const Axes& axes, std::size_t trac
   }
   for (std::size_t t = 0; t < traces; ++t)
     trace_list.push_back({{"trace", t}, {"name", "walk duration_s=20 #" + std::to_string(t)}, {"source", "traces/t" + std::to_string(t) + ".csv"}});
-  const json meta = {{"schema", "vtsim.sweep/1"}, {"name", "pool-vs-upload"},  {"spec_hash", "0123abcd"},
+  // blur_bound 0.5: every config of these grids competes on the fronts (their blur is up to 0.45).
+  const json meta = {{"schema", "vtsim.sweep/1"}, {"name", "pool-vs-upload"},  {"spec_hash", "0123abcd"}, {"blur_bound", 0.5},
                      {"axes", meta_axes},         {"axis_keys", keys},         {"metrics", metrics},
                      {"configs", configs},        {"traces", trace_list}};
   std::vector<json> rows;
@@ -242,4 +243,65 @@ TEST_CASE("sweep report: metrics.opt rows add each trace's pool miss-ratio curve
   // Without bounds in any row: no such section.
   const auto [meta2, rows2] = two_by_two();
   CHECK(vtsim::sweep_report_html(meta2, rows2).find("miss-ratio curves") == std::string::npos);
+}
+
+TEST_CASE("sweep report: only metrics with a direction are coloured, and a pool-starved config is not best at pops, disk or hit ratio") {
+  // Config 0 starves (blurry 0.65, few pops, little disk, a high RAM hit ratio), config 1 does not.
+  const auto [meta, rows] = grid_sweep({{"vt.pool_pages", {"64", "1024"}}}, 1,
+                                       [](std::size_t c, std::size_t, const json&) {
+                                         json s = popin_summary(c == 0 ? 0.65 : 0.02, 1);
+                                         s["popin"]["visible_pops"] = c == 0 ? 10 : 5000;
+                                         s["bandwidth"]["disk_read_MBps"] = c == 0 ? 1.0 : 9.0;
+                                         s["cache"]["ram_hit_ratio"] = c == 0 ? 0.9 : 0.4;
+                                         return s;
+                                       },
+                                       {"popin.blurry_fraction_mean", "popin.visible_pops", "bandwidth.disk_read_MBps",
+                                        "cache.ram_hit_ratio"});
+  const std::string html = vtsim::sweep_report_html(meta, rows);
+  const auto table = [&](const std::string& m) {
+    const std::string open = "<table class=\"breakdown\" data-metric=\"" + m + "\">";
+    const std::size_t at = html.find(open);
+    return at == std::string::npos ? std::string() : html.substr(at, html.find("</table>", at) - at);
+  };
+  CHECK(contains(table("popin.blurry_fraction_mean"), "class=\"best\""));
+  for (const char* m : {"popin.visible_pops", "bandwidth.disk_read_MBps", "cache.ram_hit_ratio"}) {
+    CAPTURE(m);
+    REQUIRE_FALSE(table(m).empty());
+    CHECK_FALSE(contains(table(m), "class=\"best\""));
+    CHECK_FALSE(contains(table(m), "background:"));
+    CHECK(contains(html, std::string("<h3 id=\"trace-") + m + "\">" + m + "</h3>\n<p class=\"note\">no better direction"));
+  }
+}
+
+TEST_CASE("sweep report: the Pareto fronts are taken among the configs that meet the blur bound") {
+  // Config 0 is cheapest and quickest to sharp but 65 % blurry; config 1 is 4 % blurry.
+  auto [meta, rows] = grid_sweep({{"vt.pool_pages", {"64", "1024"}}}, 1, [](std::size_t c, std::size_t, const json&) {
+    json s = popin_summary(c == 0 ? 0.65 : 0.04, 1);
+    s["popin"]["time_to_sharp_s"]["mean"] = c == 0 ? 0.1 : 0.8;
+    return s;
+  });
+  meta["blur_bound"] = 0.05;
+  std::string html = vtsim::sweep_report_html(meta, rows);
+  CHECK(contains(html, "at most <b>0.05</b> (the spec's <code>blur_bound</code>): <b>1 of 2</b> configs meet it"));
+  // One config left: no cost varies among those that meet the bound, so no front at all.
+  CHECK(front_configs(html, "popin.time_to_sharp_s.mean", "pool_MiB") == std::set<int>{-1});
+  meta["blur_bound"] = 0.7;  // both compete: the blurry one is on the front (cheapest)
+  html = vtsim::sweep_report_html(meta, rows);
+  CHECK(front_configs(html, "popin.time_to_sharp_s.mean", "pool_MiB") == std::set<int>{0});
+}
+
+TEST_CASE("sweep report: a trace without a time to sharp (null) is left out of the means, not averaged as 0") {
+  // Trace 0 has events (2 s and 4 s), trace 1 none (null): the means are 2 and 4, not 1 and 2.
+  const auto [meta, rows] = grid_sweep({{"vt.pool_pages", {"256", "512"}}}, 2, [](std::size_t c, std::size_t t, const json&) {
+    json s = popin_summary(0.02, 1);
+    s["popin"]["time_to_sharp_s"]["mean"] = t == 0 ? json(c == 0 ? 2.0 : 4.0) : json();
+    return s;
+  });
+  const std::string html = vtsim::sweep_report_html(meta, rows);
+  const std::string open = "<table class=\"breakdown\" data-metric=\"popin.time_to_sharp_s.mean\">";
+  REQUIRE(contains(html, open));
+  const std::size_t at = html.find(open);
+  const std::string table = html.substr(at, html.find("</table>", at) - at);
+  CHECK(contains(table, "<td class=\"na\">n/a</td><td class=\"best\" style=\"background:hsl(120,65%,84%)\">2</td>"));
+  CHECK(contains(table, "<td class=\"na\">n/a</td><td style=\"background:hsl(0,65%,84%)\">4</td>"));
 }

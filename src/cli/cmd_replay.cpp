@@ -85,13 +85,33 @@ std::string format_summary(const nlohmann::json& s) {
   out += fmt::format("  latency     p50 {:.1f} ms, p95 {:.1f} ms, p99 {:.1f} ms, max {:.1f} ms ({} tiles)\n",
                      l["p50"].get<double>(), l["p95"].get<double>(), l["p99"].get<double>(), l["max"].get<double>(),
                      l["tiles"].get<std::size_t>());
+  if (l.contains("served_fraction") && l["served_fraction"].is_number()) {  // every request, served or not
+    const auto ms = [](const nlohmann::json& v) { return v.is_number() ? fmt::format("{:.1f} ms", v.get<double>()) : std::string("never"); };
+    out += fmt::format("  served      {:.1f}% of {} requests ({} never served: waited p95 {:.1f} ms); all requests p50 {}, p95 {}\n",
+                       100.0 * l["served_fraction"].get<double>(), l["requests"].get<std::size_t>(),
+                       l["censored"]["count"].get<std::size_t>(), l["censored"]["wait_ms"]["p95"].get<double>(), ms(l["km"]["p50"]),
+                       ms(l["km"]["p95"]));
+  }
   out += fmt::format("  pop-in      blurry {:.2f}% mean (p99 {:.2f}%), mean deficit {:.3f} levels, {} visible pops\n",
                      100.0 * p["blurry_fraction_mean"].get<double>(), 100.0 * p["blurry_fraction_p99"].get<double>(),
                      p["mean_deficit"].get<double>(), p["visible_pops"].get<std::uint64_t>());
   const auto& tts = p["time_to_sharp_s"];
-  if (tts["events"].get<std::size_t>() > 0)
+  if (tts["events"].get<std::size_t>() > 0 && tts["mean"].is_number())
     out += fmt::format("  sharp again {:.2f} s mean, {:.2f} s max after {} cuts/turns ({} never)\n", tts["mean"].get<double>(),
                        tts["max"].get<double>(), tts["events"].get<std::size_t>(), tts["never_sharp"].get<std::size_t>());
+  else if (tts["events"].get<std::size_t>() > 0)
+    out += fmt::format("  sharp again never after {} cuts/turns\n", tts["events"].get<std::size_t>());
+  if (s.contains("startup")) {
+    const auto& su = s["startup"];
+    out += su["first_sharp_s"].is_number()
+               ? fmt::format("  start-up    first sharp frame at {:.2f} s, after {} tiles", su["first_sharp_s"].get<double>(),
+                             su["tiles_to_first_sharp"].get<std::size_t>())
+               : std::string("  start-up    no frame was sharp");
+    if (su["warmup_s"].get<double>() > 0)
+      out += fmt::format("; warm-up {:.2f} s ({} frames, {} tiles) left out of the figures above",
+                         su["warmup_s"].get<double>(), su["frames"].get<std::size_t>(), su["tiles"].get<std::size_t>());
+    out += "\n";
+  }
   out += fmt::format("  cache       RAM hit ratio {:.1f}%, {} RAM evictions, {} VRAM evictions\n",
                      100.0 * c["ram_hit_ratio"].get<double>(), c["ram_evictions"].get<std::uint64_t>(),
                      c["vram_evictions"].get<std::uint64_t>());

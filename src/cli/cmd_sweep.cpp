@@ -25,7 +25,7 @@ namespace {
 struct SweepArgs {
   std::string spec, out = "sweep-out", shard;
   int jobs = 0;
-  bool quiet = false, progress = false, json = false;
+  bool quiet = false, progress = false, json = false, rerun_changed = false;
 };
 
 void run_sweep_command(const SweepArgs& a) {
@@ -36,6 +36,7 @@ void run_sweep_command(const SweepArgs& a) {
   SweepOptions o;
   o.out_dir = a.out;
   o.jobs = a.jobs;
+  o.rerun_changed = a.rerun_changed;
   if (!a.shard.empty()) o.shard = parse_shard(a.shard, "--shard");
   // A terminal gets one line rewritten each second; a log (--progress) a line every 10 s.
   const bool tty = isatty(fileno(stderr)) != 0;
@@ -55,7 +56,8 @@ void run_sweep_command(const SweepArgs& a) {
   for (const std::string& w : st.input_warnings) warn(w);
   if (a.json) {  // the run's own record: what sweep.json (or the shard's record) holds, and this run's counts
     const nlohmann::json j = {{"rows", st.rows}, {"rows_run", st.rows - st.rows_skipped}, {"rows_skipped", st.rows_skipped},
-                              {"rows_failed", st.rows_failed}, {"tasks", st.tasks}, {"wall_s", st.wall_s}, {"cpu_s", st.cpu_s},
+                              {"rows_failed", st.rows_failed}, {"rows_retried", st.rows_retried},
+                              {"rows_changed", st.rows_changed}, {"tasks", st.tasks}, {"wall_s", st.wall_s}, {"cpu_s", st.cpu_s},
                               {"out", a.out}, {"shard", {{"index", o.shard.index}, {"count", o.shard.count}}}};
     fmt::print("{}\n", j.dump(2));
   }
@@ -67,6 +69,9 @@ void run_sweep_command(const SweepArgs& a) {
              st.rows - st.rows_skipped, st.rows_skipped, st.rows_failed, st.tasks, st.wall_s, st.cpu_s);
   if (st.cpu_s > 0 && st.replayed_s > 0) fmt::print(", {:.0f}x real time per row on one core", st.replayed_s / st.cpu_s);
   fmt::print("\n");
+  if (st.rows_retried > 0 || st.rows_changed > 0)
+    fmt::print("of the rows run now, {} had failed before (retried) and {} read an input that changed\n", st.rows_retried,
+               st.rows_changed);
   if (o.shard.count == 1)
     fmt::print("wrote {0}/rows.jsonl, {0}/rows.csv, {0}/report.html, {0}/sweep.json\n", a.out);
   else
@@ -87,7 +92,11 @@ void register_sweep_commands(CLI::App& app) {
   c->add_flag("--quiet,-q", a->quiet, "print no information (files are still written; warnings still are)");
   c->add_flag("--json", a->json, "print the run's counts as JSON on stdout instead of the text");
   c->add_flag("--progress", a->progress, "show progress even when stderr is not a terminal");
-  c->footer("A killed sweep restarted with the same -o skips the tasks it finished. Exit 1 when a row failed.");
+  c->add_flag("--rerun-changed", a->rerun_changed,
+              "on an -o written before a trace, scene file, base config or the build changed: re-run the rows that read "
+              "it (without: refused)");
+  c->footer("A killed sweep restarted with the same -o skips the tasks it finished and retries failed rows; an -o in use "
+            "by another sweep is refused. Exit 1 when a row failed.");
 
   auto merge_dirs = std::make_shared<std::vector<std::string>>();
   auto merge_out = std::make_shared<std::string>();

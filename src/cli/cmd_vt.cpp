@@ -121,8 +121,8 @@ void run_compare(const VtCompareArgs& a) {
                       {"blurry_p99", num(s["popin"]["blurry_fraction_p99"])},
                       {"mean_deficit", num(s["popin"]["mean_deficit"])},
                       {"pops_per_s", num(s["popin"]["visible_pops"]) / num(s["trace"]["duration_s"])},
-                      {"tts_mean", num(s["popin"]["time_to_sharp_s"]["mean"])},
-                      {"tts_max", num(s["popin"]["time_to_sharp_s"]["max"])},
+                      {"tts_mean", s["popin"]["time_to_sharp_s"]["mean"]},  // null: no event became sharp
+                      {"tts_max", s["popin"]["time_to_sharp_s"]["max"]},
                       {"events", s["popin"]["time_to_sharp_s"]["events"]},
                       {"never_sharp", s["popin"]["time_to_sharp_s"]["never_sharp"]},
                       {"latency_p50", num(s["latency_ms"]["p50"])},
@@ -146,8 +146,8 @@ void run_compare(const VtCompareArgs& a) {
         "disk MB/s | upload MB/s | evictions | thrash | max pressure | max bias | max clamp |\n";
   md += "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
   for (const auto& r : rows) {
-    const std::string tts = r["events"].get<std::size_t>() == 0
-                                ? "–"
+    const std::string tts = !r["tts_mean"].is_number()
+                                ? (r["events"].get<std::size_t>() == 0 ? std::string("–") : std::string("never"))
                                 : fmt::format("{:.2f} / {:.2f}{}", r["tts_mean"].get<double>(), r["tts_max"].get<double>(),
                                               r["never_sharp"].get<std::size_t>() ? fmt::format(" ({} never)", r["never_sharp"].get<std::size_t>()) : "");
     md += fmt::format("| {} | {} | {:.2f} | {:.2f} | {:.3f} | {:.0f} | {} | {:.0f} / {:.0f} | {:.2f} | {:.2f} | {} | {} | {:.2f} | {:.2f} | {} |\n",

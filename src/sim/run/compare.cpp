@@ -11,6 +11,7 @@
 #include "core/config_table.h"
 #include "core/error.h"
 #include "core/input_file.h"
+#include "sim/run/metric_direction.h"
 #include "sim/run/provenance.h"
 
 namespace vtsim {
@@ -106,28 +107,14 @@ std::vector<ToleranceRule> default_tolerances(DocKind kind, bool wall_clock, boo
     // by which frame) in wall-clock time: two runs of one build differ, so its metrics compare in
     // the same 25% band as the wall-clock sections; a simulated run's compare exactly.
     const std::optional<double> m_tol = real_clock ? std::optional<double>(0.25) : kExact;
-    std::vector<ToleranceRule> metrics = {
-        // What a player sees: more latency, more blur, more pops are worse.
-        rule("latency_ms.*", m_tol, B::lower),
-        rule("latency_ms.*count", m_tol, B::both),
-        rule("latency_ms.tiles", m_tol, B::both),
-        rule("latency_ms.from_ram_cache", m_tol, B::both),
-        rule("popin.*", m_tol, B::lower),
-        rule("popin.measured_frames", m_tol, B::both),
-        rule("popin.time_to_sharp_s.events", m_tol, B::both),
-        // What the hardware pays: reported both ways (more costs IO; less means less was loaded).
-        rule("bandwidth.*", m_tol, B::both),
-        rule("bandwidth.wasted.*", m_tol, B::lower),
-        rule("cache.*", m_tol, B::both),
-        rule("cache.ram_hit_ratio", m_tol, B::higher),
-        rule("cache.prefetch_hits", m_tol, B::higher),
-        rule("cache.*evict*", m_tol, B::lower),
-        rule("cache.*thrash", m_tol, B::lower),
-        rule("throttle.frames_throttled", m_tol, B::lower),
-        rule("throttle.requests_throttled", m_tol, B::lower),
-        rule("throttle.max_clamp", m_tol, B::lower),
-        rule("faults.*", m_tol, B::lower),
-    };
+    // Directions: the one table of docs/metrics.md ("Directions", sim/run/metric_direction.h);
+    // a metric with none compares both ways (more costs, less means something stopped).
+    std::vector<ToleranceRule> metrics;
+    for (const MetricDirectionRule& d : metric_direction_rules())
+      metrics.push_back(rule(d.pattern, m_tol,
+                             d.direction == MetricDirection::lower    ? B::lower
+                             : d.direction == MetricDirection::higher ? B::higher
+                                                                      : B::both));
     r.insert(r.end(), metrics.begin(), metrics.end());
     return r;
   }
@@ -656,6 +643,38 @@ std::vector<std::string> summary_notes(const json& base, const json& now, const 
 
 }  // namespace
 
+namespace {
+
+// A latency is measured over the requests served: when fewer of them were (the served fraction
+// fell) or more tiles were never requested (throttled), a lower latency is not an improvement
+// (HDD's p95 below NVMe's while blur doubled). Such a row is "changed" (judged both ways), with a note.
+void not_better_when_fewer_served(const json& base, const json& now, CompareReport& r) {
+  const auto number = [](const json& d, const char* a, const char* b) -> std::optional<long double> {
+    if (!d.is_object() || !d.contains(a) || !d[a].is_object() || !d[a].contains(b) || !d[a][b].is_number()) return std::nullopt;
+    return as_ld(d[a][b]);
+  };
+  std::vector<std::string> why;
+  const auto fb = number(base, "latency_ms", "served_fraction"), fn = number(now, "latency_ms", "served_fraction");
+  if (fb && fn && *fn < *fb - std::max<long double>(kFloatAbs, kFloatRel * std::fabs(*fb)))
+    why.push_back(fmt::format("the served fraction fell ({:.6g} -> {:.6g})", static_cast<double>(*fb), static_cast<double>(*fn)));
+  const auto tb = number(base, "throttle", "requests_throttled"), tn = number(now, "throttle", "requests_throttled");
+  if (tb && tn && *tn > *tb)
+    why.push_back(fmt::format("more tiles were throttled, never requested ({:.0f} -> {:.0f})", static_cast<double>(*tb),
+                              static_cast<double>(*tn)));
+  if (why.empty()) return;
+  std::size_t n = 0;
+  for (MetricDiff& d : r.rows)
+    if (d.verdict == Verdict::better && is_served_latency_key(d.key)) d.verdict = Verdict::changed, ++n;
+  if (n == 0) return;
+  std::string text = why[0];
+  for (std::size_t i = 1; i < why.size(); ++i) text += " and " + why[i];
+  r.notes.push_back(fmt::format("{} latency value{} lower but not better: {} (a latency over fewer of the wanted "
+                                "tiles, docs/metrics.md)",
+                                n, n == 1 ? " is" : "s are", text));
+}
+
+}  // namespace
+
 CompareReport compare_documents(const json& base, const std::string& base_path, const json& now, const std::string& new_path,
                                 const CompareOptions& opt) {
   CompareReport r;
@@ -675,6 +694,7 @@ CompareReport compare_documents(const json& base, const std::string& base_path, 
   } else {
     w.walk(base, now, "", Better::auto_);
     r.notes = summary_notes(base, now, opt);
+    not_better_when_fewer_served(base, now, r);
   }
   return r;
 }

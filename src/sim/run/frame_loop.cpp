@@ -169,6 +169,7 @@ SystemRun::SystemRun(const ReplayConfig& cfg, const FramePlan& plan, const IScen
   }
   link_Bps_ = cfg.upload.link_MBps * 1e6;
   res_.metrics.set_system_columns(system_->frame_counter_names());
+  res_.metrics.set_warmup_s(cfg.metrics.warmup_s);
   if (env_.on_start) env_.on_start(*system_);
 }
 
@@ -239,6 +240,7 @@ class SystemRun::Uploads final : public IUploadSink {
 void SystemRun::on_upload(const TileUpload& t, FrameRow& row) {
   const UploadItem& u = *t.item;
   TileLatency lat;
+  lat.needed = u.needed_time;
   lat.total = now_ - u.needed_time;
   lat.frames = frame_ - u.needed_frame;
   lat.queue = u.queue_ticks;
@@ -306,7 +308,8 @@ void SystemRun::step(const FrameView& view, PopinShare* share) {
     before = &popin_levels(mb, share, shared_before ? &fp_before : nullptr, false, lv_before_);
   }
   Uploads sink(*this, row);
-  rt_->commit_uploads(sink);
+  for (const Ticks needed : rt_->commit_uploads(sink).stale_needed)
+    res_.metrics.add_unserved({needed, now_, Unserved::stale});  // uploaded, but no longer wanted there
   if (view.measured) {
     system_->set_mark_sampled(true);
     const bool shared_after = share && system_->fingerprint(fp_after);
@@ -347,6 +350,10 @@ ReplayResult SystemRun::summarize(const RunCost& cost) {
   for (int l = 0; l < num_levels_; ++l) m.add_level_bytes(l, c.disk_bytes_by_level[l], level_upload_[l]);
   const double duration_s = plan_.duration_s;
   const auto MBps = [&](std::uint64_t bytes) { return static_cast<double>(bytes) / duration_s / 1e6; };
+  // Requests that ended unserved, and those still open at the end (censored there).
+  std::vector<UnservedRequest> unserved = pipe_->unserved();
+  pipe_->open_demand_requests(std::max(now_, seconds_to_ticks(duration_s)), unserved);
+  for (const UnservedRequest& u : unserved) m.add_unserved(u);
   nlohmann::json& s = res_.summary;
   // What the run was (docs/metrics.md): the schema, the build, the effective config, the trace.
   s["schema"] = kSummarySchema;
@@ -382,8 +389,16 @@ ReplayResult SystemRun::summarize(const RunCost& cost) {
                   {"cancelled_before_io", c.cancelled_queued},
                   {"cancelled_after_io", c.cancelled_after_read},
                   {"dropped_before_upload", c.dropped_before_upload}}}};
+  if (cfg_.metrics.warmup_s > 0) {  // the steady state's rates: the frames after the warm-up
+    const MetricsCollector::SteadyBytes sb = m.steady_bytes(duration_s);
+    const auto rate = [&](std::uint64_t bytes) { return sb.duration_s > 0 ? static_cast<double>(bytes) / sb.duration_s / 1e6 : 0.0; };
+    s["bandwidth"]["disk_read_MBps"] = rate(sb.disk);
+    s["bandwidth"]["decoded_MBps"] = rate(sb.decoded);
+    s["bandwidth"]["upload_MBps"] = rate(sb.upload);
+  }
   s["latency_ms"] = m.latency_json();
   s["popin"] = m.popin_json(cfg_.metrics.sharp_margin);
+  s["startup"] = m.startup_json(cfg_.metrics.sharp_margin);
   const double lookups = static_cast<double>(c.ram_hits + c.ram_misses);
   s["cache"] = {{"ram_hit_ratio", lookups > 0 ? static_cast<double>(c.ram_hits) / lookups : 0.0},
                 {"ram_hits", c.ram_hits},

@@ -264,7 +264,9 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
         .add(cfg::real<C>("metrics.sharp_margin", at(&C::metrics, &MetricsConfig::sharp_margin), 0.0, 1.0,
                           "sharp again when blurry fraction <= pre-event baseline + this"))
         .add(cfg::integer<C>("metrics.thrash_frames", at(&C::metrics, &MetricsConfig::thrash_frames), 1, 1 << 20, "evicted then needed within this many frames = thrash"))
-        .add(cfg::boolean<C>("metrics.opt", at(&C::metrics, &MetricsConfig::opt), "record each cache level's accesses; the summary adds Belady's bound, the offline replays and the LRU miss-ratio curve (docs/cache.md)"));
+        .add(cfg::boolean<C>("metrics.opt", at(&C::metrics, &MetricsConfig::opt), "record each cache level's accesses; the summary adds Belady's bound, the offline replays and the LRU miss-ratio curve (docs/cache.md)"))
+        .add(cfg::real<C>("metrics.warmup_s", at(&C::metrics, &MetricsConfig::warmup_s), 0.0, 1e9,
+                          "the first seconds left out of the steady-state figures (latency, pop-in, rates); the start-up fill is reported in startup.*, s"));
     return t;
   }();
   return table;

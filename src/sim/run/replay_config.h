@@ -108,6 +108,7 @@ struct MetricsConfig {
   double sharp_margin = 0.01;      // sharp again: blurry fraction <= baseline + this
   int thrash_frames = 60;          // evicted then needed within this many frames = thrash
   bool opt = false;                // record each cache level's accesses: Belady's bound, offline replays, miss-ratio curve
+  double warmup_s = 0.0;           // the start-up fill, left out of the steady-state figures (reported in startup.*)
 };
 
 struct ReplayConfig {

@@ -212,11 +212,18 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m, cons
                                            num(s, "bandwidth", "upload_bytes_per_frame", "p99"), num(s, "bandwidth", "upload_bytes_per_frame", "max")));
   h += row("latency", fmt::format("p50 {:.1f} ms, p95 {:.1f} ms, p99 {:.1f} ms, max {:.1f} ms ({:.0f} tiles)", num(s, "latency_ms", "p50"),
                                   num(s, "latency_ms", "p95"), num(s, "latency_ms", "p99"), num(s, "latency_ms", "max"), num(s, "latency_ms", "count")));
+  if (s.contains("latency_ms") && s["latency_ms"].is_object() && s["latency_ms"].value("served_fraction", nlohmann::json()).is_number())
+    h += row("served", fmt::format("{:.1f}% of {:.0f} requests; {:.0f} never served (waited p95 {:.1f} ms)",
+                                   100 * num(s, "latency_ms", "served_fraction"), num(s, "latency_ms", "requests"),
+                                   num(s, "latency_ms", "censored", "count"), num(s["latency_ms"], "censored", "wait_ms", "p95")));
   h += row("pop-in", fmt::format("blurry {:.2f}% mean, {:.2f}% p99; mean deficit {:.3f} levels; {:.0f} visible pops",
                                  100 * num(s, "popin", "blurry_fraction_mean"), 100 * num(s, "popin", "blurry_fraction_p99"),
                                  num(s, "popin", "mean_deficit"), num(s, "popin", "visible_pops")));
-  h += row("time to sharp", fmt::format("{:.2f} s mean, {:.2f} s max over {:.0f} cuts/turns", num(s, "popin", "time_to_sharp_s", "mean"),
-                                        num(s, "popin", "time_to_sharp_s", "max"), num(s, "popin", "time_to_sharp_s", "events")));
+  const bool has_tts = s.contains("popin") && s["popin"].is_object() && s["popin"].contains("time_to_sharp_s") &&
+                       s["popin"]["time_to_sharp_s"].is_object() && s["popin"]["time_to_sharp_s"].value("mean", nlohmann::json()).is_number();
+  h += row("time to sharp", has_tts ? fmt::format("{:.2f} s mean, {:.2f} s max over {:.0f} cuts/turns", num(s, "popin", "time_to_sharp_s", "mean"),
+                                                  num(s, "popin", "time_to_sharp_s", "max"), num(s, "popin", "time_to_sharp_s", "events"))
+                                    : fmt::format("none: {:.0f} cuts/turns, none became sharp", num(s, "popin", "time_to_sharp_s", "events")));
   h += row("cache", fmt::format("RAM hit ratio {:.1f}%, {:.0f} RAM evictions, {:.0f} VRAM evictions", 100 * num(s, "cache", "ram_hit_ratio"),
                                 num(s, "cache", "ram_evictions"), num(s, "cache", "vram_evictions")));
   h += row("throttle", fmt::format("{:.0f} frames throttled, max clamp {:.0f}, {:.0f} changes", num(s, "throttle", "frames_throttled"),

@@ -1,5 +1,7 @@
 #include "sim/run/report_runs.h"
 
+#include "sim/run/metric_direction.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -234,11 +236,20 @@ std::string html_runs_report(const std::vector<ReportRun>& runs) {
   std::stable_partition(order.begin(), order.end(), [](const std::string& k) { return k.rfind("config.", 0) == 0; });
   std::size_t differing = 0;
   std::string rows;
+  std::vector<double> served;  // each run's served fraction (1 when it has none)
+  for (const ReportRun& r : runs) {
+    const nlohmann::json* f = r.summary.is_object() && r.summary.contains("latency_ms") && r.summary["latency_ms"].is_object() &&
+                                      r.summary["latency_ms"].contains("served_fraction")
+                                  ? &r.summary["latency_ms"]["served_fraction"]
+                                  : nullptr;
+    served.push_back(f && f->is_number() ? f->get<double>() : 1.0);
+  }
   for (const std::string& k : order) {
     const auto& c = cells[k];
     bool differs = false;
     for (const auto* v : c) differs |= !v || !c[0] || *v != *c[0];
     differing += differs;
+    const MetricDirection dir = metric_direction(k);
     rows += fmt::format("<tr{}><th>{}</th>", differs ? " class=\"diff\"" : "", html_escape(k));
     for (std::size_t i = 0; i < c.size(); ++i) {
       if (!c[i]) {
@@ -251,7 +262,15 @@ std::string html_runs_report(const std::vector<ReportRun>& runs) {
         text += a != 0 ? fmt::format(" ({:+.1f} %)", 100 * (b - a) / std::fabs(a)) : " (was 0)";
       }
       const bool d = i > 0 && (!c[0] || *c[i] != *c[0]);
-      rows += fmt::format("<td class=\"{}{}\">{}</td>", c[i]->is_number() ? "num" : "", d ? " d" : "", html_escape(text));
+      // Better or worse than the first run by the metric's direction (docs/metrics.md, "Directions");
+      // a lower latency over a smaller served fraction is neither (as vtsim compare judges it).
+      std::string judged;
+      if (d && c[0] && c[i]->is_number() && c[0]->is_number() && dir != MetricDirection::neither) {
+        const bool lower = c[i]->get<double>() < c[0]->get<double>();
+        const bool good = dir == MetricDirection::lower ? lower : !lower;
+        if (!(good && is_served_latency_key(k) && served[i] < served[0])) judged = good ? " better" : " worse";
+      }
+      rows += fmt::format("<td class=\"{}{}{}\">{}</td>", c[i]->is_number() ? "num" : "", d ? " d" : "", judged, html_escape(text));
     }
     rows += "</tr>\n";
   }

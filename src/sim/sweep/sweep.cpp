@@ -1,11 +1,17 @@
 #include "sim/sweep/sweep.h"
 
+#include <fcntl.h>
 #include <fmt/format.h>
+#include <glob.h>
+#include <sys/file.h>
 #include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <condition_variable>
 #include <cstdlib>
 #include <filesystem>
@@ -27,6 +33,7 @@
 #include "sim/run/replay.h"
 #include "sim/sweep/lockstep.h"
 #include "sim/sweep/sweep_report.h"
+#include "sim/view/mesh_import.h"
 #include "sim/view/scene.h"
 
 namespace vtsim {
@@ -119,6 +126,7 @@ nlohmann::json spec_meta(const SweepSpec& spec, const std::vector<Trace>& traces
   m["name"] = spec.name;
   m["spec_hash"] = hash;
   m["metrics"] = spec.metrics;
+  m["blur_bound"] = spec.blur_bound;
   m["axis_keys"] = spec.axis_keys;
   m["axes"] = nlohmann::json::array();
   for (const SweepAxis& a : spec.grid) m["axes"].push_back({{"key", a.key}, {"values", a.values}});
@@ -226,8 +234,13 @@ void write_joined(nlohmann::json meta, std::vector<nlohmann::json> rows, const f
 // Reads a part file: its header and rows. InputError naming file:line.
 struct Part {
   std::size_t first = 0, count = 0;
+  std::string spec_hash, inputs;  // the header's: the sweep's identity and the task's inputs when written
   std::vector<nlohmann::json> rows;
+  bool failed() const {
+    return std::any_of(rows.begin(), rows.end(), [](const nlohmann::json& r) { return r.value("status", "") != "ok"; });
+  }
 };
+// `hash` empty: a part of any identity (a resume checks its inputs itself).
 Part read_part(const fs::path& path, const std::string& hash) {
   const std::string text = read_regular_file(path.string(), kMaxJsonBytes, "not a sweep part");
   Part p;
@@ -241,8 +254,10 @@ Part read_part(const fs::path& path, const std::string& hash) {
     if (line == 1) {
       if (!j.is_object() || !j.contains("spec_hash") || !j.contains("first") || !j.contains("count"))
         throw InputError(where, "not a sweep part header");
-      if (j["spec_hash"] != hash)
+      if (!hash.empty() && j["spec_hash"] != hash)
         throw InputError(where, fmt::format("a part of another spec (hash {}, this spec {})", j["spec_hash"].dump(), hash));
+      p.spec_hash = j["spec_hash"].is_string() ? j["spec_hash"].get<std::string>() : std::string();
+      p.inputs = j.value("inputs", std::string());
       p.first = j["first"].get<std::size_t>();
       p.count = j["count"].get<std::size_t>();
     } else {
@@ -255,6 +270,42 @@ Part read_part(const fs::path& path, const std::string& hash) {
   if (p.rows.size() != p.count) throw InputError(path.string(), fmt::format("{} rows, its header says {}", p.rows.size(), p.count));
   return p;
 }
+
+// One writer per output directory: an exclusive flock(2) on DIR/sweep.lock, held while the sweep
+// or merge runs. The kernel drops it when the process ends however it ends (a killed run leaves
+// the file, never the lock). The file holds the holder's pid, for the message.
+class OutputLock {
+ public:
+  OutputLock(const fs::path& dir, const std::string& what) {
+    const fs::path f = dir / "sweep.lock";
+    fd_ = ::open(f.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd_ < 0) throw InputError(f.string(), std::string("cannot open the output lock: ") + std::strerror(errno));
+    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      const int err = errno;
+      char buf[32] = {};
+      const ssize_t n = ::pread(fd_, buf, sizeof(buf) - 1, 0);
+      std::string pid = n > 0 ? std::string(buf, static_cast<std::size_t>(n)) : std::string();
+      while (!pid.empty() && (pid.back() == '\n' || pid.back() == ' ')) pid.pop_back();
+      ::close(fd_);
+      if (err != EWOULDBLOCK) throw InputError(f.string(), std::string("cannot lock: ") + std::strerror(err));
+      throw InputError(dir.string(), fmt::format("in use by another vtsim sweep or merge{} (it holds {}): wait for it to "
+                                                 "end, or give {} another -o",
+                                                 pid.empty() ? std::string() : " (pid " + pid + ")", f.string(), what));
+    }
+    const std::string pid = std::to_string(::getpid()) + "\n";
+    if (::ftruncate(fd_, 0) != 0 || ::pwrite(fd_, pid.data(), pid.size(), 0) != static_cast<ssize_t>(pid.size())) {
+      // The pid is only for the message; the lock holds without it.
+    }
+  }
+  ~OutputLock() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  OutputLock(const OutputLock&) = delete;
+  OutputLock& operator=(const OutputLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
 
 }  // namespace
 
@@ -431,20 +482,144 @@ void check_sweep_metrics(const SweepSpec& spec, const std::vector<Trace>& traces
   check_metrics(spec, traces, scenes);
 }
 
-std::string sweep_spec_hash(const SweepSpec& spec, const std::vector<Trace>& traces) {
+namespace {
+
+// "fnv1a64:" and the hash of a file's bytes; "missing: why" when it cannot be read (the replay
+// then fails and says why; a file that appears later changes the identity).
+std::string file_content_hash(const std::string& path) {
+  try {
+    return "fnv1a64:" + hex64(fnv1a64(read_regular_file(path, std::uint64_t{4} << 30, "more than a sweep input may hold")));
+  } catch (const std::exception& e) {
+    return std::string("missing: ") + e.what();
+  }
+}
+
+std::string lower_ext(const std::string& path) {
+  std::string e = fs::path(path).extension().string();
+  if (!e.empty()) e.erase(0, 1);
+  for (char& c : e) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return e;
+}
+
+// The files a config's scene reads: scene.file and, through assimp, what the importer opens
+// with it (an OBJ's .mtl, a glTF's buffers); the input's name ("scene.file q.obj").
+std::pair<std::string, std::vector<std::string>> scene_files(const ReplayConfig& cfg) {
+  if (cfg.scene.file.empty()) return {};
+  std::vector<std::string> files{cfg.scene.file};
+  std::string name = "scene.file " + cfg.scene.file;
+  const bool assimp = cfg.scene.kind == "mesh" &&
+                      (cfg.scene.mesh_loader == "assimp" || (cfg.scene.mesh_loader == "auto" && lower_ext(cfg.scene.file) != "obj"));
+  if (assimp) {
+    if (lower_ext(cfg.scene.file) == "obj") name += " (assimp)";
+    for (std::string& f : mesh_import_files(cfg.scene.file))
+      if (fs::path(f).lexically_normal() != fs::path(cfg.scene.file).lexically_normal()) files.push_back(std::move(f));
+  }
+  return {name, files};
+}
+
+// terrain.brush_files' files: each comma-separated name, a pattern expanded (sorted).
+std::vector<std::string> brush_files(const std::string& list) {
+  std::vector<std::string> out;
+  for (std::size_t at = 0; at <= list.size();) {
+    const std::size_t comma = std::min(list.find(',', at), list.size());
+    const std::string f = list.substr(at, comma - at);
+    at = comma + 1;
+    if (f.empty()) continue;
+    if (f.find_first_of("*?[") == std::string::npos) {
+      out.push_back(f);
+      continue;
+    }
+    glob_t g{};
+    if (::glob(f.c_str(), 0, nullptr, &g) == 0)
+      for (std::size_t i = 0; i < g.gl_pathc; ++i) out.emplace_back(g.gl_pathv[i]);
+    globfree(&g);
+  }
+  return out;
+}
+
+bool any_missing(const std::vector<std::string>& files) {
+  std::error_code ec;
+  return std::any_of(files.begin(), files.end(), [&](const std::string& f) { return !fs::is_regular_file(f, ec); });
+}
+
+std::string files_hash(const std::vector<std::string>& files) {
+  std::uint64_t h = fnv1a64("files");
+  // By file name, not path: shards started from other directories agree.
+  for (const std::string& f : files) h = fnv1a64(fs::path(f).filename().string() + "=" + file_content_hash(f) + "\n", h);
+  return hex64(h);
+}
+
+}  // namespace
+
+std::string SweepIdentity::task_inputs(int trace, const std::vector<int>& configs) const {
+  std::set<std::string> names{"build", "base config"};
+  for (const auto& [name, v] : inputs.items())
+    if (name.rfind("trace ", 0) == 0 && v.value("trace", -1) == trace) names.insert(name);
+  for (int c : configs)
+    for (const std::string& n : config_inputs.at(static_cast<std::size_t>(c))) names.insert(n);
+  std::uint64_t h = fnv1a64("task");
+  for (const std::string& n : names)
+    if (inputs.contains(n)) h = fnv1a64(n + "=" + inputs[n]["hash"].get<std::string>() + "\n", h);
+  return hex64(h);
+}
+
+SweepIdentity sweep_identity(const SweepSpec& spec, const std::vector<Trace>& traces) {
+  SweepIdentity id;
   std::uint64_t h = fnv1a64(kSchema);
-  h = fnv1a64(spec.name + "\n" + spec.base_dump, h);
+  h = fnv1a64(spec.name + "\n", h);
   for (const SweepPoint& p : spec.points)
     for (const auto& [k, v] : p.values) h = fnv1a64(fmt::format("{}:{}={}\n", p.index, k, v), h);
+  for (const std::string& m : spec.metrics) h = fnv1a64(m + "\n", h);
+  h = fnv1a64(fmt::format("traces {}\n", spec.traces.size()), h);
+  id.structure = hex64(h);
+
+  // The build: rows are a function of the binary as much as of the inputs (its version and
+  // commit; "-dirty" builds of one commit cannot be told apart, docs/sweep.md).
+  const nlohmann::json build = build_json();
+  const std::string build_what = fmt::format("vtsim {} commit {} ({})", build.value("vtsim_version", std::string("?")),
+                                             build.value("vtsim_commit", std::string("?")), build.value("compiler", std::string("?")));
+  id.inputs["build"] = {{"hash", hex64(fnv1a64(build.dump()))}, {"what", build_what}};
+  // The base config: every key's effective value (the config file and the spec's `set`).
+  id.inputs["base config"] = {{"hash", hex64(fnv1a64(spec.base_dump))},
+                              {"what", spec.base_config.empty() ? std::string("the spec's set") : spec.base_config}};
   for (std::size_t t = 0; t < spec.traces.size(); ++t) {
     // A trace is its content: its poses as loaded (what the replays see), exactly; not the path
     // it was read from (shards started from other directories name it differently).
+    std::uint64_t th = fnv1a64("trace");
     for (const Pose& p : traces[t].poses)
-      h = fnv1a64(std::string_view(reinterpret_cast<const char*>(&p), sizeof(Pose)), h);
-    h = fnv1a64(fmt::format("{}x{}\n", traces[t].image_width, traces[t].image_height), h);
+      th = fnv1a64(std::string_view(reinterpret_cast<const char*>(&p), sizeof(Pose)), th);
+    th = fnv1a64(fmt::format("{}x{}\n", traces[t].image_width, traces[t].image_height), th);
+    // Named by number, the source only shown: spec files in other directories name one file differently.
+    id.inputs[fmt::format("trace {}", t)] = {{"hash", hex64(th)}, {"trace", t}, {"what", spec.traces[t].text}};
   }
-  for (const std::string& m : spec.metrics) h = fnv1a64(m + "\n", h);
-  return hex64(h);
+  // The files each point's config names, each hashed once however many points share it.
+  std::map<std::string, std::string> seen;  // input name -> hash
+  for (const SweepPoint& p : spec.points) {
+    std::vector<std::string> names;
+    const auto [scene_name, files] = scene_files(p.cfg);
+    if (!scene_name.empty()) {
+      auto it = seen.find(scene_name);
+      if (it == seen.end()) it = seen.emplace(scene_name, files_hash(files)).first;
+      id.inputs[scene_name] = {{"hash", it->second}, {"files", files}, {"missing", any_missing(files)}};
+      names.push_back(scene_name);
+    }
+    if (!p.cfg.terrain.brush_files.empty()) {
+      const std::string name = "terrain.brush_files " + p.cfg.terrain.brush_files;
+      auto it = seen.find(name);
+      const std::vector<std::string> bf = brush_files(p.cfg.terrain.brush_files);
+      if (it == seen.end()) it = seen.emplace(name, files_hash(bf)).first;
+      id.inputs[name] = {{"hash", it->second}, {"files", bf}, {"missing", bf.empty() || any_missing(bf)}};
+      names.push_back(name);
+    }
+    id.config_inputs.push_back(std::move(names));
+  }
+  for (const auto& [name, v] : id.inputs.items()) h = fnv1a64(name + "=" + v["hash"].get<std::string>() + "\n", h);
+  id.hash = hex64(h);
+  return id;
+}
+
+std::string sweep_spec_hash(const SweepSpec& spec, const std::vector<Trace>& traces) {
+  return sweep_identity(spec, traces).hash;
 }
 
 SweepShard parse_shard(const std::string& text, const std::string& where) {
@@ -480,23 +655,49 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
   const double cpu0 = process_cpu_s();
   std::vector<std::string> trace_warnings;
   const std::vector<Trace> traces = load_sweep_traces(spec, &trace_warnings);
-  const std::string hash = sweep_spec_hash(spec, traces);
+  const SweepIdentity id = sweep_identity(spec, traces);
+  const std::string& hash = id.hash;
   SceneCache scenes;
   check_metrics(spec, traces, scenes);  // before anything is written
   const fs::path out(opts.out_dir);
   const fs::path parts = out / "parts";
   std::error_code ec;
   make_output_dir("-o", opts.out_dir);  // the last level only: a missing parent is refused
+  const OutputLock out_lock(out, "this sweep");
   fs::create_directory(parts, ec);
   if (ec) throw InputError(parts.string(), "cannot create the directory: " + ec.message());
   const fs::path shard_file = out / "shard.json";
+  std::set<std::string> changed;  // inputs that changed since the directory was written
   if (fs::exists(shard_file)) {
     const nlohmann::json old = parse_json(read_regular_file(shard_file.string(), kMaxJsonBytes, "not a shard file"),
                                           shard_file.string());
-    if (old.value("spec_hash", std::string()) != hash)
-      throw InputError(shard_file.string(), fmt::format("holds a sweep of another spec (hash {}, this spec {}): give another "
-                                                        "-o, or delete the directory",
-                                                        old.value("spec_hash", std::string("?")), hash));
+    if (old.value("spec_hash", std::string()) != hash) {
+      if (old.value("structure_hash", std::string()) != id.structure || !old.contains("inputs") || !old["inputs"].is_object())
+        throw InputError(shard_file.string(), fmt::format("holds a sweep of another spec (hash {}, this spec {}): give another "
+                                                          "-o, or delete the directory",
+                                                          old.value("spec_hash", std::string("?")), hash));
+      // The same spec over inputs that changed: name them; re-run what read them only when asked.
+      // A file that was missing (its rows failed, and are retried anyway) is not a reason to refuse.
+      std::string what;
+      for (const auto& [name, v] : id.inputs.items()) {
+        const nlohmann::json* o = old["inputs"].contains(name) ? &old["inputs"][name] : nullptr;
+        if (o && o->is_object() && o->value("hash", std::string()) == v["hash"].get<std::string>()) continue;
+        changed.insert(name);
+        if (o && o->is_object() && o->value("missing", false)) continue;
+        std::string detail;
+        if (name == "build" && o && o->is_object())
+          detail = fmt::format(" (its rows were made by {}; this is {})", o->value("what", std::string("?")), v.value("what", std::string("?")));
+        else if (v.contains("trace"))
+          detail = " (" + v.value("what", std::string("?")) + ")";
+        what += (what.empty() ? "" : ", ") + name + detail;
+      }
+      for (const auto& [name, v] : old["inputs"].items())
+        if (!id.inputs.contains(name)) changed.insert(name), what += (what.empty() ? "" : ", ") + name + " (no longer read)";
+      if (!opts.rerun_changed && !what.empty())
+        throw InputError(opts.out_dir, fmt::format("{} changed since {} was written; use a new -o or --rerun-changed "
+                                                   "(re-runs the rows that read {})",
+                                                   what, opts.out_dir, changed.size() == 1 ? "it" : "them"));
+    }
     if (old.value("shard", -1) != opts.shard.index || old.value("count", -1) != opts.shard.count)
       throw InputError(shard_file.string(), fmt::format("holds shard {}/{} of this spec, not {}/{}", old.value("shard", -1),
                                                         old.value("count", -1), opts.shard.index, opts.shard.count));
@@ -505,11 +706,13 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
   const std::vector<WorkItem> items = work_order(spec);
   const auto [b, e] = shard_range(items.size(), opts.shard);
   const std::vector<Task> tasks = make_tasks(items, b, e);
-  nlohmann::json shard = {{"schema", kSchema}, {"spec_hash", hash}, {"shard", opts.shard.index},
-                          {"count", opts.shard.count}, {"items", {b, e}},  {"complete", false}, {"meta", meta}};
-  write_atomic(shard_file, shard.dump(2) + "\n");
+  nlohmann::json shard = {{"schema", kSchema}, {"spec_hash", hash}, {"structure_hash", id.structure}, {"inputs", id.inputs},
+                          {"shard", opts.shard.index}, {"count", opts.shard.count}, {"items", {b, e}}, {"complete", false},
+                          {"meta", meta}};
 
-  // Restart: the tasks whose part is on disk are done (a part is renamed into place whole).
+  // Restart: the tasks whose part is on disk are done (a part is renamed into place whole), unless
+  // a row of it failed (retried: the failure may have been the machine's, a file since fixed) or
+  // an input it read changed. A part whose inputs are unchanged gets this identity's header.
   for (const auto& f : fs::directory_iterator(parts))
     if (is_atomic_temp_name(f.path().filename().string()) || f.path().extension() == ".tmp")  // ".tmp": older builds' name
       fs::remove(f.path(), ec);
@@ -522,11 +725,21 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
   for (const Task& t : tasks) {
     const fs::path p = parts / part_name(t);
     if (fs::exists(p)) {
-      const Part done = read_part(p, hash);
-      if (done.first == t.first && done.count == t.count) {
+      Part done = read_part(p, changed.empty() ? hash : std::string());
+      const bool same_task = done.first == t.first && done.count == t.count;
+      const bool inputs_same = done.inputs == id.task_inputs(t.trace, t.configs);
+      if (same_task && inputs_same && !done.failed()) {
+        if (done.spec_hash != hash) {
+          std::string text = nlohmann::json({{"spec_hash", hash}, {"inputs", done.inputs}, {"first", t.first}, {"count", t.count}}).dump() + "\n";
+          for (const auto& r : done.rows) text += r.dump() + "\n";
+          write_atomic(p, text);
+        }
         st.rows_skipped += t.count;
         continue;
       }
+      if (same_task && done.failed()) st.rows_retried += t.count;
+      else if (same_task) st.rows_changed += t.count;
+      fs::remove(p, ec);  // a stale part never joins the outputs, even if this run is killed
     }
     todo.push_back(&t);
     const Trace& tr = traces[static_cast<std::size_t>(t.trace)];
@@ -534,6 +747,7 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
     const double dur = tr.poses.back().t_s - tr.poses.front().t_s;
     total_frames += t.count * static_cast<std::uint64_t>(fps > 0 ? dur * fps + 1 : static_cast<double>(tr.poses.size()));
   }
+  write_atomic(shard_file, shard.dump(2) + "\n");
   st.tasks = todo.size();
 
   const int jobs = opts.jobs > 0 ? opts.jobs : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
@@ -561,7 +775,8 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
           scene_error = ex.what();  // the view itself failed (scene, trace): every row of the task says so
           res.assign(cfgs.size(), LockstepResult{});
         }
-        std::string text = nlohmann::json({{"spec_hash", hash}, {"first", t.first}, {"count", t.count}}).dump() + "\n";
+        std::string text = nlohmann::json({{"spec_hash", hash}, {"inputs", id.task_inputs(t.trace, t.configs)},
+                                           {"first", t.first}, {"count", t.count}}).dump() + "\n";
         for (std::size_t i = 0; i < t.configs.size(); ++i) {
           nlohmann::json row = make_row(spec, t.configs[i], t.trace, std::move(res[i]), scene_error);
           if (row["status"] == "ok") replayed_s.fetch_add(row["summary"]["trace"]["duration_s"].get<double>());
@@ -693,6 +908,7 @@ void merge_sweep(const std::vector<std::string>& shard_dirs, const std::string& 
   }
   if (at != R) throw InputError(dir_of(at), fmt::format("work items {}..{} are missing from parts/ {}", at, R, kRedo));
   make_output_dir("-o", out_dir);
+  const OutputLock out_lock(out_dir, "the merge");
   write_joined(meta, std::move(rows), fs::path(out_dir), cost);
 }
 

@@ -39,6 +39,10 @@ struct SweepOptions {
   std::string out_dir;
   int jobs = 0;                  // 0: one per core
   SweepShard shard;
+  // An input changed since out_dir was written (a trace, scene file, base config, the build):
+  // false refuses to run (InputError naming what changed); true re-runs the tasks that read it
+  // and keeps the others (docs/sweep.md, "Resume").
+  bool rerun_changed = false;
   // Progress, about once a second from the calling thread: rows done, rows of this shard, the
   // fraction of the work done (frames stepped), seconds elapsed, seconds left (estimate); and once
   // when the work is done (fraction 1).
@@ -49,6 +53,8 @@ struct SweepRunStats {
   std::size_t rows = 0;          // rows of this shard
   std::size_t rows_skipped = 0;  // already done (restart)
   std::size_t rows_failed = 0;   // rows whose replay failed (status "error")
+  std::size_t rows_retried = 0;  // of the rows run now, those a previous run left failed
+  std::size_t rows_changed = 0;  // of the rows run now, those whose inputs changed (rerun_changed)
   std::size_t tasks = 0, views_rendered = 0;
   double wall_s = 0, cpu_s = 0;  // this process
   double replayed_s = 0;         // trace seconds replayed, summed over rows run now
@@ -80,8 +86,22 @@ std::vector<std::vector<nlohmann::json>> replay_points(const SweepSpec& spec, co
 // before it writes anything.
 void check_sweep_metrics(const SweepSpec& spec, const std::vector<Trace>& traces);
 
-// The spec's identity: its expanded points, the base config, the trace sources and their
-// content, the metrics; hex.
+// A sweep's identity (docs/sweep.md, "Resume"): `structure`, the hash of what the spec itself
+// says (its name, expanded points, metrics, the number of traces); `inputs`, the content of
+// everything else a row depends on, by name ("build", "base config", "trace 0 (walk.csv)",
+// "scene.file q.obj", "terrain.brush_files b/*.png"), each {hash, what}; `config_inputs`, the
+// input names each config point reads besides the build, base config and its trace; `hash`,
+// all of it together (sweep.json's and shard.json's spec_hash).
+struct SweepIdentity {
+  std::string hash, structure;
+  nlohmann::json inputs = nlohmann::json::object();
+  std::vector<std::vector<std::string>> config_inputs;
+  // The hash of the inputs the rows of `configs` on `trace` read (a part's "inputs").
+  std::string task_inputs(int trace, const std::vector<int>& configs) const;
+};
+SweepIdentity sweep_identity(const SweepSpec& spec, const std::vector<Trace>& traces);
+
+// sweep_identity(spec, traces).hash; hex.
 std::string sweep_spec_hash(const SweepSpec& spec, const std::vector<Trace>& traces);
 
 }  // namespace vtsim

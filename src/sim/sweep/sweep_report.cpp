@@ -17,6 +17,7 @@
 #include <tuple>
 
 #include "core/text.h"
+#include "sim/run/metric_direction.h"
 #include "sim/run/report_html.h"
 #include "sim/run/svg_chart.h"
 #include "sim/sweep/sweep_spec.h"
@@ -142,8 +143,12 @@ struct TraceInfo {
   std::string name, source;
 };
 
+// The blur bound of the Pareto fronts when the meta has none (docs/sweep.md, `blur_bound`).
+constexpr double kDefaultBlurBound = 0.05;
+
 struct Sweep {
   std::string name, hash;
+  double blur_bound = kDefaultBlurBound;  // fronts only among configs whose mean blurry fraction is at most this
   std::vector<Axis> axes;
   std::vector<std::string> keys;     // every key a config sets
   std::vector<std::string> metrics;
@@ -165,6 +170,7 @@ Sweep load_sweep(const json& meta, const std::vector<json>& rows) {
   Sweep s;
   s.name = text_of(field(meta, "name"));
   s.hash = text_of(field(meta, "spec_hash"));
+  if (const json& bb = field(meta, "blur_bound"); bb.is_number() && std::isfinite(bb.get<double>())) s.blur_bound = bb.get<double>();
   for (const json& a : array_of(field(meta, "axes"))) {
     Axis ax{text_of(field(a, "key")), {}};
     for (const json& v : array_of(field(a, "values"))) ax.values.push_back(text_of(v));
@@ -231,26 +237,38 @@ MetricData gather(const Sweep& s, const std::string& path) {
   MetricData m{path, {}, {}};
   for (const auto& per_trace : s.row_at) {
     std::vector<Opt> cells;
+    for (const json* row : per_trace) cells.push_back(row_ok(row) ? metric_at(field(*row, "summary"), path) : std::nullopt);
+    m.cell.push_back(std::move(cells));
+  }
+  // A trace on which no config has a value (null: a time to sharp on a trace without an event)
+  // is left out of every mean, rather than making every mean n/a or counting it as 0; a trace on
+  // which some configs have one still needs it from all.
+  std::vector<bool> counts(s.traces.size(), false);
+  for (std::size_t t = 0; t < s.traces.size(); ++t)
+    for (std::size_t c = 0; c < s.row_at.size(); ++c)
+      counts[t] = counts[t] || (t < m.cell[c].size() && m.cell[c][t]) || (t < s.row_at[c].size() && !row_ok(s.row_at[c][t]));
+  for (std::size_t c = 0; c < s.row_at.size(); ++c) {
     double sum = 0;
-    bool all = !per_trace.empty();
-    for (const json* row : per_trace) {
-      cells.push_back(row_ok(row) ? metric_at(field(*row, "summary"), path) : std::nullopt);
-      if (cells.back()) sum += *cells.back();
+    std::size_t n = 0;
+    bool all = !s.row_at[c].empty();
+    for (std::size_t t = 0; t < m.cell[c].size(); ++t) {
+      if (!counts[t]) continue;
+      if (m.cell[c][t]) sum += *m.cell[c][t], ++n;
       else all = false;
     }
-    m.mean.push_back(all ? Opt(sum / static_cast<double>(per_trace.size())) : std::nullopt);
-    m.cell.push_back(std::move(cells));
+    m.mean.push_back(all && n > 0 ? Opt(sum / static_cast<double>(n)) : std::nullopt);
   }
   return m;
 }
 
-// -1: lower is better, +1: higher is better, 0: no better direction.
+// -1: lower is better, +1: higher is better, 0: no better direction (docs/metrics.md, "Directions":
+// the table compare reads too, sim/run/metric_direction.h).
 int direction(const std::string& metric) {
-  for (const char* p : {"popin.", "latency_ms.", "bandwidth."})
-    if (metric.rfind(p, 0) == 0) return -1;
-  if (metric == "throttle.frames_throttled") return -1;
-  if (metric == "cache.ram_hit_ratio") return +1;
-  return 0;
+  switch (metric_direction(metric)) {
+    case MetricDirection::lower: return -1;
+    case MetricDirection::higher: return +1;
+    default: return 0;
+  }
 }
 
 const char* direction_text(int dir) { return dir < 0 ? "lower is better" : dir > 0 ? "higher is better" : "no better direction"; }
@@ -870,9 +888,8 @@ std::string axes_section(const Sweep& s, const std::vector<MetricData>& data) {
 // Background of a cell from its place between its column's best and worst: green to red when a
 // direction is better, light to dark blue when none is.
 std::string cell_style(double v, double lo, double hi, int dir) {
-  if (!(hi > lo)) return "";
+  if (!(hi > lo) || dir == 0) return "";  // no direction: no colour (neither end is better)
   const double t = (v - lo) / (hi - lo);
-  if (dir == 0) return fmt::format(" style=\"background:hsl(210,60%,{:.0f}%)\"", 96 - 22 * t);
   const double good = dir < 0 ? 1 - t : t;
   return fmt::format(" style=\"background:hsl({:.0f},65%,84%)\"", 120 * good);
 }
@@ -882,7 +899,7 @@ std::string breakdown_table(const Sweep& s, const MetricData& m) {
   std::string h = fmt::format("<h3 id=\"trace-{0}\">{0}</h3>\n<p class=\"note\">{1}{2}; each column coloured on its own "
                               "(configs compared on one trace){3}.</p>\n<div class=\"wide\"><table class=\"breakdown\" data-metric=\"{0}\"><tr><th>config</th>",
                               esc(m.path), direction_text(dir), unit_of(m.path).empty() ? "" : ", " + unit_of(m.path),
-                              dir ? ": green best, red worst, bold the best" : ": light low, dark high");
+                              dir ? ": green best, red worst, bold the best" : ": not coloured");
   for (const std::string& k : s.keys) h += fmt::format("<th class=\"k\">{}</th>", esc(k));
   for (std::size_t t = 0; t < s.traces.size(); ++t)
     h += fmt::format("<th title=\"{}\">{}</th>", esc(s.traces[t].name), esc(trace_short(s, t)));
@@ -959,9 +976,20 @@ std::string front_table(const Sweep& s, const std::vector<Point>& pts, const std
 }
 
 std::string pareto_section(const Sweep& s) {
-  std::string h = "<h2>Pop-in against cost: the Pareto front</h2>\n<p class=\"note\">Each point is a config (its mean over the "
-                  "traces); red: the configs no other config beats on both cost and pop-in, joined as a staircase. A cost "
-                  "equal for every config is left out; an upload budget of 0 means no limit.</p>\n";
+  // Only configs that meet the blur bound compete: a config that saves cost by leaving the screen
+  // blurry is not a trade-off (a 65 %-blurry config led the time-to-sharp front: blur that never
+  // clears has no cut to recover from).
+  const MetricData blur = gather(s, "popin.blurry_fraction_mean");
+  std::vector<bool> meets(s.configs.size(), false);
+  std::size_t n_meet = 0;
+  for (std::size_t c = 0; c < s.configs.size(); ++c)
+    if (blur.mean[c] && *blur.mean[c] <= s.blur_bound) meets[c] = true, ++n_meet;
+  std::string h = fmt::format(
+      "<h2>Pop-in against cost: the Pareto front</h2>\n<p class=\"note\">Each point is a config (its mean over the "
+      "traces) whose mean blurry fraction is at most <b>{}</b> (the spec's <code>blur_bound</code>): <b>{} of {}</b> configs "
+      "meet it, the others are left out. Red: the configs no other config beats on both cost and pop-in, joined as a "
+      "staircase. A cost equal for every config is left out; an upload budget of 0 means no limit.</p>\n",
+      fmt3(s.blur_bound), n_meet, s.configs.size());
   std::string charts;
   for (const char* popin : kPopins) {
     const MetricData pm = gather(s, popin);
@@ -970,22 +998,23 @@ std::string pareto_section(const Sweep& s) {
       std::vector<Point> pts;
       std::vector<std::pair<double, double>> xy;
       for (std::size_t c = 0; c < s.configs.size(); ++c)
-        if (cost[c] && pm.mean[c]) {
+        if (meets[c] && cost[c] && pm.mean[c]) {
           pts.push_back({c, *cost[c], *pm.mean[c]});
           xy.emplace_back(*cost[c], *pm.mean[c]);
         }
       const bool varies = std::any_of(pts.begin(), pts.end(), [&](const Point& p) { return p.x != pts.front().x; });
       if (!varies) continue;
       const std::vector<std::size_t> front = pareto_front(xy);
-      const std::size_t left_out = s.configs.size() - pts.size();
+      const std::size_t left_out = n_meet - pts.size();
       const std::string sub = fmt::format("y: {}, mean over traces · lower-left is better{}", unit_of(popin),
-                                          left_out ? fmt::format(" · n/a: {} of {} configs", left_out, s.configs.size()) : "");
+                                          left_out ? fmt::format(" · n/a: {} of {} configs", left_out, n_meet) : "");
       charts += fmt::format("<h3>{} against {}</h3>\n<div class=\"pair\">\n", popin, cd.title);
       charts += pareto_chart(fmt::format("{} vs {}", popin, cd.key), sub, cd.title, pts, front);
       charts += "<div class=\"wide\">" + front_table(s, pts, front, popin, cd) + "</div>\n</div>\n";
     }
   }
-  return h + (charts.empty() ? "<p class=\"note\">No cost varies across the configs (or pop-in is n/a): no front to draw.</p>\n"
+  return h + (charts.empty() ? "<p class=\"note\">No cost varies across the configs that meet the blur bound (or pop-in is "
+                               "n/a): no front to draw.</p>\n"
                              : charts);
 }
 

@@ -203,12 +203,18 @@ SweepSpec load_sweep_spec(const std::string& path) {
     } else if (key == "allow_repairs") {
       if (!node->as_boolean()) throw InputError(where, "key 'allow_repairs': expected true or false");
       spec.allow_repairs = node->as_boolean()->get();
+    } else if (key == "blur_bound") {
+      const auto* d = node->as_floating_point();
+      const auto* i = node->as_integer();
+      const double v = d ? d->get() : i ? static_cast<double>(i->get()) : -1.0;
+      if (!(v >= 0.0 && v <= 1.0)) throw InputError(where, "key 'blur_bound': expected a number from 0 to 1 (a blurry fraction)");
+      spec.blur_bound = v;
     } else if (key == "configs") {
       configs = node->as_array();
       if (!configs) throw InputError(where, "key 'configs': expected [[configs]] tables");
     } else {
       throw InputError(where, "unknown spec key '" + key +
-                                  "' (keys: name, config, set, traces, generate, allow_repairs, metrics, [grid], [[configs]], [tune])");
+                                  "' (keys: name, config, set, traces, generate, allow_repairs, metrics, blur_bound, [grid], [[configs]], [tune])");
     }
   }
   if (spec.traces.empty()) throw InputError(path, "no traces: give traces = [\"file.csv\", \"dir/*.csv\"] or generate = [\"walk duration_s=60\"]");

@@ -79,6 +79,7 @@ struct SweepSpec {
   std::string base_dump;                  // the base config, every key (identity, not display)
   TuneSpec tune;
   bool allow_repairs = false;             // keep traces whose repairs dropped beyond the policy (trace_io.h)
+  double blur_bound = 0.05;               // the report's Pareto fronts: only configs whose mean blurry fraction is at most this
 };
 
 // "metric <= 0.02" / "metric >= 0.9"; InputError at `where` otherwise.

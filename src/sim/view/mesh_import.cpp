@@ -2,6 +2,7 @@
 #include "sim/view/mesh_import.h"
 
 #include <algorithm>
+#include <set>
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -11,6 +12,7 @@
 #include <vector>
 
 #include <assimp/BaseImporter.h>
+#include <assimp/DefaultIOSystem.h>
 #include <assimp/Importer.hpp>
 #include <assimp/importerdesc.h>
 #include <fmt/format.h>
@@ -541,6 +543,39 @@ std::vector<std::string> mesh_import_warnings(const MeshImportStats& st, const s
                               "small for {} materials at texels_per_m)",
                               path, st.region_scale, st.materials));
   return out;
+}
+
+namespace {
+// assimp's file system, recording the name of every file a reader opens.
+class RecordingIOSystem : public Assimp::DefaultIOSystem {
+ public:
+  explicit RecordingIOSystem(std::set<std::string>& opened) : opened_(opened) {}
+  Assimp::IOStream* Open(const char* file, const char* mode) override {
+    Assimp::IOStream* s = Assimp::DefaultIOSystem::Open(file, mode);
+    if (s) opened_.insert(file);
+    return s;
+  }
+
+ private:
+  std::set<std::string>& opened_;
+};
+}  // namespace
+
+std::vector<std::string> mesh_import_files(const std::string& path) {
+  std::set<std::string> opened;
+  try {
+    (void)open_regular_file(path);  // a directory, a device: no import at all
+    if (const std::string e = import_lower_ext(path);
+        e != "gltf" && e != "glb" && e != "fbx" && e != "obj" && e != "pk3" && e != "bsp")
+      import_check_collada(path);
+    Assimp::Importer importer;
+    import_keep_scene_readers(importer);
+    importer.SetIOHandler(new RecordingIOSystem(opened));  // the importer owns and deletes it
+    if (!importer.ReadFile(path, 0u)) return {};
+  } catch (const std::exception&) {
+    return {};
+  }
+  return {opened.begin(), opened.end()};
 }
 
 std::string mesh_loader_for(const SceneConfig& cfg) {

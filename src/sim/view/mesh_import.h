@@ -79,4 +79,10 @@ std::string mesh_loader_for(const SceneConfig& cfg);
 // cfg's import options (mesh_* fields, texels_per_m).
 MeshImportOptions mesh_import_options(const SceneConfig& cfg);
 
+// Every file assimp opens to import `path` (the file itself, an OBJ's .mtl, a glTF's .bin
+// buffers, ...), sorted and unique: what a scene's identity must cover (a sweep's, docs/sweep.md).
+// Textures are not among them (import_mesh reads UVs, never images). Empty when assimp cannot
+// read the file (the replay then says why).
+std::vector<std::string> mesh_import_files(const std::string& path);
+
 }  // namespace vtsim

@@ -77,6 +77,7 @@ void Pipeline::on_result(JobResult& r) {
         counters_.produced_bytes += r.decoded_bytes;
         counters_.produce_ns += static_cast<std::uint64_t>(r.decode_end - r.decode_start);
         if (abandoned) {
+          end_unserved(q, q.cancel_time, Unserved::cancelled);
           requests_.erase(key);
           return;
         }
@@ -98,6 +99,7 @@ void Pipeline::on_result(JobResult& r) {
         } else {
           to_ram(q, r.data, q.prefetch);
         }
+        if (abandoned) end_unserved(q, q.cancel_time, Unserved::cancelled);
         requests_.erase(key);
         return;
       }
@@ -119,6 +121,7 @@ void Pipeline::on_result(JobResult& r) {
         q.state = State::queued;  // needed again: read it again
         q.revived = false;
       } else {
+        end_unserved(q, q.state == State::cancelling ? q.cancel_time : now_, Unserved::cancelled);
         requests_.erase(key);
       }
       return;
@@ -127,6 +130,7 @@ void Pipeline::on_result(JobResult& r) {
       ++counters_.faults;
       ++counters_.fault_by_kind[static_cast<int>(r.fault) & 7];
       if (abandoned) {
+        end_unserved(q, q.cancel_time, Unserved::cancelled);
         requests_.erase(key);
       } else if (q.attempts <= cfg_.max_retries) {
         ++counters_.retries;
@@ -136,6 +140,7 @@ void Pipeline::on_result(JobResult& r) {
       } else {
         ++counters_.failed_tiles;
         failed_[key] = now_;
+        end_unserved(q, now_, Unserved::failed);
         requests_.erase(key);
       }
       return;
@@ -229,11 +234,13 @@ void Pipeline::set_needs(const std::vector<Need>& needs) {
           by_id_.erase(q.id);
         } else {
           q.state = State::cancelling;
+          q.cancel_time = now_;
           q.revived = false;
           erase = false;
         }
         break;
       case State::cancelling:
+        if (q.revived) q.cancel_time = now_;  // needed again, then not: cancelled again now
         q.revived = false;
         erase = false;
         break;
@@ -241,6 +248,7 @@ void Pipeline::set_needs(const std::vector<Need>& needs) {
         ++counters_.dropped_before_upload;
         break;
     }
+    if (erase) end_unserved(q, now_, Unserved::cancelled);
     it = erase ? requests_.erase(it) : std::next(it);
   }
 }
@@ -346,6 +354,14 @@ void Pipeline::return_uploads(std::vector<UploadItem>::iterator first, std::vect
     counters_.upload_bytes -= u.bytes;
     requests_.insert_or_assign(u.key, std::move(q));
   }
+}
+
+void Pipeline::open_demand_requests(Ticks end, std::vector<UnservedRequest>& out) const {
+  for (const auto& [k, q] : requests_)
+    if (!q.prefetch && !(q.state == State::cancelling && !q.revived)) out.push_back({q.needed_time, end, Unserved::open_at_end});
+  // A cancelling request not needed again was cancelled at cancel_time; its job had not returned.
+  for (const auto& [k, q] : requests_)
+    if (!q.prefetch && q.state == State::cancelling && !q.revived) out.push_back({q.needed_time, q.cancel_time, Unserved::cancelled});
 }
 
 std::size_t Pipeline::queued() const {

@@ -116,6 +116,16 @@ struct PipelineCounters {
   std::uint64_t produce_cancelled = 0;   // dropped before production started (no cost)
 };
 
+// A demand request that ended without its tile being uploaded: the survival analysis of latency
+// counts it as censored at `end_time` (docs/metrics.md, "Latency"). A request still open at the
+// run's end is censored there (Pipeline::open_demand_requests).
+enum class Unserved : std::uint8_t { cancelled, failed, open_at_end, stale };
+struct UnservedRequest {
+  Ticks needed_time = 0;  // its first need (as UploadItem::needed_time)
+  Ticks end_time = 0;     // when it stopped being needed (cancelled), was given up (failed), the run ended
+  Unserved why = Unserved::cancelled;
+};
+
 // What a throttling policy may read: the backlog by level (bytes not yet resident).
 struct Backlog {
   std::vector<std::uint64_t> bytes_by_level;   // queued + in flight + waiting upload, demand only
@@ -148,6 +158,10 @@ class Pipeline {
   bool is_failed(TileKey key) const;
 
   const PipelineCounters& counters() const { return counters_; }
+  // The demand requests that ended unserved so far (cancelled, failed), in the order they ended.
+  const std::vector<UnservedRequest>& unserved() const { return unserved_; }
+  // Appends the demand requests still open (not cancelled) as censored at `end` (open_at_end).
+  void open_demand_requests(Ticks end, std::vector<UnservedRequest>& out) const;
   std::size_t live_requests() const { return requests_.size(); }
   std::size_t queued() const;  // requests waiting in the pipeline's own queue (diagnostics; O(R))
   Backlog backlog(int num_levels) const;
@@ -175,6 +189,7 @@ class Pipeline {
     int needed_frame = 0;
     Ticks needed_time = 0;
     Ticks in_ram_time = 0;
+    Ticks cancel_time = 0;      // when it last entered cancelling (no longer needed, its job running)
     int attempts = 0;
     int retry_frame = 0;
     JobResult timing;
@@ -183,6 +198,10 @@ class Pipeline {
   void on_result(JobResult& r);
   void to_ram(Request& q, const std::shared_ptr<const TileData>& data, bool prefetched);
   void drop(TileKey key);
+  // A demand request leaving unserved: recorded for the latency's censoring (prefetches are not requests).
+  void end_unserved(const Request& q, Ticks end, Unserved why) {
+    if (!q.prefetch) unserved_.push_back({q.needed_time, end, why});
+  }
   // The RAM tier: LruCache for "lru" (the fast path: a predictable branch, no virtual call),
   // PolicyCache for any other policy.
   const RamEntry* ram_get(TileKey key) { return ram_any_ ? ram_any_->get(key) : ram_.get(key); }
@@ -202,6 +221,7 @@ class Pipeline {
   std::unordered_map<TileKey, Ticks, TileKeyHash> failed_;  // key -> time it failed
   std::unordered_map<TileKey, int, TileKeyHash> ram_evicted_at_;  // key -> frame of its RAM eviction
   PipelineCounters counters_;
+  std::vector<UnservedRequest> unserved_;
   RequestId next_id_ = 1;
   int frame_ = 0;
   Ticks now_ = 0;

@@ -188,11 +188,13 @@ const FrameUpdates& StreamingRuntime::commit_uploads(IUploadSink& sink) {
   updates_.uploads = 0;
   updates_.upload_bytes = 0;
   updates_.stale = 0;
+  updates_.stale_needed.clear();
   for (std::size_t i = 0; i < uploads_.size(); ++i) {
     const UploadItem& u = uploads_[i];
     if (!sys_->accepts(u.key)) {
       sys_->commit(u.key, frame_);  // refused: counted stale by the system
       ++updates_.stale;
+      updates_.stale_needed.push_back(u.needed_time);
       continue;
     }
     const TileUpload tu{u.key, sys_->vram_slot(u.key), u.data.get(), &u};

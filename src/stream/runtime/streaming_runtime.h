@@ -96,6 +96,7 @@ struct FrameUpdates {
   std::uint32_t uploads = 0;      // tiles handed to the sink and committed
   std::uint64_t upload_bytes = 0;
   std::uint32_t stale = 0;        // uploads no longer wanted (dropped, not handed to the sink)
+  std::vector<Ticks> stale_needed;  // when each stale upload was first needed (latency censoring)
   std::vector<PageTableUpdate> page_table;  // VT: this frame's page-table changes, in order
   struct Window {
     int level = 0;
