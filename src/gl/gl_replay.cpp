@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 
 #include <chrono>
+#include <cstdlib>
+#include <fstream>
 #include <thread>
 
 #include "core/camera.h"
@@ -15,6 +17,7 @@
 #include "sim/run/provenance.h"
 #include "sim/run/real_replay.h"
 #include "sim/run/replay.h"
+#include "sim/run/resources.h"
 #include "sim/run/runtime_setup.h"
 
 namespace vtsim::gl {
@@ -59,6 +62,15 @@ class Sink final : public IUploadSink {
   Ticks now_ = 0;
 };
 
+// Peak resident set, MB (Linux /proc/self/status VmHWM; 0 elsewhere).
+double peak_rss_mb() {
+  std::ifstream f("/proc/self/status");
+  std::string line;
+  while (std::getline(f, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::strtod(line.c_str() + 6, nullptr) / 1024.0;
+  return 0.0;
+}
+
 }  // namespace
 
 GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& trace, const TileStore& store,
@@ -79,11 +91,12 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
     throw InputError("scene", fmt::format("the scene's texture is {}x{} texels, the store's {}x{}", ext.width, ext.height,
                                           store.geometry().width, store.geometry().height));
   auto rt = make_streaming_runtime(bound, store);
-  const int tile = bound.texture.tile_size, levels = mip_level_count(ext);
+  const int tile = bound.texture.tile_size, levels = rt->system().num_levels();
   StreamedVt vt(r, tile, static_cast<int>(store.geometry().border), static_cast<int>(l0.channels),
-                static_cast<std::int64_t>(bound.vt.pool_pages));
+                static_cast<std::int64_t>(bound.vt.pool_pages), levels);
   GlReplayRun run;
   MetricsCollector& m = run.result.metrics;
+  m.set_system_columns(rt->system().frame_counter_names());
   std::vector<std::uint64_t> level_upload(static_cast<std::size_t>(levels), 0);
   Sink sink(vt, m, level_upload);
   FeedbackSettings fs;
@@ -95,6 +108,7 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
   fs.far_m = bound.view.far_m;
   fs.latency = o.latency;
   double feedback_bias = 0.0;
+  int clamp = 0;
   std::uint64_t feedback_read = 0;
   FeedbackFrame fb;
   const auto t0 = std::chrono::steady_clock::now();
@@ -104,6 +118,7 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
       while (rt->executor().now() < plan.target(f))
         std::this_thread::sleep_for(std::chrono::microseconds(200));
     const Ticks now = rt->executor().now();
+    const PipelineCounters c0 = rt->pipeline().counters();
     rt->begin_frame(now);
     rt->set_camera(pose);
     const Camera cam = make_camera(pose, plan.trace.image_width, plan.trace.image_height);
@@ -126,6 +141,8 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
     sink.begin(row, f, now);
     const FrameUpdates& u = rt->end_frame(sink);
     vt.apply(u);
+    if (u.throttle_changed) m.add_throttle_change({f, row.t_s, clamp, u.clamp, u.feedback_bias, u.reason});
+    clamp = u.clamp;
     feedback_bias = u.feedback_bias;
     const PopinCount pc = vt.draw(cam, fs, u.clamp);
     row.clamp = u.clamp;
@@ -137,6 +154,12 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
     row.finest_needed = rt->finest_needed();
     row.needs = static_cast<std::uint32_t>(rt->needs());
     row.live_requests = static_cast<std::uint32_t>(rt->pipeline().live_requests());
+    const PipelineCounters& c1 = rt->pipeline().counters();
+    row.disk_bytes = c1.disk_bytes - c0.disk_bytes;
+    row.decoded_bytes = c1.decoded_bytes - c0.decoded_bytes;
+    row.ram_bytes = rt->pipeline().ram_bytes_used();
+    row.throttled_needs = rt->system().throttled_needs();
+    rt->system().frame_counters(row.system);
     m.add_frame(row);
     if (!o.frames_png.empty() && f % o.png_every == 0) {
       int w = 0, h = 0;
@@ -199,20 +222,59 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
                 {"duration_s", duration_s},
                 {"fps", 1.0 / plan.period_s},
                 {"image", {plan.trace.image_width, plan.trace.image_height}}};
-  s["bandwidth"] = {{"disk_read_MBps", MBps(c.disk_bytes)},
-                    {"decoded_MBps", MBps(c.decoded_bytes)},
-                    {"upload_MBps", MBps(c.upload_bytes)},
-                    {"disk_read_bytes", c.disk_bytes},
-                    {"decoded_bytes", c.decoded_bytes},
-                    {"upload_bytes", c.upload_bytes},
-                    {"disk_reads", c.disk_reads},
-                    {"uploads", c.uploads},
-                    {"upload_bytes_per_frame", m.upload_per_frame_json()["bytes"]},
-                    {"upload_tiles_per_frame", m.upload_per_frame_json()["tiles"]},
-                    {"per_level", m.per_level_json(duration_s)}};
+  s["bandwidth"] = {
+      {"disk_read_MBps", MBps(c.disk_bytes)},
+      {"decoded_MBps", MBps(c.decoded_bytes)},
+      {"upload_MBps", MBps(c.upload_bytes)},
+      {"prefetch_read_MBps", MBps(c.prefetch_disk_bytes)},
+      {"disk_read_bytes", c.disk_bytes},
+      {"decoded_bytes", c.decoded_bytes},
+      {"upload_bytes", c.upload_bytes},
+      {"prefetch_read_bytes", c.prefetch_disk_bytes},
+      {"disk_reads", c.disk_reads},
+      {"uploads", c.uploads},
+      {"upload_bytes_per_frame", m.upload_per_frame_json()["bytes"]},
+      {"upload_tiles_per_frame", m.upload_per_frame_json()["tiles"]},
+      {"per_level", m.per_level_json(duration_s)},
+      {"wasted", {{"read_bytes_cancelled_after_io", c.wasted_read_bytes},
+                  {"uploaded_bytes_never_sampled", rt->system().evicted_unsampled_bytes()},
+                  {"cancelled_before_io", c.cancelled_queued},
+                  {"cancelled_after_io", c.cancelled_after_read},
+                  {"dropped_before_upload", c.dropped_before_upload}}}};
   s["latency_ms"] = m.latency_json();
   s["popin"] = m.popin_json(bound.metrics.sharp_margin);
-  s["cache"] = {{"ram_hits", c.ram_hits}, {"ram_misses", c.ram_misses}, {"requests", c.requests}, {"needs", c.needs}};
+  const double lookups = static_cast<double>(c.ram_hits + c.ram_misses);
+  s["cache"] = {{"ram_hit_ratio", lookups > 0 ? static_cast<double>(c.ram_hits) / lookups : 0.0},
+                {"ram_hits", c.ram_hits},
+                {"ram_misses", c.ram_misses},
+                {"ram_evictions", c.ram_evictions},
+                {"ram_evicted_bytes", c.ram_evicted_bytes},
+                {"ram_thrash", c.ram_thrash},
+                {"ram_policy", bound.ram.policy},
+                {"prefetch_requests", c.prefetch_requests},
+                {"prefetch_hits", c.prefetch_hits},
+                {"vram_evictions", rt->system().vram_evictions()},
+                {"vram_thrash", rt->system().vram_thrash()},
+                {"requests", c.requests},
+                {"needs", c.needs}};
+  s["throttle"] = m.throttle_json();
+  s["throttle"]["policy"] = bound.throttle.policy;
+  s["faults"] = {{"faults", c.faults},
+                 {"retries", c.retries},
+                 {"failed_tiles", c.failed_tiles},
+                 {"io_error", c.fault_by_kind[static_cast<int>(Fault::io_error)]},
+                 {"short_read", c.fault_by_kind[static_cast<int>(Fault::short_read)]},
+                 {"checksum", c.fault_by_kind[static_cast<int>(Fault::checksum)]},
+                 {"decode_error", c.fault_by_kind[static_cast<int>(Fault::decode_error)]},
+                 {"bad_record", c.fault_by_kind[static_cast<int>(Fault::bad_record)]}};
+  s[bound.run.system] = rt->system().stats_json();
+  s["resources"] = resources_json(bound, rt->system(), s[bound.run.system], m);
+  s["run"] = {{"wall_s", run.seconds},
+              {"render_threads", 0},
+              {"loop_cpu_s", 0.0},
+              {"frames_per_s", run.seconds > 0 ? plan.frames / run.seconds : 0.0},
+              {"x_realtime", run.seconds > 0 ? duration_s / run.seconds : 0.0},
+              {"peak_rss_MB", peak_rss_mb()}};
   s["gl"] = {{"renderer", ctx.renderer()},
              {"gl_version", ctx.version()},
              {"platform", ctx.platform()},

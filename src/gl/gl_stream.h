@@ -35,9 +35,10 @@ struct PopinCount {
 class StreamedVt final : public IUploadSink {
  public:
   // `tile`: payload texels a side; `border`: texels of border each side (the store's); `channels`:
-  // 8-bit channels of layer 0's decoded texels (1..4); `slots`: the page pool. Throws InputError
-  // when the physical texture would exceed GL_MAX_TEXTURE_SIZE.
-  StreamedVt(Renderer& r, int tile, int border, int channels, std::int64_t slots);
+  // 8-bit channels of layer 0's decoded texels (1..4); `slots`: the page pool; `levels`: the
+  // system's levels (IStreamingSystem::num_levels: down to one page, not to one texel). Throws
+  // InputError when the physical texture would exceed GL_MAX_TEXTURE_SIZE.
+  StreamedVt(Renderer& r, int tile, int border, int channels, std::int64_t slots, int levels);
   ~StreamedVt() override;
   StreamedVt(const StreamedVt&) = delete;
   StreamedVt& operator=(const StreamedVt&) = delete;
