@@ -43,7 +43,7 @@ TEST_CASE("gl: streaming a still view through the runtime uploads the runtime's 
   const ReplayConfig cfg = load_replay_config("", {"texture.texels_per_m=32", "view.divisor=1"}, "vt");
   TraceGenParams tg = default_gen_params(TraceKind::still);
   tg.start_m = {8.0, 8.0};
-  tg.duration_s = 0.6;
+  tg.duration_s = 1.0;  // 60 frames: the view is streamed within ~10 of them, the rest is margin for a loaded machine
   tg.image_width = 256;
   tg.image_height = 144;
   const Trace trace = generate_trace(tg);
