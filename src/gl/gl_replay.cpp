@@ -144,7 +144,7 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
     if (u.throttle_changed) m.add_throttle_change({f, row.t_s, clamp, u.clamp, u.feedback_bias, u.reason});
     clamp = u.clamp;
     feedback_bias = u.feedback_bias;
-    const PopinCount pc = vt.draw(cam, fs, u.clamp);
+    const PopinCount pc = vt.draw(cam, fs, u.clamp, u.sample_bias);
     row.clamp = u.clamp;
     row.bias = u.feedback_bias;
     row.measured = true;

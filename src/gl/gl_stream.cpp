@@ -315,11 +315,11 @@ std::uint32_t StreamedVt::entry(int level, std::int64_t x, std::int64_t y) const
   return pt_[static_cast<std::size_t>(level_off_[li] + static_cast<int>(y) * tiles_x_[li] + static_cast<int>(x))];
 }
 
-PopinCount StreamedVt::draw(const Camera& cam, const FeedbackSettings& fs, int clamp) {
+PopinCount StreamedVt::draw(const Camera& cam, const FeedbackSettings& fs, int clamp, double sample_bias) {
   Impl& m = *impl_;
   m.target(cam.width, cam.height);
   glProgramUniform1i(m.prog, glGetUniformLocation(m.prog, "u_clamp"), std::clamp(clamp, 0, levels_ - 1));
-  glProgramUniform1f(m.prog, glGetUniformLocation(m.prog, "u_sample_bias"), 0.0f);
+  glProgramUniform1f(m.prog, glGetUniformLocation(m.prog, "u_sample_bias"), static_cast<float>(sample_bias));
   const float sky[4] = {0.55f, 0.7f, 0.9f, 1.0f};
   const GLuint zero4[4] = {0, 0, 0, 0};
   const float zero = 0.0f;

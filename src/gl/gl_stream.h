@@ -46,8 +46,9 @@ class StreamedVt final : public IUploadSink {
   void upload(const TileUpload& u) override;
   // The frame's page-table updates (after end_frame).
   void apply(const FrameUpdates& u);
-  // The main pass; returns the frame's pop-in counts (the GPU's sums). `clamp`: MaxTextureLOD.
-  PopinCount draw(const Camera& cam, const FeedbackSettings& fs, int clamp);
+  // The main pass; returns the frame's pop-in counts (the GPU's sums). `clamp`: MaxTextureLOD;
+  // `sample_bias`: the LOD bias the screen samples with (the desired level is measured without it).
+  PopinCount draw(const Camera& cam, const FeedbackSettings& fs, int clamp, double sample_bias = 0.0);
   // The last main pass as RGBA8, image rows top first.
   std::vector<std::uint8_t> read_colour(int& w, int& h);
 
