@@ -9,6 +9,7 @@
 #include <string>
 #include <unistd.h>
 
+#include "core/error.h"
 #include "gl/gl_replay.h"
 #include "gl_test_util.h"
 #include "sim/run/replay_config.h"
@@ -69,4 +70,28 @@ TEST_CASE("gl: streaming a still view through the runtime uploads the runtime's 
   CHECK(rows.back().samples > 10000u);   // the plane fills most of the view
   CHECK(rows.back().blurry == 0u);       // streamed: every pixel samples the level it wants
   CHECK(rows.back().needs == 0u);
+}
+
+TEST_CASE("gl: gl replay refuses a config the store does not match, before the first frame") {
+  const std::string path = gl_stream_store();
+  const TileStore store = TileStore::open(path);
+  TraceGenParams tg = default_gen_params(TraceKind::still);
+  tg.start_m = {8.0, 8.0};
+  tg.duration_s = 0.1;
+  tg.image_width = 64;
+  tg.image_height = 36;
+  const Trace trace = generate_trace(tg);
+  gl_test::Shared& gs = gl_test::shared();
+  const auto refused = [&](const std::vector<std::string>& sets) -> std::string {
+    try {
+      (void)gl::run_gl_replay(gs.ctx, load_replay_config("", sets, "vt"), trace, store);
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  CHECK(refused({"texture.texels_per_m=32", "texture.tile_size=32"}).find("texture.tile_size") != std::string::npos);
+  CHECK(refused({"texture.texels_per_m=32", "texture.width=1024", "texture.height=1024"}).find("texture.width") != std::string::npos);
+  CHECK(refused({"texture.texels_per_m=32", "vt.pool_pages=10000000"}).find("vt.pool_pages") != std::string::npos);
+  std::filesystem::remove(path);
 }
