@@ -27,7 +27,10 @@
 #include "gl/gl_check.h"
 #include "gl/gl_context.h"
 #include "gl/gl_renderer.h"
+#include "gl/gl_replay.h"
+#include "stream/store/tile_store.h"
 #endif
+#include "cli/config_load.h"
 
 namespace vtsim::cli {
 
@@ -55,6 +58,10 @@ struct GlOptions {
   int tile_size = 128;
   std::string divisors = "1,8,16";
   bool json = false;
+  // gl replay
+  std::vector<std::string> configs, sets;
+  std::string store, summary, frames_csv;
+  bool no_pace = false;
 };
 
 void parse_size(const std::string& s, int& w, int& h) {
@@ -260,8 +267,47 @@ void run_check(const GlOptions& o) {
                            .dump(2));
 }
 
+void run_replay(const GlOptions& o) {
+  const ReplayConfig cfg = load_cli_config(o.configs, o.sets, "vt", o.trace == "-");
+  if (o.trace.empty()) throw InputError("--trace", "a trace is required");
+  if (o.store.empty()) throw InputError("--store", "a tile store is required (vtsim store gen)");
+  const Trace trace = load_cli_trace(o.trace, o.allow_repairs);
+  if (!o.frames_png.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(o.frames_png, ec);
+    if (ec) throw InputError("--frames-png", o.frames_png + ": " + ec.message());
+  }
+  const TileStore store = TileStore::open(o.store);
+  gl::Context ctx(warn);
+  gl::GlReplayOptions go;
+  go.sampling = sampling_of(o.sampling);
+  go.latency = o.latency;
+  go.pace = !o.no_pace;
+  go.frames_png = o.frames_png;
+  go.png_every = o.png_every;
+  go.warn = warn;
+  const gl::GlReplayRun run = gl::run_gl_replay(ctx, cfg, trace, store, go);
+  const nlohmann::json& s = run.result.summary;
+  if (!o.summary.empty()) write_output(o.summary, s.dump(2) + "\n");
+  if (!o.frames_csv.empty()) write_output_via(o.frames_csv, [&](const std::string& p) { run.result.metrics.write_frames_csv(p); });
+  if (o.json) {
+    fmt::print("{}\n", s.dump(2));
+    return;
+  }
+  const nlohmann::json& pop = s["popin"];
+  fmt::print("{} ({}): {} frames in {:.2f} s ({:.1f} frames/s); {} tiles uploaded ({} pages copied to the GPU, {:.2f} ms of GPU upload time over {} timed frames); "
+             "{} GL errors\n",
+             ctx.renderer(), ctx.version(), s["trace"]["frames"].get<int>(), run.seconds, s["gl"]["frames_per_s"].get<double>(),
+             run.sink_uploads, run.gpu_copies, s["gl"]["upload_gpu_ms_total"].get<double>(), s["gl"]["upload_timed_frames"].get<std::uint64_t>(),
+             ctx.errors());
+  fmt::print("popin: {}\nlatency_ms: {}\n", pop.dump(), s["latency_ms"].dump());
+}
+
 #else
 
+void run_replay(const GlOptions&) {
+  throw InputError("gl", "this vtsim was built without libepoxy (Debian: libepoxy-dev libegl-dev); rebuild with it");
+}
 void run_render(const GlOptions&) {
   throw InputError("gl", "this vtsim was built without libepoxy (Debian: libepoxy-dev libegl-dev); rebuild with it");
 }
@@ -307,6 +353,22 @@ void register_gl_commands(CLI::App& app) {
   gl_cmd::add_common(check, co);
   check->add_option("--divisors", co->divisors, "comma-separated divisors")->capture_default_str();
   check->callback([co]() { gl_cmd::run_check(*co); });
+  auto po = std::make_shared<gl_cmd::GlOptions>();
+  auto* rep = gl->add_subcommand("replay", "Stream a virtual texture from a tile store through the streaming runtime on the GPU, real clock; "
+                                           "the summary and per-frame CSV of `vtsim replay`");
+  rep->add_option("--trace,-t", po->trace, "camera trace")->required();
+  add_config_options(rep, po->configs, po->sets, " (run.system must be vt)");
+  rep->add_option("--store", po->store, "tile store (vtsim store gen) matching the config's texture")->required();
+  rep->add_option("--summary", po->summary, "write the summary JSON here (- for stdout)");
+  rep->add_option("--frames", po->frames_csv, "write one CSV row per frame here (- for stdout)");
+  rep->add_option("--sampling", po->sampling, "pixel of each feedback tile: middle | sequence")->capture_default_str();
+  rep->add_option("--latency", po->latency, "feedback read back this many frames late")->capture_default_str();
+  rep->add_option("--frames-png", po->frames_png, "write the main pass of every --png-every-th frame here");
+  rep->add_option("--png-every", po->png_every, "frames between PNGs")->capture_default_str();
+  rep->add_flag("--no-pace", po->no_pace, "start each frame as soon as the last ends (default: at its trace time)");
+  rep->add_flag("--allow-repairs", po->allow_repairs, kAllowRepairsHelp);
+  rep->add_flag("--json", po->json, "print the summary JSON");
+  rep->callback([po]() { gl_cmd::run_replay(*po); });
 }
 
 }  // namespace vtsim::cli

@@ -685,6 +685,17 @@ bool Renderer::drain(FeedbackFrame& out) {
   return true;
 }
 
+unsigned Renderer::link_program(const std::string& fragment_body) { return link(fragment_body); }
+
+void Renderer::draw_program(unsigned program, const Camera& cam, const FeedbackSettings& fs) {
+  Impl& m = *impl_;
+  m.uniforms(program, cam, fs, cam.width, cam.height, cam.cx, cam.cy, fs.lod_bias, extent_);
+  glViewport(0, 0, cam.width, cam.height);
+  glUseProgram(program);
+  glBindVertexArray(m.vao);
+  glDrawElements(GL_TRIANGLES, m.count, GL_UNSIGNED_INT, nullptr);
+}
+
 FeedbackFrame Renderer::feedback_now(const Camera& cam, const FeedbackSettings& fs, int ox, int oy) {
   FeedbackSettings f = fs;
   f.latency = 0;

@@ -77,6 +77,13 @@ class Renderer {
   // Renders a feedback pass and reads it back at once (tests, checks).
   FeedbackFrame feedback_now(const Camera& cam, const FeedbackSettings& fs, int ox, int oy);
 
+  // A client's own pass (gl_stream.h): `fragment_body` after the shared LOD functions (inputs
+  // v_t, flat v_to; uniforms u_bias, u_aniso, u_inv_aniso2, u_extent), linked with the scene's
+  // vertex shader. draw_program draws the scene with it into the bound framebuffer at the
+  // camera's resolution, depth test on (the caller clears), u_bias = fs.lod_bias.
+  static unsigned link_program(const std::string& fragment_body);
+  void draw_program(unsigned program, const Camera& cam, const FeedbackSettings& fs);
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;

@@ -1,0 +1,295 @@
+#include "gl/gl_replay.h"
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <fstream>
+#include <thread>
+
+#include "core/camera.h"
+#include "core/error.h"
+#include "core/image_io.h"
+#include "core/view.h"
+#include "gl/gl_context.h"
+#include "gl/gl_renderer.h"
+#include "gl/gl_stream.h"
+#include "sim/run/provenance.h"
+#include "sim/run/real_replay.h"
+#include "sim/run/replay.h"
+#include "sim/run/resources.h"
+#include "sim/run/runtime_setup.h"
+
+namespace vtsim::gl {
+
+namespace {
+
+// The GPU's sink with the replay's bookkeeping: each tile's latency (docs/metrics.md: first
+// needed -> uploaded; the upload stage is the GPU copy, not modelled here: 0) and the row's bytes.
+class Sink final : public IUploadSink {
+ public:
+  Sink(StreamedVt& vt, MetricsCollector& m, std::vector<std::uint64_t>& level_upload) : vt_(vt), m_(m), level_upload_(level_upload) {}
+  void begin(FrameRow& row, int frame, Ticks now) {
+    row_ = &row;
+    frame_ = frame;
+    now_ = now;
+  }
+  void upload(const TileUpload& t) override {
+    vt_.upload(t);
+    const UploadItem& u = *t.item;
+    TileLatency lat;
+    lat.total = now_ - u.needed_time;
+    lat.frames = frame_ - u.needed_frame;
+    lat.queue = u.queue_ticks;
+    lat.io = u.io_ticks;
+    lat.decode_wait = u.decode_wait_ticks;
+    lat.decode = u.decode_ticks;
+    lat.upload_wait = u.ram_ticks;
+    lat.level = static_cast<std::uint8_t>(u.key.level());
+    lat.ram_hit = u.ram_hit;
+    m_.add_latency(lat);
+    if (u.key.level() < level_upload_.size()) level_upload_[u.key.level()] += u.bytes;
+    row_->upload_bytes += u.bytes;
+    ++row_->uploads;
+  }
+
+ private:
+  StreamedVt& vt_;
+  MetricsCollector& m_;
+  std::vector<std::uint64_t>& level_upload_;
+  FrameRow* row_ = nullptr;
+  int frame_ = 0;
+  Ticks now_ = 0;
+};
+
+// Peak resident set, MB (Linux /proc/self/status VmHWM; 0 elsewhere).
+double peak_rss_mb() {
+  std::ifstream f("/proc/self/status");
+  std::string line;
+  while (std::getline(f, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::strtod(line.c_str() + 6, nullptr) / 1024.0;
+  return 0.0;
+}
+
+}  // namespace
+
+GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& trace, const TileStore& store,
+                          const GlReplayOptions& o) {
+  ReplayConfig bound = cfg;
+  for (const std::string& w : bind_store_texture(bound, store))
+    if (o.warn) o.warn(w);
+  if (bound.run.system != "vt")
+    throw InputError("run.system", fmt::format("gl replay streams the vt system, not '{}'", bound.run.system));
+  if (o.latency < 0 || o.latency > 16) throw InputError("--latency", "must be in [0, 16]");
+  if (o.png_every < 1) throw InputError("--png-every", "must be >= 1");
+  const store::LayerInfo& l0 = store.layer(0);
+  if (l0.bits != 8) throw InputError("--store", fmt::format("layer 0 has {}-bit channels; the GL client draws 8-bit ones", l0.bits));
+  const FramePlan plan = plan_frames(bound, trace);
+  Renderer r(ctx, scene_config_of(bound));
+  const TextureExtent ext = r.texture();
+  if (ext.width != static_cast<std::int64_t>(store.geometry().width) || ext.height != static_cast<std::int64_t>(store.geometry().height))
+    throw InputError("scene", fmt::format("the scene's texture is {}x{} texels, the store's {}x{}", ext.width, ext.height,
+                                          store.geometry().width, store.geometry().height));
+  auto rt = make_streaming_runtime(bound, store);
+  const int tile = bound.texture.tile_size, levels = rt->system().num_levels();
+  StreamedVt vt(r, tile, static_cast<int>(store.geometry().border), static_cast<int>(l0.channels),
+                static_cast<std::int64_t>(bound.vt.pool_pages), levels);
+  GlReplayRun run;
+  MetricsCollector& m = run.result.metrics;
+  m.set_system_columns(rt->system().frame_counter_names());
+  std::vector<std::uint64_t> level_upload(static_cast<std::size_t>(levels), 0);
+  Sink sink(vt, m, level_upload);
+  FeedbackSettings fs;
+  fs.divisor = bound.view.divisor;
+  fs.lod_bias = static_cast<float>(bound.view.lod_bias);
+  fs.anisotropic = bound.view.anisotropic;
+  fs.max_aniso = static_cast<float>(bound.view.max_aniso);
+  fs.near_m = bound.view.near_m;
+  fs.far_m = bound.view.far_m;
+  fs.latency = o.latency;
+  double feedback_bias = 0.0;
+  int clamp = 0;
+  std::uint64_t feedback_read = 0;
+  FeedbackFrame fb;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int f = 0; f < plan.frames; ++f) {
+    const Pose& pose = plan.trace.poses[static_cast<std::size_t>(f)];
+    if (o.pace)
+      while (rt->executor().now() < plan.target(f))
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+    const Ticks now = rt->executor().now();
+    const PipelineCounters c0 = rt->pipeline().counters();
+    rt->begin_frame(now);
+    rt->set_camera(pose);
+    const Camera cam = make_camera(pose, plan.trace.image_width, plan.trace.image_height);
+    FeedbackSettings ffs = fs;
+    ffs.lod_bias = fs.lod_bias + static_cast<float>(feedback_bias);
+    int ox = 0, oy = 0;
+    feedback_tile_offset(o.sampling, f, fs.divisor, ox, oy);
+    if (r.feedback(cam, ffs, ox, oy, f, fb)) {
+      ++feedback_read;
+      for (const FeedbackTexel& t : fb.px) {
+        if (t.status != 1) continue;
+        const int l = desired_level(t.lod, levels);
+        rt->request(TileKey(0, static_cast<std::uint32_t>(l), static_cast<std::int64_t>(t.u >> l) / tile,
+                            static_cast<std::int64_t>(t.v >> l) / tile));
+      }
+    }
+    FrameRow row;
+    row.frame = f;
+    row.t_s = ticks_to_seconds(plan.target(f));
+    sink.begin(row, f, now);
+    const FrameUpdates& u = rt->end_frame(sink);
+    vt.apply(u);
+    if (u.throttle_changed) m.add_throttle_change({f, row.t_s, clamp, u.clamp, u.feedback_bias, u.reason});
+    clamp = u.clamp;
+    feedback_bias = u.feedback_bias;
+    const PopinCount pc = vt.draw(cam, fs, u.clamp, u.sample_bias);
+    row.clamp = u.clamp;
+    row.bias = u.feedback_bias;
+    row.measured = true;
+    row.samples = static_cast<std::uint32_t>(pc.samples);
+    row.blurry = static_cast<std::uint32_t>(pc.blurry);
+    row.deficit_sum = static_cast<double>(pc.deficit);
+    row.finest_needed = rt->finest_needed();
+    row.needs = static_cast<std::uint32_t>(rt->needs());
+    row.live_requests = static_cast<std::uint32_t>(rt->pipeline().live_requests());
+    const PipelineCounters& c1 = rt->pipeline().counters();
+    row.disk_bytes = c1.disk_bytes - c0.disk_bytes;
+    row.decoded_bytes = c1.decoded_bytes - c0.decoded_bytes;
+    row.ram_bytes = rt->pipeline().ram_bytes_used();
+    row.throttled_needs = rt->system().throttled_needs();
+    rt->system().frame_counters(row.system);
+    m.add_frame(row);
+    if (!o.frames_png.empty() && f % o.png_every == 0) {
+      int w = 0, h = 0;
+      const std::vector<std::uint8_t> px = vt.read_colour(w, h);
+      const std::string path = fmt::format("{}/frame_{:06}.png", o.frames_png, f);
+      const auto res = image_io::write_file(path, w, h, 4, image_io::PixelType::u8, px.data(), true);
+      if (res.status != image_io::WriteStatus::ok) throw InputError("--frames-png", path + ": " + res.error);
+    }
+  }
+  while (r.drain(fb)) {
+  }
+  run.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  run.sink_uploads = vt.uploads();
+  run.gpu_copies = vt.copies();
+  run.page_table = vt.page_table();
+  rt->system().pool_pages(run.pool_pages);
+  // Every entry of the GPU's page table names a resident page's (slot, level).
+  {
+    std::map<std::int64_t, int> slot_level;
+    for (const auto& [page, slot] : run.page_table) slot_level[slot] = static_cast<int>(page.level());
+    bool ok = run.page_table.size() == run.pool_pages.size();
+    for (const auto& [page, slot] : run.pool_pages) {
+      const auto it = run.page_table.find(page);
+      ok = ok && it != run.page_table.end() && it->second == static_cast<std::int64_t>(slot);
+    }
+    const std::int64_t W = ext.width, H = ext.height;
+    for (int l = 0; l < levels && ok; ++l) {
+      const std::int64_t tx = (std::max<std::int64_t>(W >> l, 1) + tile - 1) / tile, ty = (std::max<std::int64_t>(H >> l, 1) + tile - 1) / tile;
+      for (std::int64_t y = 0; y < ty && ok; ++y)
+        for (std::int64_t x = 0; x < tx && ok; ++x) {
+          const std::uint32_t e = vt.entry(l, x, y);
+          if (e == StreamedVt::kNone) continue;
+          const int el = static_cast<int>(e >> 24);
+          const auto s = slot_level.find(static_cast<std::int64_t>(e & 0xffffffu));
+          ok = el >= l && s != slot_level.end() && s->second == el &&
+               run.page_table.count(TileKey(0, static_cast<std::uint32_t>(el), x >> (el - l), y >> (el - l))) == 1;
+        }
+    }
+    run.page_table_consistent = ok;
+  }
+
+  // The summary, in `vtsim replay`'s schema (the sections this client measures).
+  const PipelineCounters& c = rt->pipeline().counters();
+  for (int l = 0; l < levels; ++l)
+    m.add_level_bytes(l, c.disk_bytes_by_level[static_cast<std::size_t>(l)], level_upload[static_cast<std::size_t>(l)]);
+  const double duration_s = plan.duration_s;
+  const auto MBps = [&](std::uint64_t bytes) { return static_cast<double>(bytes) / duration_s / 1e6; };
+  nlohmann::json& s = run.result.summary;
+  s["schema"] = kSummarySchema;
+  s["provenance"] = build_json();
+  s["config"] = config_json(bound);
+  s["system"] = bound.run.system;
+  s["clock"] = "gl";
+  s["trace"] = {{"name", plan.trace.name},
+                {"path", plan.trace.source_path},
+                {"content_hash", trace_hash_json(plan.trace)},
+                {"poses", plan.input_poses},
+                {"poses_duration_s", plan.input_duration_s},
+                {"frames", plan.frames},
+                {"duration_s", duration_s},
+                {"fps", 1.0 / plan.period_s},
+                {"image", {plan.trace.image_width, plan.trace.image_height}}};
+  s["bandwidth"] = {
+      {"disk_read_MBps", MBps(c.disk_bytes)},
+      {"decoded_MBps", MBps(c.decoded_bytes)},
+      {"upload_MBps", MBps(c.upload_bytes)},
+      {"prefetch_read_MBps", MBps(c.prefetch_disk_bytes)},
+      {"disk_read_bytes", c.disk_bytes},
+      {"decoded_bytes", c.decoded_bytes},
+      {"upload_bytes", c.upload_bytes},
+      {"prefetch_read_bytes", c.prefetch_disk_bytes},
+      {"disk_reads", c.disk_reads},
+      {"uploads", c.uploads},
+      {"upload_bytes_per_frame", m.upload_per_frame_json()["bytes"]},
+      {"upload_tiles_per_frame", m.upload_per_frame_json()["tiles"]},
+      {"per_level", m.per_level_json(duration_s)},
+      {"wasted", {{"read_bytes_cancelled_after_io", c.wasted_read_bytes},
+                  {"uploaded_bytes_never_sampled", rt->system().evicted_unsampled_bytes()},
+                  {"cancelled_before_io", c.cancelled_queued},
+                  {"cancelled_after_io", c.cancelled_after_read},
+                  {"dropped_before_upload", c.dropped_before_upload}}}};
+  s["latency_ms"] = m.latency_json();
+  s["popin"] = m.popin_json(bound.metrics.sharp_margin);
+  const double lookups = static_cast<double>(c.ram_hits + c.ram_misses);
+  s["cache"] = {{"ram_hit_ratio", lookups > 0 ? static_cast<double>(c.ram_hits) / lookups : 0.0},
+                {"ram_hits", c.ram_hits},
+                {"ram_misses", c.ram_misses},
+                {"ram_evictions", c.ram_evictions},
+                {"ram_evicted_bytes", c.ram_evicted_bytes},
+                {"ram_thrash", c.ram_thrash},
+                {"ram_policy", bound.ram.policy},
+                {"prefetch_requests", c.prefetch_requests},
+                {"prefetch_hits", c.prefetch_hits},
+                {"vram_evictions", rt->system().vram_evictions()},
+                {"vram_thrash", rt->system().vram_thrash()},
+                {"requests", c.requests},
+                {"needs", c.needs}};
+  s["throttle"] = m.throttle_json();
+  s["throttle"]["policy"] = bound.throttle.policy;
+  s["faults"] = {{"faults", c.faults},
+                 {"retries", c.retries},
+                 {"failed_tiles", c.failed_tiles},
+                 {"io_error", c.fault_by_kind[static_cast<int>(Fault::io_error)]},
+                 {"short_read", c.fault_by_kind[static_cast<int>(Fault::short_read)]},
+                 {"checksum", c.fault_by_kind[static_cast<int>(Fault::checksum)]},
+                 {"decode_error", c.fault_by_kind[static_cast<int>(Fault::decode_error)]},
+                 {"bad_record", c.fault_by_kind[static_cast<int>(Fault::bad_record)]}};
+  s[bound.run.system] = rt->system().stats_json();
+  s["resources"] = resources_json(bound, rt->system(), s[bound.run.system], m);
+  s["run"] = {{"wall_s", run.seconds},
+              {"render_threads", 0},
+              {"loop_cpu_s", 0.0},
+              {"frames_per_s", run.seconds > 0 ? plan.frames / run.seconds : 0.0},
+              {"x_realtime", run.seconds > 0 ? duration_s / run.seconds : 0.0},
+              {"peak_rss_MB", peak_rss_mb()}};
+  s["gl"] = {{"renderer", ctx.renderer()},
+             {"gl_version", ctx.version()},
+             {"platform", ctx.platform()},
+             {"gl_errors", ctx.errors()},
+             {"feedback", {buffer_extent(plan.trace.image_width, fs.divisor), buffer_extent(plan.trace.image_height, fs.divisor)}},
+             {"feedback_latency_frames", o.latency},
+             {"feedback_frames_read", feedback_read},
+             {"sink_uploads", run.sink_uploads},
+             {"gpu_page_copies", run.gpu_copies},
+             {"upload_gpu_ms_total", vt.upload_gpu_ms()},
+             {"upload_timed_frames", vt.timed_frames()},
+             {"seconds", run.seconds},
+             {"frames_per_s", run.seconds > 0 ? plan.frames / run.seconds : 0.0},
+             {"page_table_consistent", run.page_table_consistent}};
+  return run;
+}
+
+}  // namespace vtsim::gl

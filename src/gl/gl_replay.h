@@ -1,0 +1,51 @@
+#pragma once
+// `vtsim gl replay` (docs/gpu.md, "Streaming through the runtime"): the GL client streaming a
+// virtual texture through the engine-facing runtime (stream/runtime/streaming_runtime.h) in the
+// real clock, one frame per frame of the trace resampled to run.fps:
+//   begin_frame(now); set_camera; the GPU's feedback pass, read back `latency` frames late, one
+//   request(key) per textured feedback sample (repeats weigh more, as the simulator's span
+//   buffer does); end_frame(StreamedVt: PBO-ring uploads into the physical page texture);
+//   apply the page-table updates; the main pass sampling the VT, pop-in summed on the GPU.
+// Its summary and per-frame CSV have the schema of `vtsim replay` (docs/metrics.md), clock "gl".
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/trace.h"
+#include "sim/run/frame_loop.h"
+#include "sim/run/replay_config.h"
+#include "sim/view/gpu_model.h"
+#include "stream/store/tile_store.h"
+
+namespace vtsim::gl {
+
+class Context;
+
+struct GlReplayOptions {
+  FeedbackSampling sampling = FeedbackSampling::middle;
+  int latency = 2;                // feedback read back this many frames late (k)
+  bool pace = true;               // start frame f no earlier than its trace time (the real clock)
+  std::string frames_png;         // non-empty: the main pass of every png_every-th frame, as PNG
+  long long png_every = 60;
+  std::function<void(const std::string&)> warn;
+};
+
+struct GlReplayRun {
+  ReplayResult result;
+  std::uint64_t sink_uploads = 0;     // tiles the runtime handed to the GPU's sink
+  std::uint64_t gpu_copies = 0;       // of those, layer-0 pages copied into the physical texture
+  std::map<TileKey, std::int64_t> page_table;                 // the GPU's mirror at the end
+  std::vector<std::pair<TileKey, std::uint32_t>> pool_pages;  // the runtime's pool at the end
+  bool page_table_consistent = false;  // every page-table entry points at a resident page's slot
+  double seconds = 0.0;                // wall time of the frame loop
+};
+
+// Throws InputError for a config the store does not match (before the first frame), a system
+// other than vt, or a scene whose texture differs from the store's.
+GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& trace, const TileStore& store,
+                          const GlReplayOptions& options = {});
+
+}  // namespace vtsim::gl
