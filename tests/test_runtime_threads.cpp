@@ -116,3 +116,4 @@ TEST_CASE("runtime (real clock): a store that does not match the config is refus
     CHECK(std::string(e.what()).find("texture.width") != std::string::npos);
   }
 }
+TEST_SUITE_END();
