@@ -203,3 +203,32 @@ TEST_CASE("feedback replay: a replay from a recorded feedback trace equals the c
   }
   CHECK(cam.summary["bandwidth"]["uploads"].get<std::uint64_t>() > 0);
 }
+
+TEST_CASE("feedback replay: runs that need per-sample LODs or another texture are refused") {
+  const std::string path = fb_tmp("refuse.vtfb");
+  {
+    FeedbackWriter w(path, fb_header());
+    for (const FeedbackFrame& f : fb_frames()) w.add(f);
+    w.finish();
+  }
+  const auto refusal = [&](const std::vector<std::string>& sets) {
+    try {
+      (void)run_feedback_replay(load_replay_config("", sets), path, {});
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  const std::vector<std::string> ok = {"run.system=vt", "texture.width=4096", "texture.height=2048"};
+  CHECK(refusal(ok).empty());
+  auto with = [&](std::string s) {
+    auto v = ok;
+    v.push_back(std::move(s));
+    return refusal(v);
+  };
+  CHECK(with("throttle.policy=unreal_bias").find("may bias the feedback") != std::string::npos);
+  CHECK(with("view.popin_divisor=2").find("view.popin_divisor") != std::string::npos);
+  CHECK(with("texture.tile_size=256").find("field 'tile_size'") != std::string::npos);
+  CHECK(with("run.system=clipmap").find("vt") != std::string::npos);
+  std::filesystem::remove(path);
+}
