@@ -12,6 +12,8 @@
 #include "core/error.h"
 #include "sim/run/feedback_replay.h"
 #include "sim/run/replay.h"
+#include "sim/sweep/lockstep.h"
+#include "sim/sweep/sweep_spec.h"
 #include "sim/trace/feedback_trace.h"
 #include "sim/trace/trace_io.h"
 #include "test_util.h"
@@ -231,4 +233,41 @@ TEST_CASE("feedback replay: runs that need per-sample LODs or another texture ar
   CHECK(with("texture.tile_size=256").find("field 'tile_size'") != std::string::npos);
   CHECK(with("run.system=clipmap").find("vt") != std::string::npos);
   std::filesystem::remove(path);
+}
+
+TEST_CASE("feedback sweep: a feedback trace as a sweep's trace gives each config its camera replay's metrics") {
+  Trace walk = load_trace(test::kData + "/town_walk.csv");
+  while (!walk.poses.empty() && walk.poses.back().t_s > 1.5) walk.poses.pop_back();
+  const ReplayConfig a = load_replay_config("", {"scene.kind=town", "view.render_threads=0", "run.system=vt", "vt.pool_pages=200"});
+  const ReplayConfig b = load_replay_config("", {"scene.kind=town", "view.render_threads=0", "run.system=vt", "vt.pool_pages=600",
+                                                 "upload.tiles_per_frame=3"});
+  const auto scene = make_scene_from_config(a);
+  const std::string path = fb_tmp("sweep.vtfb");
+  {
+    FeedbackRecorder rec(path, a);
+    ReplayEnv env;
+    env.on_view = [&rec](const FramePlan& p, const FrameView& v) { rec(p, v); };
+    (void)run_replay(a, walk, *scene, env);
+    rec.finish();
+  }
+  SweepTraceSource src;
+  src.text = path;
+  const Trace fb = load_sweep_trace(src);
+  CHECK(fb.source_path == path);
+  CHECK(fb.poses.size() == plan_frames(a, walk).trace.poses.size());
+  const std::vector<LockstepResult> cam = run_lockstep({&a, &b}, walk, *scene, 1);
+  const std::vector<LockstepResult> fed = run_lockstep({&a, &b}, fb, *scene, 1);
+  std::filesystem::remove(path);
+  REQUIRE(cam.size() == 2);
+  REQUIRE(fed.size() == 2);
+  for (std::size_t i = 0; i < 2; ++i) {
+    CAPTURE(i);
+    REQUIRE(cam[i].ok);
+    REQUIRE(fed[i].ok);
+    nlohmann::json x = cam[i].summary, y = fed[i].summary;
+    x.erase("trace");
+    y.erase("trace");
+    CHECK(x.dump() == y.dump());
+  }
+  CHECK(cam[0].summary["bandwidth"].dump() != cam[1].summary["bandwidth"].dump());  // the configs differ
 }

@@ -375,6 +375,26 @@ bool FeedbackReader::next(FeedbackFrame& f) {
   return true;
 }
 
+bool is_feedback_trace(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char b[sizeof kMagic] = {};
+  in.read(b, sizeof b);
+  return in.gcount() == static_cast<std::streamsize>(sizeof b) && std::memcmp(b, kMagic, sizeof kMagic) == 0;
+}
+
+Trace feedback_trace_poses(const std::string& path) {
+  FeedbackReader r(path);
+  Trace t;
+  const std::string file = path.substr(path.find_last_of('/') + 1);
+  t.name = file.substr(0, file.find_last_of('.'));
+  t.source_path = path;
+  t.image_width = static_cast<int>(r.header().image_width);
+  t.image_height = static_cast<int>(r.header().image_height);
+  FeedbackFrame f;
+  while (r.next(f)) t.poses.push_back(f.pose);
+  return t;
+}
+
 FeedbackTrace read_feedback_trace(const std::string& path) {
   FeedbackReader r(path);
   FeedbackTrace t;

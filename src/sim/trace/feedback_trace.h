@@ -122,6 +122,12 @@ class FeedbackReader {
   bool done_ = false;
 };
 
+// Whether the file at `path` starts with the feedback trace's magic (false when unreadable).
+bool is_feedback_trace(const std::string& path);
+// The frames' poses as a camera trace (a frame without a pose: the identity pose at its time),
+// named after the file, source_path = path: what a sweep lists and hashes for a feedback trace.
+Trace feedback_trace_poses(const std::string& path);
+
 // A whole file read at once (what `vtsim replay --feedback` and the tests use).
 struct FeedbackTrace {
   FeedbackHeader header;
