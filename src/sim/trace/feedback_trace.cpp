@@ -232,6 +232,7 @@ void FeedbackReader::read_header() {
   if (std::memcmp(b, kMagic, sizeof kMagic) != 0) bad("magic", "not a vtsim feedback trace (docs/feedback.md)");
   if (const std::uint32_t v = get_u32(b + 8); v != kFeedbackVersion) bad("version", fmt::format("{} is not supported (this vtsim reads {})", v, kFeedbackVersion));
   if (get_u64(b + 72) != fnv1a64(std::string_view(b, 72))) bad("checksum", "the header is corrupt (checksum mismatch)");
+  if (get_u32(b + 12) != 0 || get_u32(b + 60) != 0) bad("flags", "reserved fields are not 0 (a later version's file?)");
   const std::uint64_t w = get_u64(b + 16), h = get_u64(b + 24);
   if (w < 1 || h < 1 || w > (std::uint64_t{1} << 40) || h > (std::uint64_t{1} << 40))
     bad("texture", fmt::format("{}x{} texels is outside [1, 2^40]", w, h));
