@@ -174,6 +174,8 @@ void run_replay_command(const ReplayArgs& a) {
   if (!a.feedback.empty() && !a.record_feedback.empty()) throw InputError("--record-feedback", "records a camera replay's feedback: not with --feedback");
   if ((!a.feedback.empty() || !a.record_feedback.empty()) && a.clock != "sim")
     throw InputError(a.feedback.empty() ? "--record-feedback" : "--feedback", "feedback traces replay in the simulated clock (--clock sim)");
+  if (!a.feedback.empty() && a.speed != 1.0)
+    throw InputError("--speed", "a feedback trace replays at its own frame times (docs/feedback.md): not with --feedback");
   if (a.trace.empty() && a.feedback.empty())
     throw InputError("--trace", "a trace file is required (see `vtsim trace gen --help`), or --feedback FILE");
   // Every output checked before the work: a real-clock run is not thrown away for a typo.
