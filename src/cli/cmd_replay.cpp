@@ -18,6 +18,7 @@
 #include "sim/run/report_html.h"
 #include "sim/view/scene.h"
 #include "sim/view/scene_town.h"
+#include "sim/run/feedback_replay.h"
 #include "sim/trace/trace_import.h"
 #include "stream/store/tile_store.h"
 
@@ -37,6 +38,7 @@ struct ReplayArgs {
   std::string produce_samples;  // the terrain in the real clock: each composed tile's work and time (CSV)
   bool print_config = false, quiet = false, json = false, progress = false, opt = false;
   bool allow_repairs = false;
+  std::string feedback, record_feedback;  // docs/feedback.md: replay from / record a feedback trace
 };
 
 // A replay whose camera never sees a textured surface measures nothing, and its summary looks
@@ -192,12 +194,20 @@ void run_replay_command(const ReplayArgs& a) {
     fmt::print("{}", replay_config_table().dump(cfg));
     return;
   }
-  if (a.trace.empty()) throw InputError("--trace", "a trace file is required (see `vtsim trace gen --help`)");
+  if (!a.feedback.empty() && !a.trace.empty()) throw InputError("--feedback", "replays a feedback trace instead of --trace: give one of them");
+  if (!a.feedback.empty() && !a.record_feedback.empty()) throw InputError("--record-feedback", "records a camera replay's feedback: not with --feedback");
+  if ((!a.feedback.empty() || !a.record_feedback.empty()) && a.clock != "sim")
+    throw InputError(a.feedback.empty() ? "--record-feedback" : "--feedback", "feedback traces replay in the simulated clock (--clock sim)");
+  if (!a.feedback.empty() && a.speed != 1.0)
+    throw InputError("--speed", "a feedback trace replays at its own frame times (docs/feedback.md): not with --feedback");
+  if (a.trace.empty() && a.feedback.empty())
+    throw InputError("--trace", "a trace file is required (see `vtsim trace gen --help`), or --feedback FILE");
   // Every output checked before the work: a real-clock run is not thrown away for a typo.
   check_output("--summary", a.summary);
   check_output("--frames", a.frames);
   check_output("--report", a.report);
   check_output("--produce-samples", a.produce_samples);
+  check_output("--record-feedback", a.record_feedback);
   if (!a.produce_samples.empty() && (a.clock != "real" || !produced_system(cfg)))
     throw InputError("--produce-samples", fmt::format("records the tiles the terrain's compositor makes in the real clock: needs --clock real "
                                                       "and run.system = \"terrain\" (here --clock {}, run.system = \"{}\")",
@@ -211,7 +221,8 @@ void run_replay_command(const ReplayArgs& a) {
     throw InputError("--clock", "'" + a.clock + "' is not one of: sim (device models), real (threads and files)");
   if (a.clock == "real") check_real_clock_system(cfg, !a.store.empty());  // the terrain: no store, a producer
   check_input("--store", a.store);
-  Trace trace = load_cli_trace(a.trace, a.allow_repairs);
+  if (!a.feedback.empty()) check_input("--feedback", a.feedback);
+  Trace trace = a.feedback.empty() ? load_cli_trace(a.trace, a.allow_repairs) : Trace{};
   apply_speed(cfg, trace, a.speed);
   std::optional<TileStore> store;
   if (!a.store.empty()) {
@@ -220,8 +231,11 @@ void run_replay_command(const ReplayArgs& a) {
     for (const std::string& note : bind_store_texture(cfg, *store))
       if (!a.quiet) fmt::print(stderr, "vtsim: {}\n", note);  // information: -q hides it
   }
-  auto scene = make_scene_from_config(cfg);
-  for (const std::string& w : scene->load_warnings()) warn(w);
+  std::unique_ptr<IScene> scene;
+  if (a.feedback.empty()) {  // a feedback replay renders nothing
+    scene = make_scene_from_config(cfg);
+    for (const std::string& w : scene->load_warnings()) warn(w);
+  }
   std::function<void(int, int)> progress;
   const bool tty = isatty(fileno(stderr)) != 0;
   if ((a.progress || tty) && !a.quiet)
@@ -258,11 +272,23 @@ void run_replay_command(const ReplayArgs& a) {
     ReplayEnv env;
     env.progress = progress;
     if (store) env.sizer = store_sizer(*store);
-    r = run_replay(cfg, trace, *scene, env);
+    std::optional<FeedbackRecorder> rec;
+    if (!a.record_feedback.empty()) {
+      rec.emplace(a.record_feedback, cfg);
+      env.on_view = [&rec](const FramePlan& p, const FrameView& v) { (*rec)(p, v); };
+    }
+    r = a.feedback.empty() ? run_replay(cfg, trace, *scene, env) : run_feedback_replay(cfg, a.feedback, env);
+    if (rec) {
+      const std::uint64_t bytes = rec->finish();
+      if (!a.quiet)
+        fmt::print(stderr, "vtsim: feedback trace {}: {} frames, {} bytes ({:.0f} bytes a frame)\n", a.record_feedback, rec->frames(),
+                   bytes, static_cast<double>(bytes) / static_cast<double>(std::max<std::uint64_t>(1, rec->frames())));
+    }
   }
   if (a.speed != 1.0) r.summary["trace"]["speed"] = a.speed;
   if (progress && tty) fmt::print(stderr, "\r{:40}\r", "");
-  if (const std::string blind = blind_replay_warning(r.metrics, trace, cfg); !blind.empty()) warn(blind);
+  if (a.feedback.empty())
+    if (const std::string blind = blind_replay_warning(r.metrics, trace, cfg); !blind.empty()) warn(blind);
   if (!a.summary.empty()) write_output(a.summary, r.summary.dump(2) + "\n");
   if (!a.frames.empty()) write_output_via(a.frames, [&](const std::string& p) { r.metrics.write_frames_csv(p); });
   if (!a.report.empty()) {
@@ -293,6 +319,10 @@ void register_replay_commands(CLI::App& app) {
   c->add_option("--report", a->report, "write an HTML report with charts here (- for stdout)");
   c->add_option("--produce-samples", a->produce_samples,
                 "the terrain in the real clock: write each composed tile's work and time here (CSV, for `vtsim calibrate --samples`)");
+  c->add_option("--feedback", a->feedback,
+                "replay the streaming side from this feedback trace instead of --trace: no render (docs/feedback.md)");
+  c->add_option("--record-feedback", a->record_feedback,
+                "write the feedback trace of this camera replay here (docs/feedback.md)");
   c->add_flag("--json", a->json, "print the summary JSON instead of the human summary");
   c->add_flag("--quiet,-q", a->quiet, "print no information (files are still written; warnings still are: --werror makes them fail the run)");
   c->add_flag("--allow-repairs", a->allow_repairs, kAllowRepairsHelp);

@@ -7,7 +7,7 @@ const std::vector<Target>& targets() {
       {"trace_native", trace_native}, {"trace_import", trace_import}, {"config", config},
       {"compare", compare},           {"store", store},               {"obj", obj},
       {"store_replay", store_replay}, {"image", image}, {"sweep_spec", sweep_spec},
-      {"access_file", access_file}, {"mesh_import", mesh_import}, {"q3_entities", q3_entities},
+      {"access_file", access_file}, {"mesh_import", mesh_import}, {"q3_entities", q3_entities}, {"feedback", feedback},
   };
   return all;
 }

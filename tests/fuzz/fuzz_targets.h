@@ -62,5 +62,6 @@ void sweep_spec(const std::uint8_t* data, std::size_t size);
 void access_file(const std::uint8_t* data, std::size_t size);
 void mesh_import(const std::uint8_t* data, std::size_t size);
 void q3_entities(const std::uint8_t* data, std::size_t size);
+void feedback(const std::uint8_t* data, std::size_t size);
 
 }  // namespace vtsim::fuzz

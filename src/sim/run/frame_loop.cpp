@@ -151,8 +151,11 @@ const FrameView& ViewStream::frame(int f, bool keep_samples) {
 // ---- SystemRun ----
 
 SystemRun::SystemRun(const ReplayConfig& cfg, const FramePlan& plan, const IScene& scene, const ReplayEnv& env)
+    : SystemRun(cfg, plan, scene.texture(), env) {}
+
+SystemRun::SystemRun(const ReplayConfig& cfg, const FramePlan& plan, TextureExtent texture, const ReplayEnv& env)
     : cfg_(cfg), plan_(plan), env_(env) {
-  RuntimeParts parts = runtime_parts(cfg, scene.texture(), plan.period_s, env.executor, env.sizer);
+  RuntimeParts parts = runtime_parts(cfg, texture, plan.period_s, env.executor, env.sizer);
   sim_ = dynamic_cast<const SimExecutor*>(parts.owned_executor.get());
   rt_ = std::make_unique<StreamingRuntime>(std::move(parts));
   system_ = &rt_->system();

@@ -46,6 +46,9 @@ class SimExecutor;
 //   pool: one Access per wanted page (at or above the clamp) per frame, size 1; as many as the
 //         summary's vt.pool.hits + vt.pool.misses; empty for a system without a pool.
 // frame_start has one entry per frame of the replay in both.
+struct FramePlan;
+struct FrameView;
+
 struct AccessLogs {
   AccessLog ram;
   AccessLog pool;
@@ -69,6 +72,9 @@ struct ReplayEnv {
   std::function<void(const IStreamingSystem&)> on_finish;
   // Progress callback (frame, frames), called about once a second of wall time.
   std::function<void(int, int)> progress;
+  // Called with each frame's view after it is taken, before the systems step on it
+  // (`--record-feedback`: the feedback trace of the run, sim/run/feedback_replay.h).
+  std::function<void(const FramePlan&, const FrameView&)> on_view;
   std::string clock_name = "simulated";
   // Non-null: each level's access sequence is appended here (AccessLogs). Null: nothing is
   // recorded and nothing is paid.
@@ -169,6 +175,8 @@ class SystemRun {
   // (runtime_parts, sim/run/runtime_setup.h). Throws InputError for a config the registries
   // refuse. cfg, plan and env are referenced, not copied: they must outlive the run.
   SystemRun(const ReplayConfig& cfg, const FramePlan& plan, const IScene& scene, const ReplayEnv& env);
+  // The same over a texture without a scene (a feedback trace's replay: nothing renders).
+  SystemRun(const ReplayConfig& cfg, const FramePlan& plan, TextureExtent texture, const ReplayEnv& env);
   ~SystemRun();
   SystemRun(const SystemRun&) = delete;
   SystemRun& operator=(const SystemRun&) = delete;

@@ -65,7 +65,9 @@ ReplayResult run_replay(const ReplayConfig& cfg, const Trace& trace, const IScen
   for (int f = 0; f < plan.frames; ++f) {
     const Ticks target = plan.target(f);
     run.begin_frame(f, env.pace ? env.pace(f, target) : target);
-    run.step(view.frame(f, run.keep_samples()));
+    const FrameView& fv = view.frame(f, run.keep_samples());
+    if (env.on_view) env.on_view(plan, fv);
+    run.step(fv);
     if (env.progress) {
       const auto t = std::chrono::steady_clock::now();
       if (t - last_progress > std::chrono::seconds(1)) {

@@ -1,5 +1,8 @@
 #include "sim/sweep/lockstep.h"
 
+#include "sim/run/feedback_replay.h"
+#include "sim/trace/feedback_trace.h"
+
 #include <algorithm>
 #include <bit>
 #include <mutex>
@@ -201,6 +204,22 @@ std::vector<LockstepResult> run_lockstep(const std::vector<const ReplayConfig*>&
   const std::string key = view_key(*cfgs[0]);
   for (const ReplayConfig* c : cfgs)
     if (view_key(*c) != key) throw std::invalid_argument("run_lockstep: configs with different views");
+  // A feedback trace (docs/feedback.md): nothing to render once, so each config replays it alone.
+  if (!trace.source_path.empty() && is_feedback_trace(trace.source_path)) {
+    for (std::size_t i = 0; i < cfgs.size(); ++i) {
+      try {
+        ReplayResult r = run_feedback_replay(*cfgs[i], trace.source_path);
+        r.summary.erase("run");
+        r.summary.erase("provenance");
+        out[i].summary = std::move(r.summary);
+        out[i].ok = true;
+      } catch (const std::exception& e) {
+        out[i].error = e.what();
+      }
+      if (frames_done) *frames_done += trace.poses.size();
+    }
+    return out;
+  }
   const FramePlan plan = plan_frames(*cfgs[0], trace);
   const ReplayEnv env;
   std::vector<std::unique_ptr<SystemRun>> runs(cfgs.size());

@@ -41,7 +41,8 @@ struct LockstepResult {
 // Replays `trace` once per config on one view. All configs must have the same view_key()
 // (std::invalid_argument otherwise). `threads` >= 1: threads stepping the runs and rendering the
 // view (at most one per run). `frames_done` (optional) is advanced by the runs' frames as they go.
-// Throws InputError for a trace without poses.
+// Throws InputError for a trace without poses. A feedback trace (trace.source_path starts with its
+// magic, docs/feedback.md) has no view to share: each config replays it alone (run_feedback_replay).
 std::vector<LockstepResult> run_lockstep(const std::vector<const ReplayConfig*>& cfgs, const Trace& trace,
                                          const IScene& scene, int threads,
                                          std::atomic<std::uint64_t>* frames_done = nullptr);

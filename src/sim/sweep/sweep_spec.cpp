@@ -1,5 +1,7 @@
 #include "sim/sweep/sweep_spec.h"
 
+#include "sim/trace/feedback_trace.h"
+
 #include <fmt/format.h>
 #include <glob.h>
 
@@ -371,6 +373,7 @@ TuneConstraint parse_tune_constraint(const std::string& text, const std::string&
 
 Trace load_sweep_trace(const SweepTraceSource& src, std::vector<std::string>* warnings, bool allow_repairs) {
   if (src.generated) return generate_trace(parse_gen_line(src.text, "generate"));
+  if (is_feedback_trace(src.text)) return feedback_trace_poses(src.text);  // replayed by run_lockstep (docs/feedback.md)
   TraceLoadReport rep;
   TraceReadOptions read;
   read.allow_repairs = allow_repairs;
