@@ -38,6 +38,25 @@ double pct(std::vector<double>& v, double p) {
 
 // `conc` threads, each with one read of `bytes` in flight at a time, at uniform random aligned
 // offsets in [lo, hi), for `seconds`. Aggregate bandwidth is bytes / (first start .. last end).
+// One calibration point from each reader's latencies (µs) over the elapsed seconds: the same
+// figures for the psync threads and the io_uring rings.
+ReadPoint read_point(const std::vector<std::vector<double>>& lat, std::uint32_t bytes, int concurrency, int depth,
+                     double elapsed) {
+  ReadPoint p;
+  p.bytes = bytes;
+  p.concurrency = concurrency;
+  p.depth = depth;
+  std::vector<double> all;
+  for (const auto& v : lat) all.insert(all.end(), v.begin(), v.end());
+  p.reads = all.size();
+  p.MBps = elapsed > 0 ? static_cast<double>(p.reads) * bytes / elapsed / 1e6 : 0;
+  p.mean_us = all.empty() ? 0 : std::accumulate(all.begin(), all.end(), 0.0) / static_cast<double>(all.size());
+  p.p50_us = pct(all, 0.50);
+  p.p95_us = pct(all, 0.95);
+  p.p99_us = pct(all, 0.99);
+  return p;
+}
+
 ReadPoint measure_reads(const ReadFile& f, std::uint64_t lo, std::uint64_t hi, std::uint32_t bytes, int conc, double seconds,
                         std::uint64_t seed) {
   const std::uint64_t slots = (hi - lo - bytes) / store::kAlign + 1;
@@ -77,19 +96,7 @@ ReadPoint measure_reads(const ReadFile& f, std::uint64_t lo, std::uint64_t hi, s
   for (const auto& e : errors)
     if (!e.empty()) throw InputError(f.path(), "calibration read failed: " + e);
   t_end = Clock::time_point(std::chrono::duration_cast<Clock::duration>(std::chrono::nanoseconds(last_end_ns.load())));
-  ReadPoint p;
-  p.bytes = bytes;
-  p.concurrency = conc;
-  std::vector<double> all;
-  for (const auto& v : lat) all.insert(all.end(), v.begin(), v.end());
-  p.reads = all.size();
-  const double elapsed = std::chrono::duration<double>(t_end - t_begin).count();
-  p.MBps = elapsed > 0 ? static_cast<double>(p.reads) * bytes / elapsed / 1e6 : 0;
-  p.mean_us = all.empty() ? 0 : std::accumulate(all.begin(), all.end(), 0.0) / static_cast<double>(all.size());
-  p.p50_us = pct(all, 0.50);
-  p.p95_us = pct(all, 0.95);
-  p.p99_us = pct(all, 0.99);
-  return p;
+  return read_point(lat, bytes, conc, 1, std::chrono::duration<double>(t_end - t_begin).count());
 }
 
 // io_uring: `threads` threads, each with its own ring keeping `depth` reads of `bytes` in flight
@@ -175,20 +182,7 @@ ReadPoint measure_ring_reads(const ReadFile& f, std::uint64_t lo, std::uint64_t 
   for (const auto& e : errors)
     if (!e.empty()) throw InputError(f.path(), "calibration read failed: " + e);
   const Clock::time_point t_end(std::chrono::duration_cast<Clock::duration>(std::chrono::nanoseconds(last_end_ns.load())));
-  ReadPoint p;
-  p.bytes = bytes;
-  p.concurrency = threads * depth;
-  p.depth = depth;
-  std::vector<double> all;
-  for (const auto& v : lat) all.insert(all.end(), v.begin(), v.end());
-  p.reads = all.size();
-  const double elapsed = std::chrono::duration<double>(t_end - t_begin).count();
-  p.MBps = elapsed > 0 ? static_cast<double>(p.reads) * bytes / elapsed / 1e6 : 0;
-  p.mean_us = all.empty() ? 0 : std::accumulate(all.begin(), all.end(), 0.0) / static_cast<double>(all.size());
-  p.p50_us = pct(all, 0.50);
-  p.p95_us = pct(all, 0.95);
-  p.p99_us = pct(all, 0.99);
-  return p;
+  return read_point(lat, bytes, threads * depth, depth, std::chrono::duration<double>(t_end - t_begin).count());
 }
 
 struct Sample {
