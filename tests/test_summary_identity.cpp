@@ -12,11 +12,11 @@
 
 #include "core/hash.h"
 #include "real_test_util.h"
-#include "sim/run/compare.h"
+#include "sim/compare/compare.h"
 #include "sim/run/provenance.h"
 #include "sim/run/real_replay.h"
 #include "sim/run/replay.h"
-#include "sim/run/report_html.h"
+#include "sim/report/report_html.h"
 #include "sim/trace/trace_gen.h"
 #include "sim/trace/trace_import.h"
 #include "sim/trace/trace_resample.h"

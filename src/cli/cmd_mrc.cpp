@@ -20,7 +20,7 @@
 #include "cli/trace_load.h"
 #include "cli/format.h"
 #include "core/error.h"
-#include "sim/run/mrc_chart.h"
+#include "sim/report/mrc_chart.h"
 #include "sim/run/replay.h"
 #include "sim/run/replay_config.h"
 #include "sim/run/systems.h"

@@ -15,7 +15,7 @@
 #include "sim/run/real_replay.h"
 #include "sim/run/replay.h"
 #include "sim/run/systems.h"
-#include "sim/run/report_html.h"
+#include "sim/report/report_html.h"
 #include "sim/view/scene.h"
 #include "sim/view/scene_town.h"
 #include "sim/run/feedback_replay.h"

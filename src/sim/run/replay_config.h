@@ -5,7 +5,12 @@
 // binds to the very member the code reads: no mirrored fields and no copying. Loaded from one
 // table for both the TOML file and `--set key=value`, then validated as a whole with the offending
 // field named (Intel SFS's TileUpdateManagerDesc is the model: defaulted fields, one line of why
-// each; the whys live in the table, replay_config.cpp).
+// each; the whys live in the table, replay_config_keys.cpp).
+//
+// The struct and its inline helpers are data: the streaming systems' table (systems.h) reads
+// them. The key table, validation and loading declared below read that table in turn, so they are
+// defined above it, in replay_config_keys.cpp: the includes run one way.
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -150,11 +155,25 @@ ReplayConfig load_replay_config(const std::vector<std::string>& config_paths, co
 std::string config_reference_markdown();
 
 // Bytes of one tile of a layer in RAM/VRAM (payload plus border) and on disk.
-std::uint64_t tile_decoded_bytes(const ReplayConfig& c, const LayerSpec& layer);
-std::uint64_t tile_disk_bytes(const ReplayConfig& c, const LayerSpec& layer);
+inline std::uint64_t tile_decoded_bytes(const ReplayConfig& c, const LayerSpec& layer) {
+  const double side = static_cast<double>(c.texture.tile_size + 2 * c.texture.border);
+  return static_cast<std::uint64_t>(std::ceil(side * side * layer.bytes_per_texel));
+}
+inline std::uint64_t tile_disk_bytes(const ReplayConfig& c, const LayerSpec& layer) {
+  return static_cast<std::uint64_t>(std::ceil(static_cast<double>(tile_decoded_bytes(c, layer)) / layer.compression_ratio));
+}
 
 // The view parameters the renderer takes from the [view] section (lod_bias and max_aniso as
 // float, as the renderer computes them).
-ViewParams view_params(const ViewConfig& v);
+inline ViewParams view_params(const ViewConfig& v) {
+  ViewParams p;
+  p.divisor = v.divisor;
+  p.lod_bias = static_cast<float>(v.lod_bias);
+  p.anisotropic = v.anisotropic;
+  p.max_aniso = static_cast<float>(v.max_aniso);
+  p.near_m = v.near_m;
+  p.far_m = v.far_m;
+  return p;
+}
 
 }  // namespace vtsim

@@ -32,7 +32,7 @@
 #include "sim/run/provenance.h"
 #include "sim/run/replay.h"
 #include "sim/sweep/lockstep.h"
-#include "sim/sweep/sweep_report.h"
+#include "sim/report/sweep_report.h"
 #include "sim/view/mesh_import.h"
 #include "sim/view/scene.h"
 

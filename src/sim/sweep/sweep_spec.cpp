@@ -103,27 +103,6 @@ ReplayConfig make_point(const ReplayConfig& base, const KeyValues& values, const
 
 }  // namespace
 
-const nlohmann::json* summary_path(const nlohmann::json& summary, std::string_view path) {
-  const nlohmann::json* p = &summary;
-  for (;;) {
-    const std::size_t dot = path.find('.');
-    const std::string part(path.substr(0, dot));
-    if (p->is_object()) {
-      const auto it = p->find(part);
-      if (it == p->end()) return nullptr;
-      p = &*it;
-    } else if (p->is_array()) {
-      std::size_t i = 0;
-      if (!text::parse_whole(part, i) || i >= p->size()) return nullptr;
-      p = &(*p)[i];
-    } else {
-      return nullptr;
-    }
-    if (dot == std::string_view::npos) return p;
-    path.remove_prefix(dot + 1);
-  }
-}
-
 const std::vector<std::string>& default_sweep_metrics() {
   static const std::vector<std::string> m = {
       "popin.blurry_fraction_mean", "popin.blurry_fraction_p99", "popin.time_to_sharp_s.mean",

@@ -272,15 +272,6 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
   return table;
 }
 
-std::uint64_t tile_decoded_bytes(const ReplayConfig& c, const LayerSpec& layer) {
-  const double side = static_cast<double>(c.texture.tile_size + 2 * c.texture.border);
-  return static_cast<std::uint64_t>(std::ceil(side * side * layer.bytes_per_texel));
-}
-
-std::uint64_t tile_disk_bytes(const ReplayConfig& c, const LayerSpec& layer) {
-  return static_cast<std::uint64_t>(std::ceil(static_cast<double>(tile_decoded_bytes(c, layer)) / layer.compression_ratio));
-}
-
 [[noreturn]] static void bad(const std::string& key, const std::string& what) {
   throw InputError("config", "field '" + key + "': " + what);
 }
@@ -338,17 +329,6 @@ std::string config_reference_markdown() {
   section("`io.engine`: IO engines (real clock)", io_engines().markdown("engine"));
   section("`vtsim store build --codec`: tile codecs", codecs().markdown("codec"));
   return md;
-}
-
-ViewParams view_params(const ViewConfig& v) {
-  ViewParams p;
-  p.divisor = v.divisor;
-  p.lod_bias = static_cast<float>(v.lod_bias);
-  p.anisotropic = v.anisotropic;
-  p.max_aniso = static_cast<float>(v.max_aniso);
-  p.near_m = v.near_m;
-  p.far_m = v.far_m;
-  return p;
 }
 
 }  // namespace vtsim

@@ -1,9 +1,10 @@
-#include "sim/run/report_html.h"
-#include "sim/run/report_identity.h"
+#include "sim/report/report_html.h"
+#include "sim/report/report_identity.h"
 
 #include "cache/policy/mrc.h"
-#include "sim/run/mrc_chart.h"
-#include "sim/run/svg_chart.h"
+#include "sim/report/html_escape.h"
+#include "sim/report/mrc_chart.h"
+#include "sim/report/svg_chart.h"
 
 #include <fmt/format.h>
 
@@ -76,22 +77,6 @@ void rh_flatten(const nlohmann::json& j, const std::string& prefix, ReportConfig
 }
 
 }  // namespace
-
-std::string html_escape(std::string_view s) {
-  std::string o;
-  o.reserve(s.size());
-  for (char c : s) {
-    switch (c) {
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '&': o += "&amp;"; break;
-      case '"': o += "&quot;"; break;
-      case '\'': o += "&#39;"; break;
-      default: o += c;
-    }
-  }
-  return o;
-}
 
 ReportConfig report_config_of(const nlohmann::json& summary) {
   ReportConfig out;
