@@ -18,7 +18,6 @@
 #include "core/camera.h"
 #include "stream/system/feedback.h"
 #include "sim/view/scene.h"
-#include "sim/view/scene_heightfield.h"
 #include "sim/trace/trace_import.h"
 #include "sim/view/view_image.h"
 #include "sim/run/replay.h"
@@ -97,7 +96,7 @@ void run_view(const ViewOptions& o) {
     cfg.kind = find_scene(o.scene).name;
     cfg.size_x_m = cfg.size_y_m = o.terrain_size_m;
     cfg.texels_per_m = o.texels_per_m;
-    cfg.file = cfg.kind == "mesh" ? o.obj : o.heightmap;  // the two options predate SceneConfig::file
+    cfg.file = find_scene(cfg.kind).file_kind == SceneFile::mesh ? o.obj : o.heightmap;  // the two options predate SceneConfig::file
     cfg.spacing_m = o.spacing_m;
     cfg.height_scale_m = o.height_scale_m;
     cfg.z0_m = o.z0_m;
@@ -115,7 +114,8 @@ void run_view(const ViewOptions& o) {
     if (given("--scene")) cfg.kind = find_scene(o.scene).name;
     if (given("--terrain-size")) cfg.size_x_m = cfg.size_y_m = o.terrain_size_m;
     if (given("--texels-per-m")) cfg.texels_per_m = o.texels_per_m;
-    if (cfg.kind == "mesh" ? given("--obj") : given("--heightmap")) cfg.file = cfg.kind == "mesh" ? o.obj : o.heightmap;
+    const bool mesh_file = find_scene(cfg.kind).file_kind == SceneFile::mesh;
+    if (mesh_file ? given("--obj") : given("--heightmap")) cfg.file = mesh_file ? o.obj : o.heightmap;
     if (given("--spacing")) cfg.spacing_m = o.spacing_m;
     if (given("--height-scale")) cfg.height_scale_m = o.height_scale_m;
     if (given("--z0")) cfg.z0_m = o.z0_m;
@@ -159,18 +159,17 @@ void run_view(const ViewOptions& o) {
     for (const auto& [field, flag] : kMeshFlags)
       if (e.where() == field) throw InputError(flag, std::string(e.what()).substr(e.where().size() + 2));
     if (e.where() != "scene.file") throw;
-    throw InputError(cfg.kind == "mesh" ? "--obj" : "--heightmap", std::string(e.what()).substr(e.where().size() + 2));
+    throw InputError(find_scene(cfg.kind).file_kind == SceneFile::mesh ? "--obj" : "--heightmap",
+                     std::string(e.what()).substr(e.where().size() + 2));
   }
   for (const std::string& w : scene->load_warnings()) warn(w);
   const std::string scene_name = from_config ? cfg.kind : o.scene;
   const double build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_build).count();
   if (o.agl) {
     double ground = 0.0;
-    if (const auto* hs = dynamic_cast<const HeightfieldScene*>(scene.get())) {
-      ground = hs->height_at(pos.x, pos.y);
+    if (const std::optional<double> z = scene->ground_z(pos.x, pos.y)) {
+      ground = *z;
       if (!std::isfinite(ground)) throw InputError("--agl", "the position is outside the heightfield");
-    } else if (cfg.kind == "plane") {
-      ground = cfg.plane_z_m;
     }
     pos.z += ground;
   }

@@ -107,7 +107,7 @@ void apply_speed(ReplayConfig& cfg, Trace& trace, double speed) {
   cfg.run.fps *= speed;
 }
 
-bool produced_system(const ReplayConfig& cfg) { return cfg.run.system == "terrain"; }
+bool produced_system(const ReplayConfig& cfg) { return streaming_systems().at(cfg.run.system).caps.produces_tiles; }
 
 void check_real_clock_system(const ReplayConfig& cfg, bool have_store) {
   if (!produced_system(cfg)) {
@@ -118,8 +118,9 @@ void check_real_clock_system(const ReplayConfig& cfg, bool have_store) {
   // The terrain stores nothing the tile path reads: its tiles are composed and its brush mips
   // served from memory by the TerrainProducer (docs/produced.md, "The real clock").
   if (have_store)
-    throw InputError("--store", "run.system 'terrain' produces its tiles and serves its brush mips from memory in the real clock "
-                                "(docs/produced.md, \"The real clock\"): it reads no store; drop --store");
+    throw InputError("--store", fmt::format("run.system '{}' produces its tiles and serves its brush mips from memory in the real "
+                                            "clock (docs/produced.md, \"The real clock\"): it reads no store; drop --store",
+                                            cfg.run.system));
   for (const LayerSpec& L : cfg.texture.layers.specs)
     if (L.format != "rgba8")
       throw InputError("config", fmt::format("field 'texture.layers': layer '{}' is {}; the terrain's CPU compositor writes rgba8 "
@@ -332,7 +333,7 @@ RealRun run_real(const ReplayConfig& cfg, const Trace& trace, const IScene& scen
   rc["failed_tiles"] = failed;
   rc["failed_tiles_not_listed"] = failed_more;
   if (producer) {
-    rc["producer"] = {{"kind", "terrain"},
+    rc["producer"] = {{"kind", cfg.run.system},  // the system that produces its tiles
                       {"produce_workers", cfg.produce.workers},
                       {"tiles_composed", producer->tiles()},
                       {"brush_mips_served", producer->brushes()},

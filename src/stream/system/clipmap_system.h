@@ -10,6 +10,7 @@
 #include "cache/vram_arena.h"
 #include "stream/system/feedback.h"
 #include "stream/system/i_system.h"
+#include "stream/system/system_caps.h"
 
 namespace vtsim {
 
@@ -29,6 +30,9 @@ class ClipmapSystem final : public IStreamingSystem {
   static VramArena vram_arena(const SystemSetup& s, const ClipmapConfig& c, std::vector<std::uint32_t> layer_bytes,
                               std::uint64_t host_limit);
   static constexpr std::string_view kVramField = "clipmap.clipsize";
+  // Its name in the table (run.system) and what it can do.
+  static constexpr char kName[] = "clipmap";
+  static constexpr SystemCaps kCaps{.clip_window = true};
 
   int num_levels() const override { return cm_.num_levels(); }
   int resident_level(std::int64_t u, std::int64_t v, int desired_level) const override {

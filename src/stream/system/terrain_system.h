@@ -29,6 +29,7 @@
 #include "stream/produce/decal_layer.h"
 #include "stream/system/feedback.h"
 #include "stream/system/i_system.h"
+#include "stream/system/system_caps.h"
 
 namespace vtsim {
 
@@ -83,6 +84,9 @@ class TerrainSystem final : public IStreamingSystem {
   static VramArena vram_arena(const SystemSetup& s, const ClipmapConfig& c, std::vector<std::uint32_t> layer_bytes,
                               std::uint64_t host_limit);
   static constexpr std::string_view kVramField = "clipmap.clipsize";
+  // Its name in the table (run.system) and what it can do.
+  static constexpr char kName[] = "terrain";
+  static constexpr SystemCaps kCaps{.produces_tiles = true, .clip_window = true, .capacity = CapacityReport::produced};
 
   int num_levels() const override { return cm_.num_levels(); }
   int resident_level(std::int64_t u, std::int64_t v, int d) const override { return cm_.resident_level(u, v, d); }
