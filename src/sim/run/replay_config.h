@@ -17,6 +17,7 @@
 
 #include "core/config_table.h"
 #include "core/view.h"
+#include "sim/view/scene.h"
 #include "stream/exec/device_model.h"
 #include "stream/exec/fault_layer.h"
 #include "stream/exec/produce.h"
@@ -58,19 +59,6 @@ struct TextureConfig {
   int tile_size = 128;             // tile (VT: page) payload, texels a side
   int border = 0;                  // tile border, texels a side (stored T + 2B)
   LayerList layers;
-};
-
-struct SceneSettings {
-  std::string kind = "plane";      // a name of scenes() (sim/view/scene.h)
-  std::string file;                // the scene's input file (heightfield image, OBJ mesh)
-  double height_scale_m = 200.0;   // heightfield: metres for a full-range sample
-  // mesh (SceneConfig's mesh_* fields, sim/view/mesh_import.h)
-  std::string mesh_loader = "auto";
-  double mesh_unit_m = 1.0;
-  std::string mesh_up = "auto";
-  std::int64_t mesh_uv_set = 0;
-  std::string mesh_no_uv = "untextured";
-  double mesh_planar_m = 1.0;
 };
 
 struct ViewConfig {
@@ -119,7 +107,7 @@ struct MetricsConfig {
 struct ReplayConfig {
   RunConfig run;
   TextureConfig texture;
-  SceneSettings scene;
+  SceneConfig scene;               // sim/view/scene.h: the scene.* keys; its placement is [texture]'s (scene_config_of)
   ViewConfig view;
   ClipmapConfig clipmap;           // stream/system/clipmap_system.h
   VtConfig vt;                     // stream/system/vt_system.h

@@ -79,7 +79,7 @@ struct SceneConfig {
   // heightfield: posts on a regular grid from the terrain origin; z = z0 + scale·value.
   //   `file`: any image OpenImageIO reads (first channel); empty: noise
   double spacing_m = 8.0;          // between posts; 8 m × 1024 cells spans the default terrain
-  double height_scale_m = 1.0;     // metres per image value (OIIO maps integer pixels to [0, 1])
+  double height_scale_m = 200.0;   // metres per image value (OIIO maps integer pixels to [0, 1]): a full-range sample
   double z0_m = 0.0;               // height of value 0
   int noise_posts = 1025;          // generated grid is noise_posts² (2^10 cells + 1: one post per 8 m)
   double noise_amplitude_m = 150.0;  // generated relief, peak to mean: hills that occlude each other
