@@ -22,7 +22,7 @@ using namespace vtsim;
 namespace {
 
 Trace bounds_turn(double seconds) {
-  TraceGenParams p = default_gen_params(TraceKind::turn);
+  TraceGenParams p = default_gen_params("turn");
   p.duration_s = seconds;
   p.event_s = seconds / 2;
   return generate_trace(p);

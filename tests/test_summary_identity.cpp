@@ -109,7 +109,7 @@ ReplayConfig identity_store_cfg(const TileStore& store, const std::vector<std::s
 }
 
 Trace identity_still_trace() {
-  TraceGenParams g = default_gen_params(TraceKind::walk);
+  TraceGenParams g = default_gen_params("walk");
   g.start_m = {4.0, 16.0};
   g.duration_s = 1.0;
   g.image_width = 640;

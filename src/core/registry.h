@@ -19,8 +19,9 @@ namespace vtsim {
 // Levenshtein distance of two short strings. O(|a|·|b|).
 std::size_t edit_distance(std::string_view a, std::string_view b);
 
-// The candidate closest to `word` by edit distance when it is close enough to be a typo (distance
-// below 4 and below the length of the shorter of the two); empty otherwise.
+// The candidate closest to `word` by edit distance when it is close enough to be a typo: fewer
+// than 4 edits, and at most half the length of the shorter of the two ("arc" is 2 edits from
+// "lru" but no typo of it); the earlier in `candidates` on a tie; empty otherwise.
 std::string closest_name(std::string_view word, const std::vector<std::string_view>& candidates);
 
 template <class Entry>
