@@ -14,6 +14,8 @@
 #include <string_view>
 #include <vector>
 
+#include "core/text.h"
+
 namespace vtsim {
 
 // Levenshtein distance of two short strings. O(|a|·|b|).
@@ -58,8 +60,7 @@ class Registry {
   std::string unknown(std::string_view name) const {
     std::vector<std::string_view> names;
     for (const Entry& e : entries_) names.push_back(e.name);
-    // A value may be a megabyte of junk: quote its start only.
-    const std::string shown = name.size() > 100 ? std::string(name.substr(0, 100)) + "..." : std::string(name);
+    const std::string shown = text::shown(name, 100);
     std::string msg = "unknown " + what_ + " '" + shown + "' (one of: " + this->names();
     const std::string close = closest_name(name, names);
     if (!close.empty()) msg += "; did you mean '" + close + "'?";
