@@ -86,12 +86,23 @@ void parse_view_size(const std::string& s, int& w, int& h) {
   h = static_cast<int>(b);
 }
 
-void run_view(const ViewOptions& o) {
-  check_output("--out", o.out);  // before the work
-  SceneConfig cfg = o.mesh;  // the --mesh-* flags; every other field is set below
+// What `vtsim view` renders: the scene, the view parameters and the tile size, from the flags, or
+// from the replay config given (-c / --set) with the flags given on top.
+struct ViewSetup {
+  SceneConfig cfg;
   ViewParams vp;
-  int tile_size = o.tile_size;
-  const bool from_config = !o.configs.empty() || !o.sets.empty();
+  int tile_size = 0;
+  bool from_config = false;
+};
+
+ViewSetup view_setup(const ViewOptions& o) {
+  ViewSetup v;
+  SceneConfig& cfg = v.cfg;
+  ViewParams& vp = v.vp;
+  int& tile_size = v.tile_size;
+  cfg = o.mesh;  // the --mesh-* flags; every other field is set below
+  tile_size = o.tile_size;
+  const bool from_config = v.from_config = !o.configs.empty() || !o.sets.empty();
   if (!from_config) {
     cfg.kind = find_scene(o.scene).name;
     cfg.size_x_m = cfg.size_y_m = o.terrain_size_m;
@@ -137,6 +148,16 @@ void run_view(const ViewOptions& o) {
     if (given("--far")) vp.far_m = o.far_m;
     if (!given("--tile-size")) tile_size = rc.texture.tile_size;
   }
+  return v;
+}
+
+void run_view(const ViewOptions& o) {
+  check_output("--out", o.out);  // before the work
+  ViewSetup setup = view_setup(o);
+  SceneConfig& cfg = setup.cfg;
+  const ViewParams& vp = setup.vp;
+  const int tile_size = setup.tile_size;
+  const bool from_config = setup.from_config;
   if (o.zoom < 1 || o.zoom > 64) throw InputError("--zoom", "must be in [1, 64]");
   // Checked whether or not the scene reads them (the generated heightfield has no height scale).
   if (!(o.spacing_m > 0.0) || !std::isfinite(o.spacing_m)) throw InputError("--spacing", "must be finite and > 0");
