@@ -16,17 +16,20 @@
 //   per uploaded tile: accepts(key), vram_slot(key), then commit(key, frame) once the engine has
 //                                  copied it (a refused tile is committed anyway: counted stale).
 //   clip_windows(out)              the windows after the commits (the engine's window updates).
-// Then the frame loop measures pop-in through IResidency (resident_levels, span_resident_levels:
-// the state after the commits) and reads throttled_needs, frame_counters and the pool's recorded
-// accesses. stats_json, vram_evictions, vram_thrash and evicted_unsampled_bytes are read once, at
-// the summary; the record_* opt-ins are set before the first frame or between frames.
+// The frame loop (SystemRun::step) measures pop-in through IResidency between the two halves:
+// set_mark_sampled(false) and the lookups (resident_levels, span_resident_levels, fingerprint)
+// before the commits, set_mark_sampled(true) and the lookups again after them; then it reads
+// throttled_needs and frame_counters. stats_json, vram_evictions, vram_thrash and
+// evicted_unsampled_bytes are read once, at the summary; the record_* opt-ins are set before the
+// first frame or between frames.
 //
 // Threads: none of a system's members is thread-safe; one thread (the frame loop's, or the
 // engine's render thread through the runtime) calls every member. The executor's IO, decode and
 // production threads never call a system: they get tile keys and ProduceWork values, and the
 // terrain's producer reads only its DecalLayer (decal_layer(): one writer, the system, and any
 // number of readers; decal_layer.h). Render-ahead's workers render the view, never a system. A
-// lockstep sweep steps several systems on the one loop thread.
+// lockstep sweep's threads each step their own systems (sim/sweep/lockstep.h): a system is never
+// touched by two threads, and the pop-in share they read together is the sweep's, not a system's.
 //
 // Complexity per frame (each system's header gives its own): VT O(S + W log W) for S feedback
 // samples and W wanted pages; clipmap O(tiles of each moved or incomplete window level) plus
