@@ -7,8 +7,8 @@
 //                          its own view in the loop), side by side; ratio = separate / sweep;
 //  - <sys>16_1core         one core, against real time × 16 (ratio = × real time per config;
 //                          the sweep issue's targets: VT >= 150, clipmap >= 1,500);
-//  - <sys>16_2core         two threads (a team stepping the systems, render-ahead on one more),
-//                          against one core side by side (target >= 1.8);
+//  - <sys>16_2core         two threads (a leader and a follower sharing the renders,
+//                          docs/sweep.md "Every core"), against one core side by side (target >= 1.8);
 //  - <sys>16_2core_ceiling two one-core sweeps at once against the same two in turn: what two
 //                          cores of the machine give this work with nothing shared (no target).
 // Every case checks that the sweep's rows equal the separate replays' summaries.

@@ -1,7 +1,7 @@
 // vtsim capacity: memory of a clipmap (stack + pyramid, per layer) against a full mip chain, and
 // Yao 2007 §2-3's table recomputed (docs/clipmap.md); for --system vt, a virtual texture's disk
 // size, page-table size and the physical pool a screen needs, and Yao 2011's arithmetic checked
-// (docs/vt.md "Capacity"); for --system terrain, seed 002's produced clipmap from a config: stored
+// (docs/vt.md "Capacity"); for --system terrain, VT Terrain Design's produced clipmap from a config: stored
 // texels against stored brushes and masks, the clipmap, and the brushes resident to render
 // (docs/produced.md "Capacity").
 #include <fmt/format.h>
@@ -249,8 +249,8 @@ void run_terrain_capacity(const CapacityArgs& a) {
   const std::uint64_t brush_disk =
       static_cast<std::uint64_t>(static_cast<double>(c.brush_bytes_all_mips) / t.brush_compression);
   const std::uint64_t stored = brush_disk + c.mask_bytes;
-  // Seed 002's own world: 10 km × 10 km at 10 texels/cm, 4 B a texel (its "363.8 T").
-  constexpr double kSeedStoredTexelBytes = 1e7 * 1e7 * 4.0;
+  // Far Cry 4's world (Chen 2015): 10 km × 10 km at 10 texels/cm, 4 B a texel (VT Terrain Design's "363.8 T").
+  constexpr double kFarCry4StoredTexelBytes = 1e7 * 1e7 * 4.0;
   const ClipmapMemory mem = clipmap_memory({c.texels_side_x, c.texels_side_y}, cfg.texture.tile_size, clipsize);
   nlohmann::json levels = nlohmann::json::array();
   for (std::size_t l = 0; l < c.level_mip.size(); ++l) {
@@ -275,7 +275,7 @@ void run_terrain_capacity(const CapacityArgs& a) {
                   {"brush_tree_levels", t.brush_tree_levels},
                   {"mask_size", t.mask_size}};
   j["stored_texel_bytes"] = c.stored_equiv_bytes;
-  j["seed_stored_texel_bytes"] = kSeedStoredTexelBytes;
+  j["far_cry_4_stored_texel_bytes"] = kFarCry4StoredTexelBytes;
   j["brushes"] = c.brushes;
   j["brush_bytes_mip0"] = c.brush_bytes_mip0;
   j["brush_bytes_all_mips"] = c.brush_bytes_all_mips;
@@ -301,8 +301,8 @@ void run_terrain_capacity(const CapacityArgs& a) {
              "({} quadtree levels), masks of {}²\n",
              t.sectors_x, t.sectors_y, t.sector_m, world_x, world_y, cfg.texture.texels_per_m, c.texels_side_x, c.texels_side_y,
              t.brushes_per_sector, t.brush_size, t.brush_tree_levels, t.mask_size);
-  fmt::print("  stored texels, 4 B     {} ({} B); seed 002's 10 km at 10 texels/cm: {}\n", human_bytes(c.stored_equiv_bytes),
-             with_commas(static_cast<std::uint64_t>(c.stored_equiv_bytes)), human_bytes(kSeedStoredTexelBytes));
+  fmt::print("  stored texels, 4 B     {} ({} B); Far Cry 4's 10 km at 10 texels/cm: {}\n", human_bytes(c.stored_equiv_bytes),
+             with_commas(static_cast<std::uint64_t>(c.stored_equiv_bytes)), human_bytes(kFarCry4StoredTexelBytes));
   fmt::print("  brushes                {} × {}² × 4 B = {} at mip 0; every mip {} ({} B); on disk / {} = {}\n", c.brushes, t.brush_size,
              mib(static_cast<double>(c.brush_bytes_mip0)), mib(static_cast<double>(c.brush_bytes_all_mips)),
              with_commas(c.brush_bytes_all_mips), t.brush_compression, mib(static_cast<double>(brush_disk)));
@@ -426,7 +426,7 @@ void register_capacity_commands(CLI::App& app) {
   auto a = std::make_shared<CapacityArgs>();
   auto* c = app.add_subcommand("capacity", "VRAM needed by a clipmap (stack + pyramid per layer) vs a full mip chain; "
                                            "for --system vt: disk, page table and the pool a screen needs; for --system terrain: "
-                                           "seed 002's stored brushes and masks, clipmap and resident brushes");
+                                           "VT Terrain Design's stored brushes and masks, clipmap and resident brushes");
   c->add_option("--system", a->system, streaming_systems().names(" | "))->capture_default_str();
   c->add_option("--width,--size", a->width, "level-0 width, texels (any size)")->capture_default_str()->check(CLI::Range(std::int64_t{1}, std::int64_t{1} << 40));
   c->add_option("--height", a->height, "level-0 height, texels (default: = width)")->check(CLI::Range(std::int64_t{0}, std::int64_t{1} << 40));

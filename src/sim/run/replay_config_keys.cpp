@@ -156,7 +156,7 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
                              "window edge tiles excluded from sampling (Yao 2007 §4-6)"))
         .add(cfg::integer<C>("clipmap.filter_margin_texels", at(&C::clipmap, &ClipmapConfig::filter_margin_texels), 0, 64,
                              "footprint half-width that must be valid (bilinear: 1)"))
-        .add(cfg::integer<C>("terrain.sectors_x", at(&C::terrain, &TerrainConfig::sectors_x), 1, 4096, "terrain: sectors along x (seed 002: 16 × 512 m = 8192 m)"))
+        .add(cfg::integer<C>("terrain.sectors_x", at(&C::terrain, &TerrainConfig::sectors_x), 1, 4096, "terrain: sectors along x (VT Terrain Design: 16 × 512 m = 8192 m)"))
         .add(cfg::integer<C>("terrain.sectors_y", at(&C::terrain, &TerrainConfig::sectors_y), 1, 4096, "terrain: sectors along y"))
         .add(cfg::real<C>("terrain.sector_m", at(&C::terrain, &TerrainConfig::sector_m), 1e-3, 1e7, "terrain: sector side, m"))
         .add(cfg::integer<C>("terrain.brushes_per_sector", at(&C::terrain, &TerrainConfig::brushes_per_sector), 0, 1 << 20,
@@ -236,7 +236,7 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
         .add(cfg::real<C>("produce.per_texel_ns", at(&C::produce, &ProduceModel::per_texel_ns), 0.0, 1e6,
                           "produced tile: cost per output texel whatever its layers (store, pack), ns"))
         .add(cfg::real<C>("produce.per_layer_texel_ns", at(&C::produce, &ProduceModel::per_layer_texel_ns), 0.0, 1e6,
-                          "produced tile: cost per output texel per blended brush layer (seed 002), ns"))
+                          "produced tile: cost per output texel per blended brush layer (VT Terrain Design), ns"))
         .add(cfg::real<C>("produce.per_decal_us", at(&C::produce, &ProduceModel::per_decal_us), 0.0, 1e9,
                           "produced tile: cost per decal rendered over it, us"))
         .add(cfg::real<C>("produce.per_decal_texel_ns", at(&C::produce, &ProduceModel::per_decal_texel_ns), 0.0, 1e9,

@@ -16,7 +16,7 @@ const Registry<SystemInfo>& streaming_systems() {
           system_entry<VtSystem, &ReplayConfig::vt>(
               "sparse virtual texturing (van Waveren 2009, Yao 2011): feedback-driven pages in a physical page pool"),
           clipmap_system_entry<TerrainSystem, &ReplayConfig::terrain>(
-              "seed 002 terrain (Ka Chen, Far Cry 4): a clipmap whose levels are produced from brushes and masks"),
+              "VT Terrain Design's terrain (after Chen 2015, Far Cry 4): a clipmap whose levels are produced from brushes and masks"),
       });
   return table;
 }

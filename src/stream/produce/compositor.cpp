@@ -233,7 +233,7 @@ void sample_bilinear(const Atlas& atlas, int m, int b, double u, double v, bool 
   const int s = lv.brush_side;
   const auto axis = [&](double w) {
     if (inset || lv.border > 0) return tap_of(fixed_pos(w, s), s, inset ? lv.border : 1);
-    // No inset, no border: the taps run past the cell into its neighbour (the bleeding of seed 004 §6).
+    // No inset, no border: the taps run past the cell into its neighbour (the bleeding of crazii 2017 item 6).
     const std::int64_t p = fixed_pos(w, s);
     return Tap{static_cast<int>(p >> 32), static_cast<int>(p >> 32) + 1, static_cast<int>((p >> 24) & 255)};
   };

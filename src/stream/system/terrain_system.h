@@ -1,8 +1,8 @@
 #pragma once
-// Seed 002's terrain (after Ka Chen, "Adaptive Virtual Texture Rendering in Far Cry 4", GDC 2015):
+// VT Terrain Design's terrain (after Chen 2015, "Adaptive Virtual Texture Rendering in Far Cry 4"):
 // a clipmap whose levels are *produced* — rendered from tiling brush textures blended through
-// per-sector masks, plus decals — instead of read from the store. docs/produced.md, "The seed-002
-// terrain (produced clipmap)".
+// per-sector masks, plus decals — instead of read from the store. docs/produced.md, "The terrain
+// (produced clipmap)".
 //
 // World: sectors_x × sectors_y sectors of sector_m metres, each blending brushes_per_sector brushes
 // (brush_size² at mip 0, one brush tile per brush_period_m). Brush mips stream from disk through the
@@ -34,9 +34,9 @@
 
 namespace vtsim {
 
-// The config's [terrain] section (seed 002's figures are the defaults).
+// The config's [terrain] section (VT Terrain Design's figures are the defaults).
 struct TerrainConfig {
-  int sectors_x = 16;               // sectors along x (seed: 16 × 512 m = 8192 m)
+  int sectors_x = 16;               // sectors along x (VT Terrain Design: 16 × 512 m = 8192 m)
   int sectors_y = 16;               // sectors along y
   double sector_m = 512.0;          // sector side, m
   int brushes_per_sector = 12;      // brushes a sector blends (<= 16: four RGBA masks, a 4×4 atlas)
@@ -54,7 +54,7 @@ struct TerrainConfig {
   int footprint_levels = 4;         // finest levels a footprint re-renders (its resident tiles there are invalidated)
 };
 
-// `vtsim capacity --system terrain`: seed 002's figures recomputed (docs/produced.md, "Capacity").
+// `vtsim capacity --system terrain`: VT Terrain Design's figures recomputed (docs/produced.md, "Capacity").
 struct TerrainCapacity {
   std::int64_t texels_side_x = 0, texels_side_y = 0;  // level-0 texture extent
   double stored_equiv_bytes = 0;        // level-0 texels × 4 B: what storing the texels would take
@@ -64,7 +64,7 @@ struct TerrainCapacity {
   std::uint64_t masks = 0;              // sectors × ceil(brushes / 4)
   std::uint64_t mask_bytes = 0;         // masks × mask_size² × 4 B
   int full_levels = 0;                  // levels kept at clipsize² (stack + the first pyramid level)
-  std::uint64_t clipmap_full_levels_bytes = 0;  // full_levels × clipsize² × 4 B (the seed's 208 MiB)
+  std::uint64_t clipmap_full_levels_bytes = 0;  // full_levels × clipsize² × 4 B (VT Terrain Design's 208 MiB)
   std::vector<int> level_mip;           // per stack level: the brush mip it renders from
   std::vector<int> level_sectors;       // per stack level: sectors under its window (camera at cx, cy)
   std::uint64_t brush_resident_bytes = 0;  // union over stack levels: sectors × brushes × mip bytes
