@@ -3,8 +3,6 @@
 #include <fmt/format.h>
 
 #include <chrono>
-#include <cstdlib>
-#include <fstream>
 #include <thread>
 
 #include "core/camera.h"
@@ -18,6 +16,7 @@
 #include "sim/run/real_replay.h"
 #include "sim/run/replay.h"
 #include "sim/run/resources.h"
+#include "sim/run/run_summary.h"
 #include "sim/run/runtime_setup.h"
 
 namespace vtsim::gl {
@@ -62,15 +61,6 @@ class Sink final : public IUploadSink {
   Ticks now_ = 0;
 };
 
-// Peak resident set, MB (Linux /proc/self/status VmHWM; 0 elsewhere).
-double peak_rss_mb() {
-  std::ifstream f("/proc/self/status");
-  std::string line;
-  while (std::getline(f, line))
-    if (line.rfind("VmHWM:", 0) == 0) return std::strtod(line.c_str() + 6, nullptr) / 1024.0;
-  return 0.0;
-}
-
 // Every entry of the GPU's page table names a resident page's (slot, level).
 bool gl_page_table_consistent(const GlReplayRun& run, const StreamedVt& vt, TextureExtent ext, int tile, int levels) {
   std::map<std::int64_t, int> slot_level;
@@ -96,85 +86,22 @@ bool gl_page_table_consistent(const GlReplayRun& run, const StreamedVt& vt, Text
   return ok;
 }
 
-// The summary, in `vtsim replay`'s schema (the sections this client measures).
+// The summary, in `vtsim replay`'s schema: the measured sections from the builder every runtime
+// client shares (sim/run/run_summary.h), then this client's cost and its "gl" section.
 void gl_summary(GlReplayRun& run, Context& ctx, const ReplayConfig& bound, const FramePlan& plan, StreamingRuntime& rt,
                 const StreamedVt& vt, const std::vector<std::uint64_t>& level_upload, const FeedbackSettings& fs,
                 const GlReplayOptions& o, std::uint64_t feedback_read) {
-  MetricsCollector& m = run.result.metrics;
-  const int levels = rt.system().num_levels();
-  const PipelineCounters& c = rt.pipeline().counters();
-  for (int l = 0; l < levels; ++l)
-    m.add_level_bytes(l, c.disk_bytes_by_level[static_cast<std::size_t>(l)], level_upload[static_cast<std::size_t>(l)]);
-  const double duration_s = plan.duration_s;
-  const auto MBps = [&](std::uint64_t bytes) { return static_cast<double>(bytes) / duration_s / 1e6; };
   nlohmann::json& s = run.result.summary;
-  s["schema"] = kSummarySchema;
-  s["provenance"] = build_json();
-  s["config"] = config_json(bound);
-  s["system"] = bound.run.system;
-  s["clock"] = "gl";
-  s["trace"] = {{"name", plan.trace.name},
-                {"path", plan.trace.source_path},
-                {"content_hash", trace_hash_json(plan.trace)},
-                {"poses", plan.input_poses},
-                {"poses_duration_s", plan.input_duration_s},
-                {"frames", plan.frames},
-                {"duration_s", duration_s},
-                {"fps", 1.0 / plan.period_s},
-                {"image", {plan.trace.image_width, plan.trace.image_height}}};
-  s["bandwidth"] = {
-      {"disk_read_MBps", MBps(c.disk_bytes)},
-      {"decoded_MBps", MBps(c.decoded_bytes)},
-      {"upload_MBps", MBps(c.upload_bytes)},
-      {"prefetch_read_MBps", MBps(c.prefetch_disk_bytes)},
-      {"disk_read_bytes", c.disk_bytes},
-      {"decoded_bytes", c.decoded_bytes},
-      {"upload_bytes", c.upload_bytes},
-      {"prefetch_read_bytes", c.prefetch_disk_bytes},
-      {"disk_reads", c.disk_reads},
-      {"uploads", c.uploads},
-      {"upload_bytes_per_frame", m.upload_per_frame_json()["bytes"]},
-      {"upload_tiles_per_frame", m.upload_per_frame_json()["tiles"]},
-      {"per_level", m.per_level_json(duration_s)},
-      {"wasted", {{"read_bytes_cancelled_after_io", c.wasted_read_bytes},
-                  {"uploaded_bytes_never_sampled", rt.system().evicted_unsampled_bytes()},
-                  {"cancelled_before_io", c.cancelled_queued},
-                  {"cancelled_after_io", c.cancelled_after_read},
-                  {"dropped_before_upload", c.dropped_before_upload}}}};
-  s["latency_ms"] = m.latency_json();
-  s["popin"] = m.popin_json(bound.metrics.sharp_margin);
-  const double lookups = static_cast<double>(c.ram_hits + c.ram_misses);
-  s["cache"] = {{"ram_hit_ratio", lookups > 0 ? static_cast<double>(c.ram_hits) / lookups : 0.0},
-                {"ram_hits", c.ram_hits},
-                {"ram_misses", c.ram_misses},
-                {"ram_evictions", c.ram_evictions},
-                {"ram_evicted_bytes", c.ram_evicted_bytes},
-                {"ram_thrash", c.ram_thrash},
-                {"ram_policy", bound.ram.policy},
-                {"prefetch_requests", c.prefetch_requests},
-                {"prefetch_hits", c.prefetch_hits},
-                {"vram_evictions", rt.system().vram_evictions()},
-                {"vram_thrash", rt.system().vram_thrash()},
-                {"requests", c.requests},
-                {"needs", c.needs}};
-  s["throttle"] = m.throttle_json();
-  s["throttle"]["policy"] = bound.throttle.policy;
-  s["faults"] = {{"faults", c.faults},
-                 {"retries", c.retries},
-                 {"failed_tiles", c.failed_tiles},
-                 {"io_error", c.fault_by_kind[static_cast<int>(Fault::io_error)]},
-                 {"short_read", c.fault_by_kind[static_cast<int>(Fault::short_read)]},
-                 {"checksum", c.fault_by_kind[static_cast<int>(Fault::checksum)]},
-                 {"decode_error", c.fault_by_kind[static_cast<int>(Fault::decode_error)]},
-                 {"bad_record", c.fault_by_kind[static_cast<int>(Fault::bad_record)]}};
-  s[bound.run.system] = rt.system().stats_json();
-  s["resources"] = resources_json(bound, rt.system(), s[bound.run.system], m);
+  static const std::string kClock = "gl";
+  fill_run_summary(s, {bound, plan, kClock, rt.pipeline(), rt.system(), run.result.metrics, level_upload.data(),
+                       rt.executor().now(), nullptr});
+  const double duration_s = plan.duration_s;
   s["run"] = {{"wall_s", run.seconds},
               {"render_threads", 0},
               {"loop_cpu_s", 0.0},
               {"frames_per_s", run.seconds > 0 ? plan.frames / run.seconds : 0.0},
               {"x_realtime", run.seconds > 0 ? duration_s / run.seconds : 0.0},
-              {"peak_rss_MB", peak_rss_mb()}};
+              {"peak_rss_MB", peak_rss_MB()}};
   s["gl"] = {{"renderer", ctx.renderer()},
              {"gl_version", ctx.version()},
              {"platform", ctx.platform()},
