@@ -2,8 +2,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 #include <thread>
+#include <tuple>
 
 #include "core/camera.h"
 #include "core/error.h"
@@ -17,6 +19,7 @@
 #include "sim/run/replay.h"
 #include "sim/run/resources.h"
 #include "sim/run/run_summary.h"
+#include "sim/trace/feedback_trace.h"
 #include "sim/run/runtime_setup.h"
 
 namespace vtsim::gl {
@@ -85,6 +88,49 @@ bool gl_page_table_consistent(const GlReplayRun& run, const StreamedVt& vt, Text
   }
   return ok;
 }
+
+// The GPU feedback each frame acted on, as a feedback trace (docs/feedback.md): the read-back
+// texels that sampled the texture, each at its desired level's tile, counted per tile.
+class GpuFeedbackRecorder {
+ public:
+  GpuFeedbackRecorder(const std::string& path, const vtsim::FeedbackHeader& h) : w_(path, h) {}
+  void add(const Pose& pose, bool fresh, const FeedbackFrame& fb, int levels, std::uint32_t tile) {
+    frame_.t_s = pose.t_s;
+    frame_.has_pose = true;
+    frame_.pose = pose;
+    frame_.fresh = fresh;
+    frame_.measured = true;
+    frame_.tiles.clear();
+    if (fresh) {
+      keys_.clear();
+      for (const FeedbackTexel& t : fb.px) {
+        if (t.status != 1) continue;
+        const int l = desired_level(t.lod, levels);
+        keys_.push_back({static_cast<std::uint32_t>(l), 0, static_cast<std::uint64_t>(t.u >> l) / tile,
+                         static_cast<std::uint64_t>(t.v >> l) / tile, 1});
+      }
+      std::sort(keys_.begin(), keys_.end(), [](const vtsim::FeedbackTile& a, const vtsim::FeedbackTile& b) {
+        return std::tie(a.layer, a.level, a.x, a.y) < std::tie(b.layer, b.level, b.x, b.y);
+      });
+      for (const vtsim::FeedbackTile& k : keys_) {
+        if (!frame_.tiles.empty() && frame_.tiles.back().level == k.level && frame_.tiles.back().x == k.x && frame_.tiles.back().y == k.y)
+          ++frame_.tiles.back().samples;
+        else
+          frame_.tiles.push_back(k);
+      }
+    }
+    w_.add(frame_);
+  }
+  std::uint64_t finish() {
+    w_.finish();
+    return w_.bytes();
+  }
+
+ private:
+  vtsim::FeedbackWriter w_;
+  vtsim::FeedbackFrame frame_;
+  std::vector<vtsim::FeedbackTile> keys_;
+};
 
 // The summary, in `vtsim replay`'s schema: the measured sections from the builder every runtime
 // client shares (sim/run/run_summary.h), then this client's cost and its "gl" section.
@@ -158,6 +204,19 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
   int clamp = 0;
   std::uint64_t feedback_read = 0;
   FeedbackFrame fb;
+  std::unique_ptr<GpuFeedbackRecorder> rec;
+  if (!o.record_feedback.empty()) {
+    vtsim::FeedbackHeader h;
+    h.texture = {bound.texture.width, bound.texture.height};
+    h.tile_size = static_cast<std::uint32_t>(tile);
+    h.levels = static_cast<std::uint32_t>(levels);
+    h.feedback_width = static_cast<std::uint32_t>(buffer_extent(plan.trace.image_width, fs.divisor));
+    h.feedback_height = static_cast<std::uint32_t>(buffer_extent(plan.trace.image_height, fs.divisor));
+    h.image_width = static_cast<std::uint32_t>(plan.trace.image_width);
+    h.image_height = static_cast<std::uint32_t>(plan.trace.image_height);
+    h.frame_rate = 1.0 / plan.period_s;
+    rec = std::make_unique<GpuFeedbackRecorder>(o.record_feedback, h);
+  }
   const auto t0 = std::chrono::steady_clock::now();
   for (int f = 0; f < plan.frames; ++f) {
     const Pose& pose = plan.trace.poses[static_cast<std::size_t>(f)];
@@ -173,7 +232,8 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
     ffs.lod_bias = fs.lod_bias + static_cast<float>(feedback_bias);
     int ox = 0, oy = 0;
     feedback_tile_offset(o.sampling, f, fs.divisor, ox, oy);
-    if (r.feedback(cam, ffs, ox, oy, f, fb)) {
+    const bool fresh = r.feedback(cam, ffs, ox, oy, f, fb);
+    if (fresh) {
       ++feedback_read;
       for (const FeedbackTexel& t : fb.px) {
         if (t.status != 1) continue;
@@ -182,6 +242,7 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
                             static_cast<std::int64_t>(t.v >> l) / tile));
       }
     }
+    if (rec) rec->add(pose, fresh, fb, levels, static_cast<std::uint32_t>(tile));
     FrameRow row;
     row.frame = f;
     row.t_s = ticks_to_seconds(plan.target(f));
@@ -219,6 +280,7 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
   while (r.drain(fb)) {
   }
   run.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (rec) run.feedback_trace_bytes = rec->finish();
   run.sink_uploads = vt.uploads();
   run.gpu_copies = vt.copies();
   run.page_table = vt.page_table();
