@@ -314,7 +314,7 @@ int main(int argc, char** argv) {
   }
 
   // 2. Production per frame on the terrain walk.
-  TraceGenParams g = default_gen_params(TraceKind::walk);
+  TraceGenParams g = default_gen_params("walk");
   g.duration_s = quick ? 3.0 : 20.0;
   g.speed_mps = 1.5;
   const Trace walk = generate_trace(g);

@@ -134,12 +134,12 @@ int main(int argc, char** argv) {
                         duration_s);
   };
 
-  TraceGenParams tp = default_gen_params(TraceKind::walk);
+  TraceGenParams tp = default_gen_params("walk");
   tp.duration_s = duration_s;
   tp.start_m = {30.0, 8.0};  // along the town's first street (as bench_vt)
   system_cases("vt", {"run.system=vt", "scene.kind=town", "view.divisor=8"}, generate_trace(tp), "vt.pool_pages",
                {"256", "512", "1024", "2048"}, 150.0);
-  TraceGenParams pp = default_gen_params(TraceKind::walk);
+  TraceGenParams pp = default_gen_params("walk");
   pp.duration_s = duration_s;
   system_cases("clipmap", {"run.system=clipmap", "view.divisor=8"}, generate_trace(pp), "ram.capacity_MiB",
                {"32", "64", "128", "256"}, 1500.0);

@@ -209,7 +209,7 @@ TEST_CASE("terrain: the throttle reads the production rate and clamps the level 
       "clipmap.clipsize=256", "terrain.sectors_x=4", "terrain.sectors_y=4",    "terrain.sector_m=16",
       "terrain.brushes_per_sector=4", "terrain.brush_size=64", "terrain.brush_tree_levels=3",
       "terrain.mask_size=64", "view.divisor=16", "throttle.policy=deadline"};
-  TraceGenParams g = default_gen_params(TraceKind::walk);
+  TraceGenParams g = default_gen_params("walk");
   g.start_m = {28.0, 32.0};
   g.speed_mps = 4.0;
   g.duration_s = 3.0;

@@ -23,6 +23,7 @@
 #include "cli/format.h"
 #include "core/error.h"
 #include "sim/run/replay_config.h"
+#include "sim/run/systems.h"
 
 namespace vtsim::cli {
 
@@ -33,7 +34,7 @@ struct CapacityArgs {
   int clipsize = 1024, tile = 128;
   std::string layers = "albedo:rgba8";
   bool json = false, seed_table = false;
-  std::string system = "clipmap";
+  std::string system = RunConfig{}.system;  // the replay's default system
   // vt
   int border = 0;
   std::string screen = "1920x1080";
@@ -228,7 +229,7 @@ std::uint64_t brush_mip_bytes_of(const TerrainConfig& t, int m) {
 }
 
 void run_terrain_capacity(const CapacityArgs& a) {
-  const ReplayConfig cfg = load_cli_config(a.configs, a.sets, "terrain");
+  const ReplayConfig cfg = load_cli_config(a.configs, a.sets, a.system);
   const TerrainConfig& t = cfg.terrain;
   const double world_x = t.sector_m * t.sectors_x, world_y = t.sector_m * t.sectors_y;
   // The camera in world metres (default: the terrain's centre, a sector corner with an even count).
@@ -263,8 +264,8 @@ void run_terrain_capacity(const CapacityArgs& a) {
                                           brush_mip_bytes_of(t, m)}});
   }
   nlohmann::json j;
-  j["system"] = "terrain";
-  j["terrain"] = {{"sectors", {t.sectors_x, t.sectors_y}},
+  j["system"] = a.system;
+  j[a.system] = {{"sectors", {t.sectors_x, t.sectors_y}},
                   {"sector_m", t.sector_m},
                   {"world_m", {world_x, world_y}},
                   {"texels_per_m", cfg.texture.texels_per_m},
@@ -339,20 +340,29 @@ CapacityArgs capacity_with_config(const CapacityArgs& a) {
   return b;
 }
 
+// The systems whose capacity report is `r`, as "a, b".
+std::string systems_reporting(CapacityReport r) {
+  std::string names;
+  for (const SystemInfo& s : streaming_systems().entries())
+    if (s.caps.capacity == r) names += (names.empty() ? "" : ", ") + std::string(s.name);
+  return names;
+}
+
 void run_capacity(const CapacityArgs& args) {
-  if (args.system != "terrain" && !args.camera.empty()) throw InputError("--camera", "only with --system terrain");
-  if (args.system != "clipmap" && args.system != "vt" && args.system != "terrain")
-    throw InputError("--system", "'" + args.system + "': one of clipmap, vt, terrain");
-  const CapacityArgs a = args.system == "terrain" ? args : capacity_with_config(args);
-  if (a.system == "vt") {
+  const SystemInfo* info = streaming_systems().find(args.system);
+  const CapacityReport report = info ? info->caps.capacity : CapacityReport::window_stack;
+  if (report != CapacityReport::produced && !args.camera.empty())
+    throw InputError("--camera", "only with --system " + systems_reporting(CapacityReport::produced));
+  if (!info) throw InputError("--system", "'" + args.system + "': one of " + streaming_systems().names(", "));
+  const CapacityArgs a = report == CapacityReport::produced ? args : capacity_with_config(args);
+  if (report == CapacityReport::page_pool) {
     run_vt_capacity(a);
     return;
   }
-  if (a.system == "terrain") {
+  if (report == CapacityReport::produced) {
     run_terrain_capacity(a);
     return;
   }
-  if (a.system != "clipmap") throw InputError("--system", "'" + a.system + "': one of clipmap, vt, terrain");
   if (a.seed_table) {
     print_seed_table();
     return;
@@ -417,7 +427,7 @@ void register_capacity_commands(CLI::App& app) {
   auto* c = app.add_subcommand("capacity", "VRAM needed by a clipmap (stack + pyramid per layer) vs a full mip chain; "
                                            "for --system vt: disk, page table and the pool a screen needs; for --system terrain: "
                                            "VT Terrain Design's stored brushes and masks, clipmap and resident brushes");
-  c->add_option("--system", a->system, "clipmap | vt | terrain")->capture_default_str();
+  c->add_option("--system", a->system, streaming_systems().names(" | "))->capture_default_str();
   c->add_option("--width,--size", a->width, "level-0 width, texels (any size)")->capture_default_str()->check(CLI::Range(std::int64_t{1}, std::int64_t{1} << 40));
   c->add_option("--height", a->height, "level-0 height, texels (default: = width)")->check(CLI::Range(std::int64_t{0}, std::int64_t{1} << 40));
   c->add_option("--clipsize", a->clipsize, "clip stack window side N, texels")->capture_default_str();

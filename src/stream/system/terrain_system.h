@@ -27,8 +27,10 @@
 #include "cache/clipmap.h"
 #include "cache/vram_arena.h"
 #include "stream/produce/decal_layer.h"
+#include "stream/system/clipmap_backed.h"
 #include "stream/system/feedback.h"
 #include "stream/system/i_system.h"
+#include "stream/system/system_caps.h"
 
 namespace vtsim {
 
@@ -70,7 +72,7 @@ struct TerrainCapacity {
 };
 TerrainCapacity terrain_capacity(const TerrainConfig& t, double texels_per_m, int clipsize, double cam_x_m, double cam_y_m);
 
-class TerrainSystem final : public IStreamingSystem {
+class TerrainSystem final : public ClipmapBacked {
  public:
   static constexpr std::uint32_t kBrushLayer = TileKey::kMaxLayers - 1;
   static constexpr int kMaxBrushes = 16;
@@ -83,38 +85,25 @@ class TerrainSystem final : public IStreamingSystem {
   static VramArena vram_arena(const SystemSetup& s, const ClipmapConfig& c, std::vector<std::uint32_t> layer_bytes,
                               std::uint64_t host_limit);
   static constexpr std::string_view kVramField = "clipmap.clipsize";
+  // Its name in the table (run.system) and what it can do.
+  static constexpr char kName[] = "terrain";
+  static constexpr SystemCaps kCaps{.produces_tiles = true, .clip_window = true, .capacity = CapacityReport::produced};
 
-  int num_levels() const override { return cm_.num_levels(); }
-  int resident_level(std::int64_t u, std::int64_t v, int d) const override { return cm_.resident_level(u, v, d); }
-  void resident_levels(const ViewSample* s, std::size_t n, std::int8_t* out) const override { cm_.resident_levels(s, n, out); }
-  void span_resident_levels(const ViewSpan* s, std::size_t n, std::int8_t* out) const override {
-    cm_.span_resident_levels(s, n, out);
-  }
-  bool uses_spans() const override { return true; }
   void begin_frame(const SystemFrame& f) override;
   void missing_bytes_by_level(std::vector<std::uint64_t>& out) const override;
-  int coarsest_clamp() const override { return cm_.first_pyramid_level(); }
-  void apply_throttle(const ThrottleDecision& d) override { cm_.set_clamp(d.clamp); }
   void emit_needs(std::vector<Need>& out) override;
   std::uint32_t throttled_needs() const override { return 0; }
   bool commit(TileKey key, int frame) override;
   bool accepts(TileKey key) const override;
-  void clip_windows(std::vector<ClipWindow>& out) const override;
   bool produced(TileKey key, ProduceWork& work) const override;
   bool full_tile_work(ProduceWork& work) const override;
   bool tile_sizes(TileKey key, std::uint64_t& disk_bytes, std::uint64_t& decoded_bytes) const override;
-  void set_mark_sampled(bool on) override { cm_.set_mark_sampled(on); }
-  bool fingerprint(ResidencyFingerprint& out) const override { return cm_.fingerprint(out); }
-  void record_marks(std::vector<std::uint64_t>* out) const override { cm_.record_marks(out); }
-  void apply_marks(const std::vector<std::uint64_t>& marks) const override { cm_.apply_marks(marks); }
   std::vector<std::string> frame_counter_names() const override;
   void frame_counters(SystemCounters& out) const override;
   nlohmann::json stats_json() const override;
-  std::uint64_t vram_evictions() const override { return cm_.stats().vram_evictions; }
   std::uint64_t vram_thrash() const override { return 0; }
   std::uint64_t evicted_unsampled_bytes() const override;
 
-  const Clipmap& clipmap() const { return cm_; }
   int brush_mip(int level) const;           // m(l)
   bool brush_resident(int mip, int sector, int brush) const { return resident_[idx(mip, sector, brush)] != 0; }
   int sector_texels() const { return static_cast<int>(sector_texels_); }
@@ -144,7 +133,6 @@ class TerrainSystem final : public IStreamingSystem {
 
   SystemSetup s_;
   TerrainConfig t_;
-  Clipmap cm_;
   std::int64_t sector_texels_ = 0;
   int sectors_ = 0;
   int mip_offset_ = 0;
