@@ -4,7 +4,6 @@
 #include <fmt/format.h>
 
 #include <memory>
-#include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -28,7 +27,7 @@ struct CachesimArgs {
   std::string obj_id_col, obj_size_col, time_col, delimiter;
   bool has_header = false, ignore_obj_size = false, json = false;
   std::string obj_id_is_num;  // empty: true
-  std::string out;
+  std::string out, json_file, csv_file;
 };
 
 bool cachesim_ends_with(const std::string& s, const std::string& suffix) {
@@ -101,14 +100,20 @@ void run_cachesim(const CachesimArgs& a) {
   CapacityList caps = parse_capacity_list(a.sizes, "--sizes");
   if (a.ignore_obj_size && caps.unit_given && caps.unit == CapacityUnit::kBytes)
     throw InputError("--sizes", "byte capacities with --ignore-obj-size: give object counts");
-  std::string out_format;
+  // -o by its extension, or --json-file / --csv (each may be - for stdout, instead of the table).
+  std::string json_out = a.json_file, csv_out = a.csv_file;
   if (!a.out.empty()) {
-    if (a.out == "-") throw InputError("-o", "give a file (.csv or .json); --json prints JSON to stdout");
-    if (cachesim_ends_with(a.out, ".csv")) out_format = "csv";
-    else if (cachesim_ends_with(a.out, ".json")) out_format = "json";
-    else throw InputError("-o", fmt::format("'{}': the format is the extension, .csv or .json", a.out));
-    check_output("-o", a.out);
+    if (a.out == "-") throw InputError("-o", "give a file (.csv or .json), or --json-file - / --csv - for stdout");
+    std::string& slot = cachesim_ends_with(a.out, ".csv") ? csv_out : json_out;
+    if (!cachesim_ends_with(a.out, ".csv") && !cachesim_ends_with(a.out, ".json"))
+      throw InputError("-o", fmt::format("'{}': the format is the extension, .csv or .json", a.out));
+    if (!slot.empty()) throw InputError("-o", fmt::format("and {} both write it", &slot == &csv_out ? "--csv" : "--json-file"));
+    slot = a.out;
   }
+  check_output(a.out.empty() ? "--json-file" : "-o", json_out);
+  check_output(a.out.empty() ? "--csv" : "-o", csv_out);
+  const int to_stdout = (a.json ? 1 : 0) + (json_out == "-" ? 1 : 0) + (csv_out == "-" ? 1 : 0);
+  if (to_stdout > 1) throw InputError("--json", "--json, --json-file - and --csv - each print to stdout: give one");
 
   AccessLog log;
   std::uint64_t zero_skipped = 0;
@@ -133,82 +138,41 @@ void run_cachesim(const CachesimArgs& a) {
   const std::uint64_t objects = unit == CapacityUnit::kObjects ? footprint : access_footprint(log.accesses, CapacityUnit::kObjects);
   resolve_capacities(caps, footprint, "--sizes");
 
-  struct Row {
-    std::string policy;
-    const CapacityItem* cap;
-    CacheSimResult r;
-  };
-  std::vector<Row> rows;
+  CacheSimReport rep;
+  rep.source = a.accesses;
+  rep.format = format;
+  rep.unit = unit;
+  rep.requests = log.accesses.size();
+  rep.objects = objects;
+  rep.footprint = footprint;
+  rep.zero_size_skipped = zero_skipped;
   for (const auto& p : policies)
     for (const CapacityItem& c : caps.items) {
       try {
-        rows.push_back({p, &c, cachesim_run(log.accesses, p, c.value, unit)});
+        rep.rows.push_back({p, c.token, c.value, cachesim_run(log.accesses, p, c.value, unit)});
       } catch (const std::invalid_argument& e) {
         throw InputError(a.accesses, e.what());
       }
     }
-
   const bool bytes = unit == CapacityUnit::kBytes;
   const char* unit_name = bytes ? "bytes" : "objects";
-  nlohmann::json j;
-  if (a.json || out_format == "json") {
-    j["source"] = a.accesses;
-    j["format"] = format;
-    j["unit"] = unit_name;
-    j["requests"] = log.accesses.size();
-    j["objects"] = objects;
-    j["footprint"] = footprint;
-    j["zero_size_skipped"] = zero_skipped;
-    nlohmann::json arr = nlohmann::json::array();
-    for (const Row& r : rows) {
-      nlohmann::json o = {{"policy", r.policy},
-                          {"capacity", r.cap->value},
-                          {"capacity_item", r.cap->token},
-                          {"requests", r.r.stats.requests},
-                          {"misses", r.r.stats.misses},
-                          {"miss_ratio", cachesim_ratio(r.r.stats.misses, r.r.stats.requests)},
-                          {"bound", r.policy == "pfoo_lower"}};
-      if (r.policy != "pfoo_lower") {
-        o["evictions"] = r.r.stats.evictions;
-        o["rejected"] = r.r.stats.rejected;
-      }
-      if (bytes) {
-        o["bytes_requested"] = r.r.bytes_requested;
-        o["miss_bytes"] = r.r.stats.bytes_missed;
-        o["byte_miss_ratio"] = cachesim_ratio(r.r.stats.bytes_missed, r.r.bytes_requested);
-      }
-      arr.push_back(std::move(o));
-    }
-    j["rows"] = std::move(arr);
+  if (!json_out.empty() || a.json) {
+    const std::string j = cachesim_json(rep);
+    if (!json_out.empty()) write_output(json_out, j);
+    if (a.json) fmt::print("{}", j);
   }
-  if (out_format == "json") write_output(a.out, j.dump(2) + "\n");
-  if (out_format == "csv") {
-    std::string t = fmt::format("policy,capacity_{},requests,misses,miss_ratio{}\n", unit_name,
-                                bytes ? ",bytes_requested,miss_bytes,byte_miss_ratio" : "");
-    for (const Row& r : rows) {
-      t += fmt::format("{},{},{},{},{}", r.policy, r.cap->value, r.r.stats.requests, r.r.stats.misses,
-                       cachesim_ratio(r.r.stats.misses, r.r.stats.requests));
-      if (bytes)
-        t += fmt::format(",{},{},{}", r.r.bytes_requested, r.r.stats.bytes_missed,
-                         cachesim_ratio(r.r.stats.bytes_missed, r.r.bytes_requested));
-      t += "\n";
-    }
-    write_output(a.out, t);
-  }
-  if (a.json) {
-    fmt::print("{}\n", j.dump(2));
-    return;
-  }
+  if (!csv_out.empty()) write_output(csv_out, cachesim_csv(rep));
+  if (to_stdout) return;  // stdout holds that output, not the table
   fmt::print("{} ({}): {} requests, {} objects, footprint {}\n", a.accesses, format, log.accesses.size(), objects,
              cachesim_capacity_text(footprint, unit));
   if (zero_skipped) fmt::print("note: {} records of obj_size 0 skipped (as libCacheSim's reader does)\n", zero_skipped);
   fmt::print("{:<14} {:>16} {:>12} {:>12} {:>10}{}\n", "policy", fmt::format("capacity ({})", unit_name), "requests",
              "misses", "miss ratio", bytes ? fmt::format(" {:>16} {:>10}", "miss bytes", "byte ratio") : "");
-  for (const Row& r : rows) {
-    fmt::print("{:<14} {:>16} {:>12} {:>12} {:>10.6f}{}{}\n", r.policy, r.cap->value, r.r.stats.requests, r.r.stats.misses,
-               cachesim_ratio(r.r.stats.misses, r.r.stats.requests),
-               bytes ? fmt::format(" {:>16} {:>10.6f}", r.r.stats.bytes_missed,
-                                   cachesim_ratio(r.r.stats.bytes_missed, r.r.bytes_requested))
+  for (const CacheSimRow& r : rep.rows) {
+    const SimStats& st = r.result.stats;
+    fmt::print("{:<14} {:>16} {:>12} {:>12} {:>10.6f}{}{}\n", r.policy, r.capacity, st.requests, st.misses,
+               cachesim_ratio(st.misses, st.requests),
+               bytes ? fmt::format(" {:>16} {:>10.6f}", st.bytes_missed, cachesim_ratio(st.bytes_missed, r.result.bytes_requested))
                      : "",
                r.policy == "pfoo_lower" ? "  (a lower bound, not a policy)" : "");
   }
@@ -239,6 +203,8 @@ void register_cachesim_commands(CLI::App& app) {
   c->add_option("--delimiter", a->delimiter, "csv: the field separator, one character or \\t (default ,)");
   c->add_option("--obj-id-is-num", a->obj_id_is_num, "csv: true (default: decimal or 0x-hex ids) | false (any text, hashed)");
   c->add_option("-o,--out", a->out, "write the rows to this file, CSV or JSON by its extension (.csv, .json)");
+  c->add_option("--json-file", a->json_file, "write the rows as JSON to this file (- for stdout)");
+  c->add_option("--csv", a->csv_file, "write the rows as CSV to this file (- for stdout)");
   c->add_flag("--json", a->json, "print the rows as JSON instead of the table");
   c->callback([a] { run_cachesim(*a); });
 }

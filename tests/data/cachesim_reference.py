@@ -105,15 +105,18 @@ def belady(seq, cap, skip_never=False):
     return misses, mbytes
 
 
-def s3fifo_lcs(seq, cap):
+def s3fifo_lcs(seq, cap, keep_freq=False, admit_large=False, main_first=True, vtsim_ghost=False):
     # S3FIFO.c: small 10% (int of cap * 0.1), main the rest, ghost int(cap * 0.9) bytes; a miss
     # not in the ghost enters small, except that before the first eviction a full small sends it
     # to main; an object of size >= small's is not admitted unless it was a ghost; a hit adds 1
     # to freq; evicting small: freq >= 2 moves the object to main (a new object: freq 0), else it
     # leaves into the ghost; evicting main: freq >= 1 reinserts with min(freq, 3) - 1.
+    # Each keyword turns one of those rules into vtsim's: keep_freq (a promoted object keeps its
+    # freq), admit_large (any object up to the cache's size enters small), main_first=False
+    # (always small), vtsim_ghost (the ghost weighs up to main's share).
     small_cap = int(cap * 0.10)
     main_cap = cap - small_cap
-    ghost_cap = int(cap * 0.90)
+    ghost_cap = main_cap if vtsim_ghost else int(cap * 0.90)
     small, main, ghost = OrderedDict(), OrderedDict(), OrderedDict()  # key -> size, first = oldest
     freq = {}
     used = {'s': 0, 'm': 0, 'g': 0}
@@ -137,7 +140,8 @@ def s3fifo_lcs(seq, cap):
             if freq[key] >= 2:
                 main[key] = size
                 used['m'] += size
-                freq[key] = 0
+                if not keep_freq:
+                    freq[key] = 0
             else:
                 del freq[key]
                 ghost_put(key, size)
@@ -164,7 +168,7 @@ def s3fifo_lcs(seq, cap):
             used['g'] -= ghost.pop(key)
         misses += 1
         mbytes += size
-        if size > small_cap or size > cap:  # S3FIFO_can_insert
+        if (size > small_cap and not admit_large) or size > cap:  # S3FIFO_can_insert
             continue
         while used['s'] + used['m'] + size > cap:
             state['has_evicted'] = True
@@ -175,9 +179,9 @@ def s3fifo_lcs(seq, cap):
         if on_ghost:
             main[key] = size
             used['m'] += size
-        elif size >= small_cap:
+        elif size >= small_cap and not admit_large:
             continue
-        elif not state['has_evicted'] and used['s'] >= small_cap:
+        elif main_first and not state['has_evicted'] and used['s'] >= small_cap:
             main[key] = size
             used['m'] += size
         else:
@@ -187,13 +191,14 @@ def s3fifo_lcs(seq, cap):
     return misses, mbytes
 
 
-def arc_lcs(seq, cap):
+def arc_lcs(seq, cap, real_p=False):
     # ARC.c: p moves by max(|B2| // |B1|, 1) (integer quotient of the byte sizes), whatever the
     # object's size; a ghost hit runs REPLACE at once; then objects are evicted while the new one
     # does not fit: if |T1| + |B1| + size > c, B1's LRU ghost is dropped and REPLACE runs (T1's
     # LRU dropped without a ghost when |T1| >= c), else B2's LRU ghost is dropped when the
     # directory holds >= 2c, then REPLACE. An object larger than the cache: not admitted (ARC.c
-    # as read does not check; vtsim's semantics here).
+    # as read does not check; vtsim's semantics here). real_p: p moves by size * the real ratio
+    # (vtsim's rule) instead.
     T1, B1, T2, B2 = OrderedDict(), OrderedDict(), OrderedDict(), OrderedDict()  # last = MRU
     sz = {'T1': 0, 'B1': 0, 'T2': 0, 'B2': 0}
     lists = {'T1': T1, 'B1': B1, 'T2': T2, 'B2': B2}
@@ -229,12 +234,12 @@ def arc_lcs(seq, cap):
         if size > cap:
             continue
         if in_b1:
-            st['p'] = min(st['p'] + max(sz['B2'] // sz['B1'], 1), cap)
+            st['p'] = min(st['p'] + (size * max(sz['B2'] / sz['B1'], 1) if real_p else max(sz['B2'] // sz['B1'], 1)), cap)
             if T1 or T2:
                 replace(False)
             sz['B1'] -= B1.pop(key)
         elif in_b2:
-            st['p'] = max(st['p'] - max(sz['B1'] // sz['B2'], 1), 0)
+            st['p'] = max(st['p'] - (size * max(sz['B1'] / sz['B2'], 1) if real_p else max(sz['B1'] // sz['B2'], 1)), 0)
             if T1 or T2:
                 replace(True)
             sz['B2'] -= B2.pop(key)
@@ -260,7 +265,13 @@ POLICIES = {
     'belady': belady,
     'belady_reused': lambda s, c: belady(s, c, skip_never=True),
     's3fifo_lcs': s3fifo_lcs,
+    's3fifo_lcs_keep_freq': lambda s, c: s3fifo_lcs(s, c, keep_freq=True),
+    's3fifo_lcs_admit_large': lambda s, c: s3fifo_lcs(s, c, admit_large=True),
+    's3fifo_lcs_small_first': lambda s, c: s3fifo_lcs(s, c, main_first=False),
+    's3fifo_lcs_vtsim_ghost': lambda s, c: s3fifo_lcs(s, c, vtsim_ghost=True),
+    's3fifo_vtsim_rules': lambda s, c: s3fifo_lcs(s, c, True, True, False, True),
     'arc_lcs': arc_lcs,
+    'arc_real_p': lambda s, c: arc_lcs(s, c, real_p=True),
 }
 
 

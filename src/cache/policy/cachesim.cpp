@@ -43,6 +43,24 @@ std::string cachesim_lower(std::string_view s) {
 
 const char* const kCachesimOffline[] = {"belady", "belady_reused", "pfoo_lower"};
 
+std::string cachesim_json_string(std::string_view t) {
+  std::string o = "\"";
+  for (const char c : t) {
+    const auto u = static_cast<unsigned char>(c);
+    if (c == '"' || c == '\\') {
+      o += '\\';
+      o += c;
+    } else if (u < 0x20) {
+      o += fmt::format("\\u{:04x}", u);
+    } else {
+      o += c;
+    }
+  }
+  return o + "\"";
+}
+
+double cachesim_ratio(std::uint64_t a, std::uint64_t b) { return b ? static_cast<double>(a) / static_cast<double>(b) : 0.0; }
+
 }  // namespace
 
 CapacityList parse_capacity_list(std::string_view text, const std::string& where) {
@@ -177,9 +195,56 @@ CacheSimResult cachesim_run(std::span<const Access> accesses, std::string_view p
     r.stats.hits = b.requests - b.misses;
     r.stats.bytes_missed = b.bytes_missed;
   } else {
-    r.stats = simulate(seq, policy, capacity);
+    // libCacheSim's order (evict until the object fits, then insert), except for the two
+    // policies whose eviction reads the missed key: ARC's REPLACE (its case and the B2
+    // tie-break) and S3-FIFO's ghost hit, which libCacheSim takes before evicting too.
+    const MissOrder order = policy == "arc" || policy == "s3fifo" ? MissOrder::kAdmitFirst : MissOrder::kEvictFirst;
+    const auto p = make_replacement_policy(policy, capacity);
+    r.stats = simulate(seq, *p, capacity, nullptr, order);
   }
   return r;
+}
+
+std::string cachesim_json(const CacheSimReport& rep) {
+  const bool bytes = rep.unit == CapacityUnit::kBytes;
+  std::string o = "{\n";
+  o += fmt::format("  \"source\": {},\n  \"format\": {},\n  \"unit\": \"{}\",\n", cachesim_json_string(rep.source),
+                   cachesim_json_string(rep.format), bytes ? "bytes" : "objects");
+  o += fmt::format("  \"requests\": {},\n  \"objects\": {},\n  \"footprint\": {},\n  \"zero_size_skipped\": {},\n",
+                   rep.requests, rep.objects, rep.footprint, rep.zero_size_skipped);
+  o += "  \"rows\": [";
+  for (std::size_t i = 0; i < rep.rows.size(); ++i) {
+    const CacheSimRow& r = rep.rows[i];
+    const SimStats& st = r.result.stats;
+    const bool bound = r.policy == "pfoo_lower";
+    o += i ? ",\n    {\n" : "\n    {\n";
+    o += fmt::format("      \"policy\": {},\n      \"capacity\": {},\n      \"capacity_item\": {},\n",
+                     cachesim_json_string(r.policy), r.capacity, cachesim_json_string(r.capacity_item));
+    o += fmt::format("      \"requests\": {},\n      \"misses\": {},\n      \"miss_ratio\": {},\n      \"bound\": {}",
+                     st.requests, st.misses, cachesim_ratio(st.misses, st.requests), bound ? "true" : "false");
+    if (!bound) o += fmt::format(",\n      \"evictions\": {},\n      \"rejected\": {}", st.evictions, st.rejected);
+    if (bytes)
+      o += fmt::format(",\n      \"bytes_requested\": {},\n      \"miss_bytes\": {},\n      \"byte_miss_ratio\": {}",
+                       r.result.bytes_requested, st.bytes_missed, cachesim_ratio(st.bytes_missed, r.result.bytes_requested));
+    o += "\n    }";
+  }
+  o += rep.rows.empty() ? "]\n}\n" : "\n  ]\n}\n";
+  return o;
+}
+
+std::string cachesim_csv(const CacheSimReport& rep) {
+  const bool bytes = rep.unit == CapacityUnit::kBytes;
+  std::string t = fmt::format("policy,capacity_{},requests,misses,miss_ratio{}\n", bytes ? "bytes" : "objects",
+                              bytes ? ",bytes_requested,miss_bytes,byte_miss_ratio" : "");
+  for (const CacheSimRow& r : rep.rows) {
+    const SimStats& st = r.result.stats;
+    t += fmt::format("{},{},{},{},{}", r.policy, r.capacity, st.requests, st.misses, cachesim_ratio(st.misses, st.requests));
+    if (bytes)
+      t += fmt::format(",{},{},{}", r.result.bytes_requested, st.bytes_missed,
+                       cachesim_ratio(st.bytes_missed, r.result.bytes_requested));
+    t += "\n";
+  }
+  return t;
 }
 
 }  // namespace vtsim

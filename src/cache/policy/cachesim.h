@@ -71,4 +71,24 @@ struct CacheSimResult {
 CacheSimResult cachesim_run(std::span<const Access> accesses, std::string_view policy, std::uint64_t capacity,
                             CapacityUnit unit);
 
+// What `vtsim cachesim` reports: the sequence's figures and one row per (policy, capacity).
+struct CacheSimRow {
+  std::string policy;
+  std::string capacity_item;  // as typed
+  std::uint64_t capacity = 0;
+  CacheSimResult result;
+};
+struct CacheSimReport {
+  std::string source, format;
+  CapacityUnit unit = CapacityUnit::kBytes;
+  std::uint64_t requests = 0, objects = 0, footprint = 0, zero_size_skipped = 0;
+  std::vector<CacheSimRow> rows;
+};
+
+// The report as JSON (an object with the figures and "rows"; miss bytes only for bytes) and as
+// CSV (policy,capacity_<unit>,requests,misses,miss_ratio[,bytes_requested,miss_bytes,byte_miss_ratio]).
+// Ratios are printed as the shortest decimals that read back to the same double.
+std::string cachesim_json(const CacheSimReport& report);
+std::string cachesim_csv(const CacheSimReport& report);
+
 }  // namespace vtsim
