@@ -311,7 +311,7 @@ TEST_CASE("cachesim: the CLI prints the table, writes CSV and JSON, and refuses 
   auto r = cs_cli("cachesim -a " + acc + " -s 10B -p lru,fifo,belady_reused");
   CHECK(r.code == 0);
   CHECK(vtsim::test::contains(r.out, "6 requests, 3 objects, footprint"));
-  CHECK(vtsim::test::contains(r.out, "lru                          10            6            5   0.833333               23   0.793103"));
+  CHECK(vtsim::test::contains(r.out, "lru                            10            6            5   0.833333               23   0.793103"));
   const std::string csv = cs_tmp("out.csv"), json = cs_tmp("out.json");
   r = cs_cli("cachesim -a " + acc + " -s 10B,2KiB -p lru,fifo -o " + csv);
   CHECK(r.code == 0);
@@ -335,7 +335,7 @@ TEST_CASE("cachesim: the CLI prints the table, writes CSV and JSON, and refuses 
   cs_write(cv, "id,bytes\n1,6\n2,3\n1,6\n3,5\n2,3\n1,6\n");
   r = cs_cli("cachesim -a " + cv + " --has-header --obj-id-col id --obj-size-col bytes -s 10B -p lru");
   CHECK(r.code == 0);
-  CHECK(vtsim::test::contains(r.out, "lru                          10            6            5"));
+  CHECK(vtsim::test::contains(r.out, "lru                            10            6            5"));
   // Bad input: exit 2, "vtsim: error:" naming the flag, item, file:record or column.
   const std::vector<std::pair<std::string, std::string>> bad = {
       {"cachesim -a " + acc + " -s 10XB", "vtsim: error: --sizes: '10XB': unknown unit 'XB'"},

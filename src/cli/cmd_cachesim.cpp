@@ -166,11 +166,11 @@ void run_cachesim(const CachesimArgs& a) {
   fmt::print("{} ({}): {} requests, {} objects, footprint {}\n", a.accesses, format, log.accesses.size(), objects,
              cachesim_capacity_text(footprint, unit));
   if (zero_skipped) fmt::print("note: {} records of obj_size 0 skipped (as libCacheSim's reader does)\n", zero_skipped);
-  fmt::print("{:<14} {:>16} {:>12} {:>12} {:>10}{}\n", "policy", fmt::format("capacity ({})", unit_name), "requests",
+  fmt::print("{:<14} {:>18} {:>12} {:>12} {:>10}{}\n", "policy", fmt::format("capacity ({})", unit_name), "requests",
              "misses", "miss ratio", bytes ? fmt::format(" {:>16} {:>10}", "miss bytes", "byte ratio") : "");
   for (const CacheSimRow& r : rep.rows) {
     const SimStats& st = r.result.stats;
-    fmt::print("{:<14} {:>16} {:>12} {:>12} {:>10.6f}{}{}\n", r.policy, r.capacity, st.requests, st.misses,
+    fmt::print("{:<14} {:>18} {:>12} {:>12} {:>10.6f}{}{}\n", r.policy, r.capacity, st.requests, st.misses,
                cachesim_ratio(st.misses, st.requests),
                bytes ? fmt::format(" {:>16} {:>10.6f}", st.bytes_missed, cachesim_ratio(st.bytes_missed, r.result.bytes_requested))
                      : "",
