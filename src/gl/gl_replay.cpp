@@ -98,7 +98,9 @@ class GpuFeedbackRecorder {
     frame_.t_s = pose.t_s;
     frame_.has_pose = true;
     frame_.pose = pose;
-    frame_.fresh = fresh;
+    // Before the first readback the engine's feedback is empty: the first frame carries that (a
+    // trace's first frame is fresh), the next ones reuse it until a readback arrives.
+    frame_.fresh = fresh || w_.frames() == 0;
     frame_.measured = true;
     frame_.tiles.clear();
     if (fresh) {
