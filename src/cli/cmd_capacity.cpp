@@ -33,13 +33,13 @@ struct CapacityArgs {
   std::int64_t width = 1 << 20, height = 0;
   int clipsize = 1024, tile = 128;
   std::string layers = "albedo:rgba8";
-  bool json = false, seed_table = false;
+  bool json = false, article_table = false;
   std::string system = RunConfig{}.system;  // the replay's default system
   // vt
   int border = 0;
   std::string screen = "1920x1080";
   double overdraw = 3.0, redundancy = 1.0, texels_per_pixel = 1.0;
-  bool seed_check = false;
+  bool article_check = false;
   // every system: a replay config's texture (width, height, tile_size, border, layers) and
   // clipmap.clipsize; a flag given on the command line wins; terrain reads its [terrain] too
   std::vector<std::string> configs;
@@ -66,7 +66,7 @@ std::string decimal_bytes(double b) {
 }
 
 // Yao 2011's figures, each recomputed (docs/vt.md "Yao 2011 arithmetic").
-void print_seed001_checks() {
+void print_article_checks() {
   fmt::print("Yao 2011 arithmetic, recomputed (MB = 10^6 B, MiB = 2^20 B)\n");
   const double s2a = 1680.0 * 1050.0 * 3.0;
   fmt::print("  §2  one screen of texels, 1680×1050 × 3 B         = {} B = {:.2f} MB = {:.2f} MiB   (Yao 2011: \"5MB\"; agrees)\n",
@@ -98,8 +98,8 @@ void print_seed001_checks() {
 }
 
 void run_vt_capacity(const CapacityArgs& a) {
-  if (a.seed_check) {
-    print_seed001_checks();
+  if (a.article_check) {
+    print_article_checks();
     return;
   }
   const std::int64_t h = a.height > 0 ? a.height : a.width;
@@ -192,9 +192,9 @@ void run_vt_capacity(const CapacityArgs& a) {
 
 // Yao 2007 §2-3's table: texture sides × clipsizes, in bytes at 2 bytes per texel (the unit that
 // reproduces its "Full Mipmap" row: 682 KB for a 512² chain = 349,525 texels × 2 B).
-void print_seed_table() {
+void print_article_table() {
   const std::int64_t sides[] = {512, 1024, 4096, 32768, 67108864};
-  const char* seed[4][5] = {{"682KB", "2.7MB", "42.7MB", "2.7GB", "10923TB"},
+  const char* article[4][5] = {{"682KB", "2.7MB", "42.7MB", "2.7GB", "10923TB"},
                             {"682KB", "1.1MB", "2.2MB", "3.7MB", "9.1MB"},
                             {"682KB", "2.7MB", "6.7MB", "12.7MB", "34.7MB"},
                             {"682KB", "2.7MB", "18.7MB", "42.7MB", "131.7MB"}};
@@ -209,7 +209,7 @@ void print_seed_table() {
     for (int c = 0; c < 5; ++c) {
       const ClipmapMemory m = clipmap_memory({sides[c], sides[c]}, 1, r == 0 ? static_cast<int>(sides[c]) : clips[r]);
       const double bytes = 2.0 * static_cast<double>(r == 0 ? m.full_mip_texels : m.stack_texels + m.pyramid_texels);
-      fmt::print("{:>24}", fmt::format("{} [{}]", human_bytes(bytes), seed[r][c]));
+      fmt::print("{:>24}", fmt::format("{} [{}]", human_bytes(bytes), article[r][c]));
     }
     fmt::print("\n");
   }
@@ -363,8 +363,8 @@ void run_capacity(const CapacityArgs& args) {
     run_terrain_capacity(a);
     return;
   }
-  if (a.seed_table) {
-    print_seed_table();
+  if (a.article_table) {
+    print_article_table();
     return;
   }
   const std::int64_t h = a.height > 0 ? a.height : a.width;
@@ -434,13 +434,15 @@ void register_capacity_commands(CLI::App& app) {
   c->add_option("--tile", a->tile, "tile size T, texels (N must be a multiple)")->capture_default_str();
   c->add_option("--layers", a->layers, "layers name:format[:ratio],... (rgba8, rgb8, rg8, r8, rgba16f, bc1..bc7)")->capture_default_str();
   c->add_flag("--json", a->json, "print JSON");
-  c->add_flag("--seed-table", a->seed_table, "recompute Yao 2007 §2-3's memory table and show the article's figures");
+  c->add_flag("--article-table", a->article_table, "recompute Yao 2007 §2-3's memory table and show the article's figures");
+  c->add_flag("--seed-table", a->article_table)->group("");  // the flag's former name, kept for scripts
   c->add_option("--border", a->border, "vt: page border B, texels (stored P+2B)")->capture_default_str();
   c->add_option("--screen", a->screen, "vt: screen WxH, pixels")->capture_default_str();
   c->add_option("--overdraw", a->overdraw, "vt: surfaces drawn per pixel (Yao 2011 §2: 3)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
   c->add_option("--redundancy", a->redundancy, "vt: screen-sized textures of cache slack (Yao 2011 §2: 6)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
   c->add_option("--texels-per-pixel", a->texels_per_pixel, "vt: texels per pixel at the desired level (Yao 2011 §2: 1)")->capture_default_str()->check(CLI::Range(1e-6, 1e6));
-  c->add_flag("--seed-check", a->seed_check, "vt: recompute Yao 2011's arithmetic (§2, §3, §5)");
+  c->add_flag("--article-check", a->article_check, "vt: recompute Yao 2011's arithmetic (§2, §3, §5)");
+  c->add_flag("--seed-check", a->article_check)->group("");  // the flag's former name, kept for scripts
   add_config_options(c, a->configs, a->sets,
                      "; capacity reads texture.* and clipmap.clipsize, a flag given wins (terrain: [terrain] too, e.g. "
                      "docs/examples/terrain.toml)");
