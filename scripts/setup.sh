@@ -13,7 +13,7 @@ cd "$here"
 # --no-install-recommends would leave them out, failing find_package(OpenImageIO).
 PKGS=(build-essential cmake pkg-config git
       libopenimageio-dev openimageio-tools libglm-dev doctest-dev libcli11-dev nlohmann-json3-dev
-      libtomlplusplus-dev libfmt-dev libzstd-dev liblz4-dev liburing-dev libassimp-dev libxxhash-dev fio python3 ninja-build
+      libtomlplusplus-dev libfmt-dev libzstd-dev liblz4-dev liburing-dev libassimp-dev zlib1g-dev libxxhash-dev fio python3 ninja-build
       libepoxy-dev libegl-dev libegl-mesa0 libgl1-mesa-dri)
 
 . scripts/packages.sh

@@ -16,6 +16,7 @@
 #include <assimp/Importer.hpp>
 #include <assimp/importerdesc.h>
 #include <fmt/format.h>
+#include <zlib.h>
 #include <assimp/scene.h>
 #include <glm/geometric.hpp>
 #include <glm/mat3x3.hpp>
@@ -184,6 +185,81 @@ void import_check_collada(const std::string& path) {
     if (body.find_first_not_of(" \t\r\n") != std::string_view::npos)
       throw InputError(path, "Collada: <" + std::string(tag.substr(0, tag.find(' '))) +
                                  "> holds values but its count is 0 or not a number (assimp 5.2.5 crashes on it)");
+  }
+}
+
+// Little-endian field of a zip record (PKWARE APPNOTE 4.3), 0 past the end (checked by callers).
+std::uint64_t zip_le(std::string_view z, std::uint64_t at, int n) {
+  std::uint64_t v = 0;
+  for (int i = n - 1; i >= 0; --i) v = v << 8 | static_cast<unsigned char>(z[at + static_cast<std::uint64_t>(i)]);
+  return v;
+}
+
+// assimp 5.2.5 reads a .pk3 through minizip and asserts (abort()) that closing an entry succeeds,
+// which fails when the entry's CRC-32 does not match its data (ZipArchiveIOSystem.cpp:272, found
+// by the mesh_import fuzz target: tests/fuzz/corpus/mesh_import/crash_pk3_crc_abort_assimp525.pk3).
+// So every entry of a zip is checked first (PKWARE APPNOTE 4.3: end of central directory, central
+// directory, local headers): stored or deflated, not encrypted, inside the file, and its data's
+// CRC-32 the central directory's. The uncompressed total is bounded by max_bytes (what assimp
+// reads into memory), so a small archive cannot inflate without end.
+void import_check_zip(const std::string& path, std::uint64_t max_bytes) {
+  const std::string z = read_regular_file(path, max_bytes, "more than the limit for a scene file");
+  const auto bad = [&](const std::string& what) { return InputError(path, "pk3 (zip): " + what); };
+  if (z.size() < 22) throw bad("too short for a zip");
+  std::size_t eocd = std::string::npos;
+  const std::size_t lowest = z.size() > 22 + 65535 ? z.size() - 22 - 65535 : 0;
+  for (std::size_t at = z.size() - 22 + 1; at-- > lowest;)
+    if (zip_le(z, at, 4) == 0x06054b50) {
+      eocd = at;
+      break;
+    }
+  if (eocd == std::string::npos) throw bad("no end of central directory record");
+  const std::uint64_t entries = zip_le(z, eocd + 10, 2);
+  std::uint64_t at = zip_le(z, eocd + 16, 4), total = 0;
+  std::vector<char> out(1 << 16);
+  for (std::uint64_t i = 0; i < entries; ++i) {
+    if (at + 46 > z.size() || zip_le(z, at, 4) != 0x02014b50)
+      throw bad(fmt::format("central directory entry {} is outside the file or damaged", i));
+    const std::uint64_t flags = zip_le(z, at + 8, 2), method = zip_le(z, at + 10, 2), crc = zip_le(z, at + 16, 4);
+    const std::uint64_t csize = zip_le(z, at + 20, 4), usize = zip_le(z, at + 24, 4), local = zip_le(z, at + 42, 4);
+    const std::uint64_t n = zip_le(z, at + 28, 2), extra = zip_le(z, at + 30, 2), comment = zip_le(z, at + 32, 2);
+    if (at + 46 + n > z.size()) throw bad(fmt::format("central directory entry {}: name outside the file", i));
+    const std::string name = z.substr(at + 46, n);
+    at += 46 + n + extra + comment;
+    if (flags & 1u) throw bad(name + ": encrypted");
+    if (method != 0 && method != 8) throw bad(fmt::format("{}: compression method {} (stored or deflated only)", name, method));
+    if (local + 30 > z.size() || zip_le(z, local, 4) != 0x04034b50) throw bad(name + ": local header outside the file or damaged");
+    const std::uint64_t data = local + 30 + zip_le(z, local + 26, 2) + zip_le(z, local + 28, 2);
+    if (data > z.size() || csize > z.size() - data) throw bad(name + ": data outside the file");
+    total += usize;
+    if (total > max_bytes) throw bad(fmt::format("{} bytes uncompressed, more than the limit for a scene file ({})", total, max_bytes));
+    uLong sum = crc32(0L, Z_NULL, 0);
+    std::uint64_t got = 0;
+    if (method == 0) {
+      if (csize != usize) throw bad(name + ": stored with different compressed and uncompressed sizes");
+      for (std::uint64_t k = 0; k < usize; k += 1u << 30)
+        sum = crc32(sum, reinterpret_cast<const Bytef*>(z.data() + data + k), static_cast<uInt>(std::min<std::uint64_t>(usize - k, 1u << 30)));
+      got = usize;
+    } else {
+      z_stream zs{};
+      if (inflateInit2(&zs, -MAX_WBITS) != Z_OK) throw bad(name + ": zlib cannot start");
+      zs.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(z.data() + data));
+      zs.avail_in = static_cast<uInt>(csize);
+      int r = Z_OK;
+      while (r == Z_OK && got < usize) {
+        zs.next_out = reinterpret_cast<Bytef*>(out.data());
+        zs.avail_out = static_cast<uInt>(std::min<std::uint64_t>(out.size(), usize - got));
+        r = inflate(&zs, Z_NO_FLUSH);
+        const std::uint64_t produced = std::min<std::uint64_t>(out.size(), usize - got) - zs.avail_out;
+        sum = crc32(sum, reinterpret_cast<const Bytef*>(out.data()), static_cast<uInt>(produced));
+        got += produced;
+        if (r == Z_OK && produced == 0 && zs.avail_in == 0) break;  // input exhausted mid-stream
+      }
+      inflateEnd(&zs);
+      if (r != Z_OK && r != Z_STREAM_END) throw bad(fmt::format("{}: damaged deflate data (zlib {})", name, r));
+    }
+    if (got != usize) throw bad(fmt::format("{}: {} bytes of data where its header says {}", name, got, usize));
+    if (sum != crc) throw bad(fmt::format("{}: CRC-32 {:08x} where the archive says {:08x} (damaged)", name, sum, crc));
   }
 }
 
@@ -536,6 +612,7 @@ Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int
                                  ": more than the limit for a scene file");
   }
 
+  if (import_lower_ext(path) == "pk3") import_check_zip(path, opt.max_bytes);
   // Collada, or any extension no kept reader claims (assimp then picks a reader by content).
   if (const std::string e = import_lower_ext(path);
       e != "gltf" && e != "glb" && e != "fbx" && e != "obj" && e != "pk3" && e != "bsp")
