@@ -16,6 +16,7 @@
 #include "sim/run/replay.h"
 #include "sim/run/systems.h"
 #include "sim/run/report_html.h"
+#include "sim/run/timeline.h"
 #include "sim/view/scene.h"
 #include "sim/view/scene_town.h"
 #include "sim/run/feedback_replay.h"
@@ -39,6 +40,8 @@ struct ReplayArgs {
   bool print_config = false, quiet = false, json = false, progress = false, opt = false;
   bool allow_repairs = false;
   std::string feedback, record_feedback;  // docs/feedback.md: replay from / record a feedback trace
+  std::string timeline, timeline_frames;  // docs/metrics.md, "A tile's life on the timeline"
+  double timeline_max_MB = 100.0;
 };
 
 // A replay whose camera never sees a textured surface measures nothing, and its summary looks
@@ -208,6 +211,14 @@ void run_replay_command(const ReplayArgs& a) {
   check_output("--report", a.report);
   check_output("--produce-samples", a.produce_samples);
   check_output("--record-feedback", a.record_feedback);
+  check_output("--timeline", a.timeline);
+  TimelineOptions tl_opt;
+  if (!a.timeline_frames.empty()) {
+    if (a.timeline.empty()) throw InputError("--timeline-frames", "limits --timeline FILE: give it too");
+    parse_timeline_frames("--timeline-frames", a.timeline_frames, tl_opt);
+  }
+  if (!(a.timeline_max_MB > 0)) throw InputError("--timeline-max-MB", "must be > 0");
+  tl_opt.max_bytes = static_cast<std::uint64_t>(a.timeline_max_MB * 1e6);
   if (!a.produce_samples.empty() && (a.clock != "real" || !produced_system(cfg)))
     throw InputError("--produce-samples", fmt::format("records the tiles the terrain's compositor makes in the real clock: needs --clock real "
                                                       "and run.system = \"terrain\" (here --clock {}, run.system = \"{}\")",
@@ -217,6 +228,7 @@ void run_replay_command(const ReplayArgs& a) {
   if (to_stdout > 1)
     throw InputError(a.json ? "--json" : "--summary/--frames/--report/--produce-samples",
                      "only one of --json, --summary -, --frames -, --report -, --produce-samples - can write to stdout");
+  if (a.timeline == "-" && to_stdout++ > 0) throw InputError("--timeline", "- writes to stdout, which another output already takes");
   if (a.clock != "sim" && a.clock != "real")
     throw InputError("--clock", "'" + a.clock + "' is not one of: sim (device models), real (threads and files)");
   if (a.clock == "real") check_real_clock_system(cfg, !a.store.empty());  // the terrain: no store, a producer
@@ -236,6 +248,13 @@ void run_replay_command(const ReplayArgs& a) {
     scene = make_scene_from_config(cfg);
     for (const std::string& w : scene->load_warnings()) warn(w);
   }
+  // The timeline's size bound, before the run (a feedback trace's frames are known once it is open:
+  // its recorder bounds the file when it is written).
+  std::optional<TimelineRecorder> timeline;
+  if (!a.timeline.empty()) {
+    if (a.feedback.empty()) check_timeline_bound(cfg, plan_frames(cfg, trace).frames, tl_opt);
+    timeline.emplace(tl_opt);
+  }
   std::function<void(int, int)> progress;
   const bool tty = isatty(fileno(stderr)) != 0;
   if ((a.progress || tty) && !a.quiet)
@@ -250,6 +269,7 @@ void run_replay_command(const ReplayArgs& a) {
   if (a.clock == "real") {
     RealClockOptions ro{progress};
     ro.record_produced_tiles = !a.produce_samples.empty();
+    ro.timeline = timeline ? &*timeline : nullptr;
     RealRun run = store ? run_real_replay(cfg, trace, *scene, *store, ro) : run_real_replay(cfg, trace, *scene, ro);
     r = std::move(run.result);
     if (!a.produce_samples.empty()) write_output(a.produce_samples, produce::produced_tiles_csv(run.produced_tiles));
@@ -272,6 +292,7 @@ void run_replay_command(const ReplayArgs& a) {
     ReplayEnv env;
     env.progress = progress;
     if (store) env.sizer = store_sizer(*store);
+    env.timeline = timeline ? &*timeline : nullptr;
     std::optional<FeedbackRecorder> rec;
     if (!a.record_feedback.empty()) {
       rec.emplace(a.record_feedback, cfg);
@@ -289,6 +310,14 @@ void run_replay_command(const ReplayArgs& a) {
   if (progress && tty) fmt::print(stderr, "\r{:40}\r", "");
   if (a.feedback.empty())
     if (const std::string blind = blind_replay_warning(r.metrics, trace, cfg); !blind.empty()) warn(blind);
+  if (timeline) {
+    const std::string json = timeline->json();  // throws over its bound: nothing written
+    write_output(a.timeline, json);
+    if (!a.quiet && a.timeline != "-")
+      fmt::print(stderr, "vtsim: timeline {}: {} tile requests over {} frames, {} bytes ({:.0f} bytes a frame)\n", a.timeline,
+                 timeline->lives().size(), timeline->frames().size(), json.size(),
+                 static_cast<double>(json.size()) / static_cast<double>(std::max<std::size_t>(1, timeline->frames().size())));
+  }
   if (!a.summary.empty()) write_output(a.summary, r.summary.dump(2) + "\n");
   if (!a.frames.empty()) write_output_via(a.frames, [&](const std::string& p) { r.metrics.write_frames_csv(p); });
   if (!a.report.empty()) {
@@ -323,6 +352,12 @@ void register_replay_commands(CLI::App& app) {
                 "replay the streaming side from this feedback trace instead of --trace: no render (docs/feedback.md)");
   c->add_option("--record-feedback", a->record_feedback,
                 "write the feedback trace of this camera replay here (docs/feedback.md)");
+  c->add_option("--timeline", a->timeline,
+                "write every tile request's stages with their times here, as Chrome's Trace Event JSON (Perfetto, "
+                "chrome://tracing; - for stdout; docs/metrics.md)");
+  c->add_option("--timeline-frames", a->timeline_frames, "record the timeline of frames A to B only (A:B, 0-based, inclusive; A: to the end)");
+  c->add_option("--timeline-max-MB", a->timeline_max_MB, "the timeline's size bound, MB: a larger one is refused before the run")
+      ->capture_default_str();
   c->add_flag("--json", a->json, "print the summary JSON instead of the human summary");
   c->add_flag("--quiet,-q", a->quiet, "print no information (files are still written; warnings still are: --werror makes them fail the run)");
   c->add_flag("--allow-repairs", a->allow_repairs, kAllowRepairsHelp);

@@ -1,5 +1,7 @@
 #include "stream/system/clipmap_system.h"
 
+#include <bit>
+
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -121,6 +123,9 @@ bool ClipmapSystem::commit(TileKey key, int frame) {
     return TileKey(0, l, x, y).bits;
   };
   if (ev.mask) evicted_at_[pack(key.level(), ev.tx, ev.ty)] = frame;
+  if (ev.mask && evict_log_)
+    for (std::uint32_t m = ev.mask; m; m &= m - 1)
+      evict_log_->push_back(TileKey(static_cast<std::uint32_t>(std::countr_zero(m)), key.level(), ev.tx, ev.ty));
   if (key.layer() == 0 && !evicted_at_.empty()) {
     auto it = evicted_at_.find(pack(key.level(), key.x(), key.y()));
     if (it != evicted_at_.end()) {

@@ -56,6 +56,8 @@ class ClipmapSystem final : public IStreamingSystem {
   void apply_marks(const std::vector<std::uint64_t>& marks) const override { cm_.apply_marks(marks); }
   nlohmann::json stats_json() const override;
   std::uint64_t vram_evictions() const override { return cm_.stats().vram_evictions; }
+  void record_vram_evictions(std::vector<TileKey>* log) override { evict_log_ = log; }
+  int tile_sampled(TileKey key) const override { return cm_.sampled(key); }
   std::uint64_t vram_thrash() const override { return thrash_; }
   std::uint64_t evicted_unsampled_bytes() const override;
 
@@ -69,6 +71,7 @@ class ClipmapSystem final : public IStreamingSystem {
 
   SystemSetup s_;
   Clipmap cm_;
+  std::vector<TileKey>* evict_log_ = nullptr;  // record_vram_evictions
   std::int64_t gu_ = 0, gv_ = 0, fu_ = 0, fv_ = 0;
   bool prefetch_ = false;
   int finest_active_ = 0;

@@ -284,7 +284,11 @@ bool TerrainSystem::commit(TileKey key, int) {
     return true;
   }
   const int l = static_cast<int>(key.level());
-  if (!cm_.commit(key)) return false;
+  Clipmap::Evicted ev;
+  if (!cm_.commit(key, &ev)) return false;
+  if (ev.mask && evict_log_)
+    for (std::uint32_t m = ev.mask; m; m &= m - 1)
+      evict_log_->push_back(TileKey(static_cast<std::uint32_t>(std::countr_zero(m)), key.level(), ev.tx, ev.ty));
   dirty_.erase(key.bits);
   if (key.layer() == 0) {
     ++produced_[static_cast<std::size_t>(l)];

@@ -111,6 +111,8 @@ class TerrainSystem final : public IStreamingSystem {
   void frame_counters(SystemCounters& out) const override;
   nlohmann::json stats_json() const override;
   std::uint64_t vram_evictions() const override { return cm_.stats().vram_evictions; }
+  void record_vram_evictions(std::vector<TileKey>* log) override { evict_log_ = log; }
+  int tile_sampled(TileKey key) const override { return cm_.sampled(key); }
   std::uint64_t vram_thrash() const override { return 0; }
   std::uint64_t evicted_unsampled_bytes() const override;
 
@@ -145,6 +147,7 @@ class TerrainSystem final : public IStreamingSystem {
   SystemSetup s_;
   TerrainConfig t_;
   Clipmap cm_;
+  std::vector<TileKey>* evict_log_ = nullptr;  // record_vram_evictions
   std::int64_t sector_texels_ = 0;
   int sectors_ = 0;
   int mip_offset_ = 0;
