@@ -6,10 +6,12 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <utility>
 #include <nlohmann/json.hpp>
 #include <set>
 
 #include "core/error.h"
+#include "sim/report/waterfall.h"
 #include "sim/run/replay.h"
 #include "sim/run/timeline.h"
 #include "sim/trace/trace_gen.h"
@@ -113,6 +115,44 @@ TEST_CASE("timeline: the JSON parses and its events count what the summary count
     CAPTURE(p);
     CHECK(processes.count(p) == 1);
   }
+  // Frames follow each other on one track; a stage's slices on one track never overlap.
+  std::map<std::pair<int, int>, double> track_end;
+  for (const auto& e : j["traceEvents"]) {
+    if (e["ph"] != "X") continue;
+    if (e["name"] == "frame") CHECK(e["tid"] == 1);
+    const auto key = std::make_pair(e["pid"].get<int>(), e["tid"].get<int>());
+    const double ts = e["ts"].get<double>(), dur = e["dur"].get<double>();
+    if (track_end.count(key)) CHECK(ts >= track_end[key] - 1e-3);
+    track_end[key] = std::max(track_end.count(key) ? track_end[key] : 0.0, ts + dur);
+  }
+}
+
+TEST_CASE("timeline: the report's waterfall shows the tiles a frame waited for, with their stages") {
+  const ReplayConfig cfg = load_replay_config("", {});
+  const auto scene = make_scene_from_config(cfg);
+  TimelineRecorder tl;
+  ReplayEnv env;
+  env.timeline = &tl;
+  run_replay(cfg, timeline_walk(), *scene, env);
+  // Frame 0 waits for the whole start-up fill, the earliest requests first.
+  const Waterfall w0 = frame_waterfall(tl, 0, "start-up", 10);
+  CHECK(w0.rows.size() == 10);
+  CHECK(w0.more > 0);
+  CHECK(test::contains(w0.title, "Tiles of frame 0 (start-up, 100.0 % blurry)"));
+  for (const WaterfallRow& r : w0.rows) {
+    REQUIRE(!r.bars.empty());
+    CHECK(r.bars.front().stage == WaterfallStage::queue);
+    CHECK(r.bars.front().t0_ms == 0.0);
+  }
+  const int worst = worst_frame(tl, 60);
+  REQUIRE(worst >= 60);
+  for (const auto& f : tl.frames())
+    if (f.measured && f.frame >= 60) CHECK(f.blurry <= tl.frames()[static_cast<std::size_t>(worst)].blurry);
+  const std::string svg = waterfall_svg(frame_waterfall(tl, worst, "the most blurry"));
+  CHECK(test::contains(svg, "aria-label=\"Tiles of frame " + std::to_string(worst)));
+  CHECK(test::contains(svg, "upload wait"));
+  // A frame outside the recorded range says so.
+  CHECK(test::contains(frame_waterfall(tl, 100000, "x").title, "not in the timeline"));
 }
 
 TEST_CASE("timeline: virtual texturing's per-layer evictions and uploads are counted too") {

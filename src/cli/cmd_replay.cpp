@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <optional>
 
 #include "cli/cli_io.h"
@@ -15,13 +16,14 @@
 #include "sim/run/real_replay.h"
 #include "sim/run/replay.h"
 #include "sim/run/systems.h"
-#include "sim/run/report_html.h"
+#include "sim/report/report_html.h"
+#include "sim/report/waterfall.h"
 #include "sim/run/timeline.h"
 #include "sim/view/scene.h"
-#include "sim/view/scene_town.h"
 #include "sim/run/feedback_replay.h"
 #include "sim/trace/trace_import.h"
 #include "stream/store/tile_store.h"
+#include "stream/system/vt_system.h"
 
 namespace vtsim::cli {
 
@@ -42,6 +44,7 @@ struct ReplayArgs {
   std::string feedback, record_feedback;  // docs/feedback.md: replay from / record a feedback trace
   std::string timeline, timeline_frames;  // docs/metrics.md, "A tile's life on the timeline"
   double timeline_max_MB = 100.0;
+  int waterfall_frame = -1;  // the report's waterfall of a chosen frame
 };
 
 // A replay whose camera never sees a textured surface measures nothing, and its summary looks
@@ -60,12 +63,8 @@ std::string blind_replay_warning(const MetricsCollector& m, const Trace& trace, 
   const double y1 = tx.origin_y_m + static_cast<double>(tx.height) / tx.texels_per_m;
   std::string where = fmt::format("the texture covers x {:.1f}..{:.1f} m, y {:.1f}..{:.1f} m", tx.origin_x_m, x1,
                                   tx.origin_y_m, y1);
-  if (cfg.scene.kind == "town") {  // the town's layout is fixed (SceneConfig's defaults) from the texture's origin
-    const double S = town_size_m(SceneConfig{});
-    where = fmt::format("the town covers x {:.1f}..{:.1f} m, y {:.1f}..{:.1f} m (a walk in it: `vtsim trace gen walk "
-                        "--start 30,8`)",
-                        tx.origin_x_m, tx.origin_x_m + S, tx.origin_y_m, tx.origin_y_m + S);
-  }
+  if (const SceneInfo* scene = scenes().find(cfg.scene.kind); scene && scene->where)  // a fixed layout (the town)
+    where = scene->where(tx.origin_x_m, tx.origin_y_m);
   return fmt::format("no frame saw a textured surface (0 samples in {} measured frames): the trace starts at "
                      "({:.1f}, {:.1f}, {:.1f}) m and {} (texture.origin_x_m, texture.origin_y_m, "
                      "texture.texels_per_m; docs/traces.md)",
@@ -120,8 +119,8 @@ std::string format_summary(const nlohmann::json& s) {
   out += fmt::format("  cache       RAM hit ratio {:.1f}%, {} RAM evictions, {} VRAM evictions\n",
                      100.0 * c["ram_hit_ratio"].get<double>(), c["ram_evictions"].get<std::uint64_t>(),
                      c["vram_evictions"].get<std::uint64_t>());
-  if (s.contains("vt") && s["vt"].contains("pool")) {
-    const auto& v = s["vt"];
+  if (s.contains(VtSystem::kName) && s[VtSystem::kName].contains("pool")) {
+    const auto& v = s[VtSystem::kName];
     out += fmt::format("  vt          pool {} pages ({:.0f}% in use, mean), {} evictions, {} rescues, pressure max {:.2f}, "
                        "bias max {:.2f}; page table {} texels rewritten (baked)\n",
                        v["pool_pages"].get<std::uint64_t>(), 100.0 * v["per_frame"]["pool_occupancy"]["mean"].get<double>(),
@@ -143,8 +142,8 @@ std::string format_summary(const nlohmann::json& s) {
   };
   if (s["cache"].contains("ram_bounds"))
     bounds_line("ram bounds", s["cache"]["ram_bounds"], s["cache"]["ram_misses"].get<std::uint64_t>(), "bytes");
-  if (s.contains("vt") && s["vt"].contains("pool") && s["vt"]["pool"].contains("bounds"))
-    bounds_line("pool bounds", s["vt"]["pool"]["bounds"], s["vt"]["pool"]["misses"].get<std::uint64_t>(), "pages");
+  if (s.contains(VtSystem::kName) && s[VtSystem::kName].contains("pool") && s[VtSystem::kName]["pool"].contains("bounds"))
+    bounds_line("pool bounds", s[VtSystem::kName]["pool"]["bounds"], s[VtSystem::kName]["pool"]["misses"].get<std::uint64_t>(), "pages");
   out += fmt::format("  throttle    {} frames throttled, max clamp {}, {} changes ({})\n", t["frames_throttled"].get<std::size_t>(),
                      t["max_clamp"].get<int>(), t["changes"].get<std::size_t>(), t["policy"].get<std::string>());
   if (s["faults"]["faults"].get<std::uint64_t>() > 0)
@@ -249,11 +248,20 @@ void run_replay_command(const ReplayArgs& a) {
     for (const std::string& w : scene->load_warnings()) warn(w);
   }
   // The timeline's size bound, before the run (a feedback trace's frames are known once it is open:
-  // its recorder bounds the file when it is written).
+  // its recorder checks the bound at each frame). The report's waterfalls read the same recorder
+  // (without --timeline: every frame, nothing written, no bound).
   std::optional<TimelineRecorder> timeline;
+  if (a.waterfall_frame >= 0 && a.report.empty()) throw InputError("--waterfall-frame", "adds a chart to --report FILE: give it too");
+  const int plan_count = a.feedback.empty() && (!a.timeline.empty() || a.waterfall_frame >= 0) ? plan_frames(cfg, trace).frames : -1;
+  if (a.waterfall_frame >= 0 && plan_count >= 0 && a.waterfall_frame >= plan_count)
+    throw InputError("--waterfall-frame", fmt::format("frame {} is past the run's last frame, {}", a.waterfall_frame, plan_count - 1));
   if (!a.timeline.empty()) {
-    if (a.feedback.empty()) check_timeline_bound(cfg, plan_frames(cfg, trace).frames, tl_opt);
+    if (plan_count >= 0) check_timeline_bound(cfg, plan_count, tl_opt);
     timeline.emplace(tl_opt);
+  } else if (!a.report.empty()) {
+    TimelineOptions unbounded;
+    unbounded.max_bytes = std::numeric_limits<std::uint64_t>::max();
+    timeline.emplace(unbounded);
   }
   std::function<void(int, int)> progress;
   const bool tty = isatty(fileno(stderr)) != 0;
@@ -310,7 +318,7 @@ void run_replay_command(const ReplayArgs& a) {
   if (progress && tty) fmt::print(stderr, "\r{:40}\r", "");
   if (a.feedback.empty())
     if (const std::string blind = blind_replay_warning(r.metrics, trace, cfg); !blind.empty()) warn(blind);
-  if (timeline) {
+  if (timeline && !a.timeline.empty()) {
     const std::string json = timeline->json();  // throws over its bound: nothing written
     write_output(a.timeline, json);
     if (!a.quiet && a.timeline != "-")
@@ -323,7 +331,22 @@ void run_replay_command(const ReplayArgs& a) {
   if (!a.report.empty()) {
     ReportConfig shown;
     for (const auto& f : replay_config_table().fields()) shown.emplace_back(f.key, f.get(cfg));
-    write_output(a.report, html_report(r.summary, r.metrics, shown));
+    // The waterfalls: the most blurry frame after the start-up fill (the first sharp frame), and
+    // the chosen one.
+    std::string waterfalls;
+    if (timeline) {
+      int from = 0;
+      if (const auto& fs = r.summary["startup"]["first_sharp_s"]; fs.is_number())
+        for (const FrameRow& row : r.metrics.frames())
+          if (row.t_s >= fs.get<double>()) {
+            from = row.frame;
+            break;
+          }
+      const int worst = worst_frame(*timeline, from);
+      if (worst >= 0) waterfalls += waterfall_svg(frame_waterfall(*timeline, worst, from > 0 ? "the most blurry after the start-up fill" : "the most blurry"));
+      if (a.waterfall_frame >= 0) waterfalls += waterfall_svg(frame_waterfall(*timeline, a.waterfall_frame, "--waterfall-frame"));
+    }
+    write_output(a.report, html_report(r.summary, r.metrics, shown, waterfalls));
   }
   if (a.json) fmt::print("{}\n", r.summary.dump(2));
   else if (!a.quiet && to_stdout == 0) fmt::print("{}", format_summary(r.summary));
@@ -358,6 +381,8 @@ void register_replay_commands(CLI::App& app) {
   c->add_option("--timeline-frames", a->timeline_frames, "record the timeline of frames A to B only (A:B, 0-based, inclusive; A: to the end)");
   c->add_option("--timeline-max-MB", a->timeline_max_MB, "the timeline's size bound, MB: a larger one is refused before the run")
       ->capture_default_str();
+  c->add_option("--waterfall-frame", a->waterfall_frame,
+                "--report also shows the waterfall of this frame's tiles (0-based; the most blurry frame's is always shown)");
   c->add_flag("--json", a->json, "print the summary JSON instead of the human summary");
   c->add_flag("--quiet,-q", a->quiet, "print no information (files are still written; warnings still are: --werror makes them fail the run)");
   c->add_flag("--allow-repairs", a->allow_repairs, kAllowRepairsHelp);

@@ -266,10 +266,13 @@ std::string TimelineRecorder::json() const {
   const auto life_args = [](const TileLife& l) {
     return fmt::format("\"tile\":\"{}\",\"life\":{},\"frame\":{}", tile_name(l.key), l.id, l.frame);
   };
-  for (const FrameMark& f : frames_) {
+  for (std::size_t i = 0; i < frames_.size(); ++i) {
+    const FrameMark& f = frames_[i];
     std::string a = fmt::format("\"frame\":{}", f.frame);
     if (f.measured) a += fmt::format(",\"blurry\":{:.4f}", f.blurry);
-    slices.push_back({kFrames, "frame", f.start, period, std::move(a)});
+    // Until the next frame starts (the real clock's frames run late; ticks round): one track.
+    const Ticks dur = i + 1 < frames_.size() && frames_[i + 1].frame == f.frame + 1 ? frames_[i + 1].start - f.start : period;
+    slices.push_back({kFrames, "frame", f.start, dur, std::move(a)});
   }
   for (const TileLife& l : lives_) {
     const std::string a = life_args(l);
@@ -409,70 +412,6 @@ std::string TimelineRecorder::json() const {
                                                "record fewer frames, or raise the bound with --timeline-max-MB",
                                                static_cast<double>(out.size()) / 1e6, static_cast<double>(opt_.max_bytes) / 1e6));
   return out;
-}
-
-int worst_frame(const TimelineRecorder& tl) {
-  int worst = -1;
-  double blur = -1.0;
-  for (const TimelineRecorder::FrameMark& f : tl.frames())
-    if (f.measured && f.blurry > blur) {
-      blur = f.blurry;
-      worst = f.frame;
-    }
-  return worst;
-}
-
-Waterfall frame_waterfall(const TimelineRecorder& tl, int frame, const std::string& what, std::size_t max_rows) {
-  Waterfall w;
-  w.frame_ms = tl.period_s() * 1e3;
-  const auto& frames = tl.frames();
-  const auto it = std::find_if(frames.begin(), frames.end(), [&](const TimelineRecorder::FrameMark& f) { return f.frame == frame; });
-  if (it == frames.end()) {
-    w.title = fmt::format("Tiles of frame {}: not in the timeline", frame);
-    w.subtitle = "the frame is outside the run or --timeline-frames";
-    return w;
-  }
-  const Ticks t0 = it->start;
-  const auto ms = [t0](Ticks t) { return ticks_to_ms(t - t0); };
-  std::vector<const TileLife*> on_way;
-  for (const TileLife& l : tl.lives()) {
-    if (l.request > t0) break;  // lives are in request order
-    if (l.upload_start >= 0 && l.upload_start < t0) continue;                       // resident before the frame
-    if (l.upload_start < 0 && l.ended >= 0 && l.ended < t0) continue;               // gone unserved before it
-    on_way.push_back(&l);
-  }
-  w.title = fmt::format("Tiles of frame {} ({}{}): {} on their way", frame, what,
-                        it->measured ? fmt::format(", {:.1f} % blurry", 100.0 * it->blurry) : std::string(), on_way.size());
-  w.subtitle = "each row a tile requested by then and not yet uploaded; ms from the frame's start; red: first sampled";
-  if (on_way.size() > max_rows) {
-    w.more = on_way.size() - max_rows;
-    on_way.resize(max_rows);
-  }
-  for (const TileLife* l : on_way) {
-    WaterfallRow r;
-    r.label = fmt::format("l{} ({},{}){}", l->key.level(), l->key.x(), l->key.y(), l->key.layer() ? fmt::format(" L{}", l->key.layer()) : "");
-    const auto bar = [&](WaterfallStage s, Ticks a, Ticks b) {
-      if (a >= 0 && b >= a) r.bars.push_back({s, ms(a), ms(b)});
-    };
-    const Ticks q_end = l->ram_hit ? l->request : (l->produced ? l->decode_start : l->read_start);
-    if (!l->ram_hit) bar(WaterfallStage::queue, l->request, q_end >= 0 ? q_end : l->ended);
-    if (!l->ram_hit && !l->produced && l->read_start >= 0) {
-      bar(WaterfallStage::read, std::max(l->request, l->read_start), std::max(l->request, l->read_end));
-      bar(WaterfallStage::decode_wait, l->read_end, l->decode_start);
-    }
-    if (!l->ram_hit && l->decode_start >= 0) bar(WaterfallStage::decode, l->decode_start, l->decode_end);
-    if (l->in_ram >= 0) bar(WaterfallStage::upload_wait, l->in_ram, l->upload_start >= 0 ? l->upload_start : l->ended);
-    if (l->upload_start >= 0) bar(WaterfallStage::upload, l->upload_start, std::max(l->upload_end, l->upload_start));
-    if (l->upload_start < 0 && l->ended >= 0) bar(WaterfallStage::unserved, l->ended, l->ended);
-    r.sampled = l->sampled >= 0;
-    if (r.sampled) r.sampled_ms = ms(l->sampled);
-    r.note = fmt::format("requested at frame {}{}{}", l->frame, l->ram_hit ? " (RAM hit)" : "",
-                         r.sampled ? fmt::format(", sampled {:.1f} ms later", ticks_to_ms(l->sampled - l->request))
-                         : l->ended >= 0 ? fmt::format(", ended {}", unserved_name(l->why))
-                                         : std::string(", never sampled"));
-    w.rows.push_back(std::move(r));
-  }
-  return w;
 }
 
 }  // namespace vtsim

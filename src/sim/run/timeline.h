@@ -20,7 +20,6 @@
 #include "core/tile_key.h"
 #include "core/time.h"
 #include "sim/run/replay_config.h"
-#include "sim/run/waterfall.h"
 #include "stream/exec/pipeline.h"
 #include "stream/exec/pipeline_observer.h"
 
@@ -158,13 +157,5 @@ class TimelineRecorder final : public IPipelineObserver {
   std::vector<std::size_t> pending_;  // lives uploaded, not sampled yet
   std::vector<FrameMark> frames_;
 };
-
-// The measured frame the recorder saw with the largest blurry fraction (the earliest of equals);
-// -1 when no frame was measured.
-int worst_frame(const TimelineRecorder& tl);
-// The tiles frame `frame` was waiting for: requested at or before its start and not uploaded
-// before it (nor ended unserved), the earliest requests first, at most `max_rows` of them. Times
-// in ms from the frame's start. `what` heads the title ("the most blurry frame").
-Waterfall frame_waterfall(const TimelineRecorder& tl, int frame, const std::string& what, std::size_t max_rows = 40);
 
 }  // namespace vtsim

@@ -12,7 +12,7 @@
 
 namespace vtsim {
 
-ClipmapSystem::ClipmapSystem(const SystemSetup& s, const ClipmapConfig& c) : s_(s), cm_(params(s, c)) {}
+ClipmapSystem::ClipmapSystem(const SystemSetup& s, const ClipmapConfig& c) : ClipmapBacked(params(s, c)), s_(s) {}
 
 ClipmapParams ClipmapSystem::params(const SystemSetup& s, const ClipmapConfig& c) {
   ClipmapParams p;
@@ -108,14 +108,6 @@ void ClipmapSystem::emit_needs(std::vector<Need>& out) {
   if (prefetch_) cm_.emit_prefetch(fu_, fv_, finest_active_, out);
 }
 
-void ClipmapSystem::clip_windows(std::vector<ClipWindow>& out) const {
-  out.clear();
-  for (int l = 0; l < cm_.num_levels(); ++l) {
-    const Clipmap::Window w = cm_.window(l);
-    out.push_back({w.x0, w.y0, w.w, w.h});
-  }
-}
-
 bool ClipmapSystem::commit(TileKey key, int frame) {
   Clipmap::Evicted ev;
   if (!cm_.commit(key, &ev)) return false;
@@ -123,9 +115,7 @@ bool ClipmapSystem::commit(TileKey key, int frame) {
     return TileKey(0, l, x, y).bits;
   };
   if (ev.mask) evicted_at_[pack(key.level(), ev.tx, ev.ty)] = frame;
-  if (ev.mask && evict_log_)
-    for (std::uint32_t m = ev.mask; m; m &= m - 1)
-      evict_log_->push_back(TileKey(static_cast<std::uint32_t>(std::countr_zero(m)), key.level(), ev.tx, ev.ty));
+  log_evicted(key, ev);
   if (key.layer() == 0 && !evicted_at_.empty()) {
     auto it = evicted_at_.find(pack(key.level(), key.x(), key.y()));
     if (it != evicted_at_.end()) {

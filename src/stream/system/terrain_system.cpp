@@ -91,7 +91,7 @@ VramArena TerrainSystem::vram_arena(const SystemSetup& s, const ClipmapConfig& c
 }
 
 TerrainSystem::TerrainSystem(const SystemSetup& s, const ClipmapConfig& cc, const TerrainConfig& t)
-    : s_(s), t_(t), cm_(ClipmapSystem::params(s, cc)) {
+    : ClipmapBacked(ClipmapSystem::params(s, cc)), s_(s), t_(t) {
   sector_texels_ = std::max<std::int64_t>(1, sector_texels_of(t, s.texels_per_m));
   sectors_ = t.sectors_x * t.sectors_y;
   mip_offset_ = std::max(0, mip_offset_of(t, s.texels_per_m));
@@ -258,14 +258,6 @@ bool TerrainSystem::accepts(TileKey key) const {
   return cm_.accepts(key);
 }
 
-void TerrainSystem::clip_windows(std::vector<ClipWindow>& out) const {
-  out.clear();
-  for (int l = 0; l < cm_.num_levels(); ++l) {
-    const Clipmap::Window w = cm_.window(l);
-    out.push_back({w.x0, w.y0, w.w, w.h});
-  }
-}
-
 bool TerrainSystem::commit(TileKey key, int) {
   if (key.layer() == kBrushLayer) {
     const int m = static_cast<int>(key.level());
@@ -286,9 +278,7 @@ bool TerrainSystem::commit(TileKey key, int) {
   const int l = static_cast<int>(key.level());
   Clipmap::Evicted ev;
   if (!cm_.commit(key, &ev)) return false;
-  if (ev.mask && evict_log_)
-    for (std::uint32_t m = ev.mask; m; m &= m - 1)
-      evict_log_->push_back(TileKey(static_cast<std::uint32_t>(std::countr_zero(m)), key.level(), ev.tx, ev.ty));
+  log_evicted(key, ev);
   dirty_.erase(key.bits);
   if (key.layer() == 0) {
     ++produced_[static_cast<std::size_t>(l)];

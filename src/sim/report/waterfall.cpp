@@ -1,12 +1,13 @@
-#include "sim/run/waterfall.h"
+#include "sim/report/waterfall.h"
 
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
 
-#include "sim/run/report_html.h"
-#include "sim/run/svg_chart.h"
+#include "sim/report/html_escape.h"
+#include "sim/report/svg_chart.h"
+#include "sim/run/timeline.h"
 
 namespace vtsim {
 
@@ -30,6 +31,16 @@ std::string wf_text(double x, double y, const std::string& s, const char* cls, c
   }
   return fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"{}\" text-anchor=\"{}\"><title>{}</title>{}…</text>\n", x, y, cls,
                      anchor, html_escape(s), html_escape(t));
+}
+
+const char* wf_unserved(Unserved w) {
+  switch (w) {
+    case Unserved::cancelled: return "cancelled";
+    case Unserved::failed: return "failed";
+    case Unserved::open_at_end: return "open at the end";
+    case Unserved::stale: return "stale";
+  }
+  return "?";
 }
 
 std::string wf_ms(double v) { return std::fabs(v) >= 100 ? fmt::format("{:.0f} ms", v) : fmt::format("{:.1f} ms", v); }
@@ -129,6 +140,70 @@ std::string waterfall_svg(const Waterfall& w, double W) {
   o += wf_text(8, 18, w.title, "title", "start", W - 16);
   o += wf_text(8, 34, w.subtitle, "sub", "start", W - 16);
   return o + body + lg + "</svg>\n";
+}
+
+int worst_frame(const TimelineRecorder& tl, int from) {
+  int worst = -1;
+  double blur = -1.0;
+  for (const TimelineRecorder::FrameMark& f : tl.frames())
+    if (f.measured && f.frame >= from && f.blurry > blur) {
+      blur = f.blurry;
+      worst = f.frame;
+    }
+  return worst;
+}
+
+Waterfall frame_waterfall(const TimelineRecorder& tl, int frame, const std::string& what, std::size_t max_rows) {
+  Waterfall w;
+  w.frame_ms = tl.period_s() * 1e3;
+  const auto& frames = tl.frames();
+  const auto it = std::find_if(frames.begin(), frames.end(), [&](const TimelineRecorder::FrameMark& f) { return f.frame == frame; });
+  if (it == frames.end()) {
+    w.title = fmt::format("Tiles of frame {}: not in the timeline", frame);
+    w.subtitle = "the frame is outside the run or --timeline-frames";
+    return w;
+  }
+  const Ticks t0 = it->start;
+  const auto ms = [t0](Ticks t) { return ticks_to_ms(t - t0); };
+  std::vector<const TileLife*> on_way;
+  for (const TileLife& l : tl.lives()) {
+    if (l.request > t0) break;  // lives are in request order
+    if (l.upload_start >= 0 && l.upload_start < t0) continue;                       // resident before the frame
+    if (l.upload_start < 0 && l.ended >= 0 && l.ended < t0) continue;               // gone unserved before it
+    on_way.push_back(&l);
+  }
+  w.title = fmt::format("Tiles of frame {} ({}{}): {} on their way", frame, what,
+                        it->measured ? fmt::format(", {:.1f} % blurry", 100.0 * it->blurry) : std::string(), on_way.size());
+  w.subtitle = "each row a tile requested by then and not yet uploaded; ms from the frame's start; red: first sampled";
+  if (on_way.size() > max_rows) {
+    w.more = on_way.size() - max_rows;
+    on_way.resize(max_rows);
+  }
+  for (const TileLife* l : on_way) {
+    WaterfallRow r;
+    r.label = fmt::format("l{} ({},{}){}", l->key.level(), l->key.x(), l->key.y(), l->key.layer() ? fmt::format(" L{}", l->key.layer()) : "");
+    const auto bar = [&](WaterfallStage s, Ticks a, Ticks b) {
+      if (a >= 0 && b >= a) r.bars.push_back({s, ms(a), ms(b)});
+    };
+    const Ticks q_end = l->ram_hit ? l->request : (l->produced ? l->decode_start : l->read_start);
+    if (!l->ram_hit) bar(WaterfallStage::queue, l->request, q_end >= 0 ? q_end : l->ended);
+    if (!l->ram_hit && !l->produced && l->read_start >= 0) {
+      bar(WaterfallStage::read, std::max(l->request, l->read_start), std::max(l->request, l->read_end));
+      bar(WaterfallStage::decode_wait, l->read_end, l->decode_start);
+    }
+    if (!l->ram_hit && l->decode_start >= 0) bar(WaterfallStage::decode, l->decode_start, l->decode_end);
+    if (l->in_ram >= 0) bar(WaterfallStage::upload_wait, l->in_ram, l->upload_start >= 0 ? l->upload_start : l->ended);
+    if (l->upload_start >= 0) bar(WaterfallStage::upload, l->upload_start, std::max(l->upload_end, l->upload_start));
+    if (l->upload_start < 0 && l->ended >= 0) bar(WaterfallStage::unserved, l->ended, l->ended);
+    r.sampled = l->sampled >= 0;
+    if (r.sampled) r.sampled_ms = ms(l->sampled);
+    r.note = fmt::format("requested at frame {}{}{}", l->frame, l->ram_hit ? " (RAM hit)" : "",
+                         r.sampled ? fmt::format(", sampled {:.1f} ms later", ticks_to_ms(l->sampled - l->request))
+                         : l->ended >= 0 ? fmt::format(", ended {}", wf_unserved(l->why))
+                                         : std::string(", never sampled"));
+    w.rows.push_back(std::move(r));
+  }
+  return w;
 }
 
 }  // namespace vtsim

@@ -36,4 +36,14 @@ struct Waterfall {
 // The chart, `width` px wide; a waterfall without rows says so in one line.
 std::string waterfall_svg(const Waterfall& w, double width = 620);
 
+class TimelineRecorder;
+// The measured frame at or after `from` (the start-up fill's end: the report passes the first
+// sharp frame) that the recorder saw with the largest blurry fraction, the earliest of equals;
+// -1 when none was measured.
+int worst_frame(const TimelineRecorder& tl, int from = 0);
+// The tiles frame `frame` was waiting for: requested at or before its start and not uploaded
+// before it (nor ended unserved), the earliest requests first, at most `max_rows` of them. Times
+// in ms from the frame's start. `what` heads the title ("the most blurry frame").
+Waterfall frame_waterfall(const TimelineRecorder& tl, int frame, const std::string& what, std::size_t max_rows = 40);
+
 }  // namespace vtsim
