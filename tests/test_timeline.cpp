@@ -24,7 +24,7 @@ namespace {
 
 // A fast walk (8 m/s, 3 s) over the default plane: windows move, tiles are cancelled and evicted.
 Trace timeline_walk() {
-  TraceGenParams g = default_gen_params(TraceKind::walk);
+  TraceGenParams g = default_gen_params("walk");
   g.duration_s = 3.0;
   g.speed_mps = 8.0;
   g.image_width = 640;

@@ -26,7 +26,7 @@ TEST_CASE("timeline, real clock: a short replay on IO and decode threads writes 
     apply_set(replay_config_table(), cfg, s);
   validate(cfg);
   bind_store_texture(cfg, store);
-  TraceGenParams g = default_gen_params(TraceKind::walk);
+  TraceGenParams g = default_gen_params("walk");
   g.start_m = {8.0, 16.0};
   g.speed_mps = 6.0;
   g.duration_s = 0.5;

@@ -59,7 +59,7 @@ for page in planted clipmap vt runs; do
   charts=$(sed -n 's/.*charts=\([0-9]*\).*/\1/p' <<<"$first")
   # The replay reports' tile waterfalls (the most blurry frame's; the clipmap's also frame 300's)
   # are among the charts checked.
-  waterfalls=$(grep -o 'aria-label="Tiles of frame' "$html" | wc -l)
+  waterfalls=$(grep -c 'aria-label="Tiles of frame' "$html" || true)
   want=0
   case $page in clipmap) want=2 ;; vt) want=1 ;; esac
   if [ "$waterfalls" -ne "$want" ]; then
