@@ -306,6 +306,12 @@ bool Clipmap::commit(TileKey key, Evicted* evicted) {
   return true;
 }
 
+int Clipmap::sampled(TileKey key) const {
+  if (!resident(key)) return -1;
+  const Level& L = levels_[key.level()];
+  return L.slots[slot_index(L, key.x(), key.y())].sampled ? 1 : 0;
+}
+
 bool Clipmap::resident(TileKey key) const {
   const int l = static_cast<int>(key.level());
   if (l >= num_levels()) return false;

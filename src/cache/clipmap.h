@@ -108,6 +108,9 @@ class Clipmap final : public IResidency {
   bool accepts(TileKey key) const;
 
   bool resident(TileKey key) const;  // that layer of that tile is in VRAM and in its window
+  // -1: that layer of that tile is not resident (resident()); 0: resident and no sample resolved
+  // to its slot yet; 1: a sample has (set_mark_sampled). O(1).
+  int sampled(TileKey key) const;
   bool level_complete(int level) const { return levels_[static_cast<std::size_t>(level)].missing == 0; }
   bool window_placed(int level) const { return levels_[static_cast<std::size_t>(level)].placed; }
   // Window origin and size in tiles of a level.

@@ -139,6 +139,8 @@ class PagePool {
 
   // A sample resolved to this slot (for the wasted-upload metric).
   void mark_sampled(std::uint32_t slot) const { slot_[slot].sampled = true; }
+  // Whether a sample resolved to the page in `slot` since it arrived. O(1).
+  bool sampled(std::uint32_t slot) const { return slot_[slot].sampled; }
 
   struct Stats {
     std::uint64_t evictions = 0;           // pages evicted by incoming pages

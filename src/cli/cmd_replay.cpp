@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <optional>
 
 #include "cli/cli_io.h"
@@ -16,6 +17,8 @@
 #include "sim/run/replay.h"
 #include "sim/run/systems.h"
 #include "sim/report/report_html.h"
+#include "sim/report/waterfall.h"
+#include "sim/run/timeline.h"
 #include "sim/view/scene.h"
 #include "sim/run/feedback_replay.h"
 #include "sim/trace/trace_import.h"
@@ -39,6 +42,9 @@ struct ReplayArgs {
   bool print_config = false, quiet = false, json = false, progress = false, opt = false;
   bool allow_repairs = false;
   std::string feedback, record_feedback;  // docs/feedback.md: replay from / record a feedback trace
+  std::string timeline, timeline_frames;  // docs/metrics.md, "A tile's life on the timeline"
+  double timeline_max_MB = 100.0;
+  int waterfall_frame = -1;  // the report's waterfall of a chosen frame
 };
 
 // A replay whose camera never sees a textured surface measures nothing, and its summary looks
@@ -204,6 +210,14 @@ void run_replay_command(const ReplayArgs& a) {
   check_output("--report", a.report);
   check_output("--produce-samples", a.produce_samples);
   check_output("--record-feedback", a.record_feedback);
+  check_output("--timeline", a.timeline);
+  TimelineOptions tl_opt;
+  if (!a.timeline_frames.empty()) {
+    if (a.timeline.empty()) throw InputError("--timeline-frames", "limits --timeline FILE: give it too");
+    parse_timeline_frames("--timeline-frames", a.timeline_frames, tl_opt);
+  }
+  if (!(a.timeline_max_MB > 0)) throw InputError("--timeline-max-MB", "must be > 0");
+  tl_opt.max_bytes = static_cast<std::uint64_t>(a.timeline_max_MB * 1e6);
   if (!a.produce_samples.empty() && (a.clock != "real" || !produced_system(cfg)))
     throw InputError("--produce-samples", fmt::format("records the tiles the terrain's compositor makes in the real clock: needs --clock real "
                                                       "and run.system = \"terrain\" (here --clock {}, run.system = \"{}\")",
@@ -213,6 +227,7 @@ void run_replay_command(const ReplayArgs& a) {
   if (to_stdout > 1)
     throw InputError(a.json ? "--json" : "--summary/--frames/--report/--produce-samples",
                      "only one of --json, --summary -, --frames -, --report -, --produce-samples - can write to stdout");
+  if (a.timeline == "-" && to_stdout++ > 0) throw InputError("--timeline", "- writes to stdout, which another output already takes");
   if (a.clock != "sim" && a.clock != "real")
     throw InputError("--clock", "'" + a.clock + "' is not one of: sim (device models), real (threads and files)");
   if (a.clock == "real") check_real_clock_system(cfg, !a.store.empty());  // the terrain: no store, a producer
@@ -232,6 +247,22 @@ void run_replay_command(const ReplayArgs& a) {
     scene = make_scene_from_config(cfg);
     for (const std::string& w : scene->load_warnings()) warn(w);
   }
+  // The timeline's size bound, before the run (a feedback trace's frames are known once it is open:
+  // its recorder checks the bound at each frame). The report's waterfalls read the same recorder
+  // (without --timeline: every frame, nothing written, no bound).
+  std::optional<TimelineRecorder> timeline;
+  if (a.waterfall_frame >= 0 && a.report.empty()) throw InputError("--waterfall-frame", "adds a chart to --report FILE: give it too");
+  const int plan_count = a.feedback.empty() && (!a.timeline.empty() || a.waterfall_frame >= 0) ? plan_frames(cfg, trace).frames : -1;
+  if (a.waterfall_frame >= 0 && plan_count >= 0 && a.waterfall_frame >= plan_count)
+    throw InputError("--waterfall-frame", fmt::format("frame {} is past the run's last frame, {}", a.waterfall_frame, plan_count - 1));
+  if (!a.timeline.empty()) {
+    if (plan_count >= 0) check_timeline_bound(cfg, plan_count, tl_opt);
+    timeline.emplace(tl_opt);
+  } else if (!a.report.empty()) {
+    TimelineOptions unbounded;
+    unbounded.max_bytes = std::numeric_limits<std::uint64_t>::max();
+    timeline.emplace(unbounded);
+  }
   std::function<void(int, int)> progress;
   const bool tty = isatty(fileno(stderr)) != 0;
   if ((a.progress || tty) && !a.quiet)
@@ -246,6 +277,7 @@ void run_replay_command(const ReplayArgs& a) {
   if (a.clock == "real") {
     RealClockOptions ro{progress};
     ro.record_produced_tiles = !a.produce_samples.empty();
+    ro.timeline = timeline ? &*timeline : nullptr;
     RealRun run = store ? run_real_replay(cfg, trace, *scene, *store, ro) : run_real_replay(cfg, trace, *scene, ro);
     r = std::move(run.result);
     if (!a.produce_samples.empty()) write_output(a.produce_samples, produce::produced_tiles_csv(run.produced_tiles));
@@ -268,6 +300,7 @@ void run_replay_command(const ReplayArgs& a) {
     ReplayEnv env;
     env.progress = progress;
     if (store) env.sizer = store_sizer(*store);
+    env.timeline = timeline ? &*timeline : nullptr;
     std::optional<FeedbackRecorder> rec;
     if (!a.record_feedback.empty()) {
       rec.emplace(a.record_feedback, cfg);
@@ -285,12 +318,35 @@ void run_replay_command(const ReplayArgs& a) {
   if (progress && tty) fmt::print(stderr, "\r{:40}\r", "");
   if (a.feedback.empty())
     if (const std::string blind = blind_replay_warning(r.metrics, trace, cfg); !blind.empty()) warn(blind);
+  if (timeline && !a.timeline.empty()) {
+    const std::string json = timeline->json();  // throws over its bound: nothing written
+    write_output(a.timeline, json);
+    if (!a.quiet && a.timeline != "-")
+      fmt::print(stderr, "vtsim: timeline {}: {} tile requests over {} frames, {} bytes ({:.0f} bytes a frame)\n", a.timeline,
+                 timeline->lives().size(), timeline->frames().size(), json.size(),
+                 static_cast<double>(json.size()) / static_cast<double>(std::max<std::size_t>(1, timeline->frames().size())));
+  }
   if (!a.summary.empty()) write_output(a.summary, r.summary.dump(2) + "\n");
   if (!a.frames.empty()) write_output_via(a.frames, [&](const std::string& p) { r.metrics.write_frames_csv(p); });
   if (!a.report.empty()) {
     ReportConfig shown;
     for (const auto& f : replay_config_table().fields()) shown.emplace_back(f.key, f.get(cfg));
-    write_output(a.report, html_report(r.summary, r.metrics, shown));
+    // The waterfalls: the most blurry frame after the start-up fill (the first sharp frame), and
+    // the chosen one.
+    std::string waterfalls;
+    if (timeline) {
+      int from = 0;
+      if (const auto& fs = r.summary["startup"]["first_sharp_s"]; fs.is_number())
+        for (const FrameRow& row : r.metrics.frames())
+          if (row.t_s >= fs.get<double>()) {
+            from = row.frame;
+            break;
+          }
+      const int worst = worst_frame(*timeline, from);
+      if (worst >= 0) waterfalls += waterfall_svg(frame_waterfall(*timeline, worst, from > 0 ? "the most blurry after the start-up fill" : "the most blurry"));
+      if (a.waterfall_frame >= 0) waterfalls += waterfall_svg(frame_waterfall(*timeline, a.waterfall_frame, "--waterfall-frame"));
+    }
+    write_output(a.report, html_report(r.summary, r.metrics, shown, waterfalls));
   }
   if (a.json) fmt::print("{}\n", r.summary.dump(2));
   else if (!a.quiet && to_stdout == 0) fmt::print("{}", format_summary(r.summary));
@@ -319,6 +375,14 @@ void register_replay_commands(CLI::App& app) {
                 "replay the streaming side from this feedback trace instead of --trace: no render (docs/feedback.md)");
   c->add_option("--record-feedback", a->record_feedback,
                 "write the feedback trace of this camera replay here (docs/feedback.md)");
+  c->add_option("--timeline", a->timeline,
+                "write every tile request's stages with their times here, as Chrome's Trace Event JSON (Perfetto, "
+                "chrome://tracing; - for stdout; docs/metrics.md)");
+  c->add_option("--timeline-frames", a->timeline_frames, "record the timeline of frames A to B only (A:B, 0-based, inclusive; A: to the end)");
+  c->add_option("--timeline-max-MB", a->timeline_max_MB, "the timeline's size bound, MB: a larger one is refused before the run")
+      ->capture_default_str();
+  c->add_option("--waterfall-frame", a->waterfall_frame,
+                "--report also shows the waterfall of this frame's tiles (0-based; the most blurry frame's is always shown)");
   c->add_flag("--json", a->json, "print the summary JSON instead of the human summary");
   c->add_flag("--quiet,-q", a->quiet, "print no information (files are still written; warnings still are: --werror makes them fail the run)");
   c->add_flag("--allow-repairs", a->allow_repairs, kAllowRepairsHelp);

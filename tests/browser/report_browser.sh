@@ -2,7 +2,7 @@
 # ctest report_browser (label browser): the HTML reports rendered in headless Chromium. Writes a
 # replay report of each system (clipmap, vt) and a `vtsim report` of both runs, opens each with
 # `?check` (report_check_script in src/sim/report/report_html.h measures every chart text's bounding
-# box in the DOM) and fails on overlapping texts, a text outside its chart, or a console error;
+# box in the DOM, the tile waterfalls included) and fails on overlapping texts, a text outside its chart, or a console error;
 # writes a full-page screenshot of each next to it, for a person to open:
 #   WORKDIR/{clipmap,vt,runs}.html and .png
 # Exit 77 (skipped) when chromium is missing and cannot be installed (scripts/test.sh installs
@@ -28,7 +28,8 @@ run_browser() {
 }
 
 # The default walk: a report of each system, and the two side by side.
-"$vtsim" replay -t "$src/traces/walk.csv" --summary "$work/clipmap.json" --frames "$work/clipmap.csv" --report "$work/clipmap.html" -q
+"$vtsim" replay -t "$src/traces/walk.csv" --summary "$work/clipmap.json" --frames "$work/clipmap.csv" --report "$work/clipmap.html" -q \
+  --waterfall-frame 300
 "$vtsim" replay -t "$src/traces/walk.csv" --system vt --opt --summary "$work/vt.json" --frames "$work/vt.csv" --report "$work/vt.html" -q
 "$vtsim" report "$work/clipmap.json" "$work/vt.json" --names clipmap,vt --frames "$work/clipmap.csv,$work/vt.csv" -o "$work/runs.html"
 
@@ -56,6 +57,15 @@ for page in planted clipmap vt runs; do
     continue
   fi
   charts=$(sed -n 's/.*charts=\([0-9]*\).*/\1/p' <<<"$first")
+  # The replay reports' tile waterfalls (the most blurry frame's; the clipmap's also frame 300's)
+  # are among the charts checked.
+  waterfalls=$(grep -c 'aria-label="Tiles of frame' "$html" || true)
+  want=0
+  case $page in clipmap) want=2 ;; vt) want=1 ;; esac
+  if [ "$waterfalls" -ne "$want" ]; then
+    echo "report_browser: $page.html has $waterfalls tile waterfalls, $want expected" >&2
+    fail=1
+  fi
   if [[ $first != *" overlaps=0 console_errors=0"* ]] || [ "${charts:-0}" -lt 3 ]; then
     printf '%s\n' "$result" | sed 's/^/  /' >&2
     fail=1

@@ -375,7 +375,8 @@ std::string rh_cache_curves(const nlohmann::json& s) {
 
 }  // namespace
 
-std::string html_report(const nlohmann::json& s, const MetricsCollector& m, const ReportConfig& config_in) {
+std::string html_report(const nlohmann::json& s, const MetricsCollector& m, const ReportConfig& config_in,
+                        const std::string& waterfalls) {
   const ReportConfig config = config_in.empty() ? report_config_of(s) : config_in;
   const double fps = num(s, "trace", "fps") > 0 ? num(s, "trace", "fps") : 60.0;
   std::string h = rh_key_figures(s, config, fps);
@@ -383,6 +384,9 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m, cons
   h += "</div>\n<h2>Latency and bandwidth</h2>\n<div class=\"charts\">\n";
   h += rh_latency_charts(s, m);
   h += "</div>\n";
+  if (!waterfalls.empty())
+    h += "<h2>Tile waterfalls</h2>\n<p>The tiles a frame was waiting for, each with its stages (docs/metrics.md, \"A tile's life on "
+         "the timeline\").</p>\n<div class=\"charts\">\n" + waterfalls + "</div>\n";
   h += rh_cache_curves(s);
   if (!config.empty() && !(s.is_object() && s.contains("config"))) {  // else html_run_identity shows it
     h += "<h2>Config</h2>\n<p>Every key of the run's effective config, defaults included (docs/config.md).</p>\n<div class=\"cfg\">\n";

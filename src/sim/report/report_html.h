@@ -24,7 +24,9 @@ std::string summary_version(const nlohmann::json& summary);
 using ReportConfig = std::vector<std::pair<std::string, std::string>>;
 
 // `config` empty: the summary's own "config" object, when it has one, is shown instead.
-std::string html_report(const nlohmann::json& summary, const MetricsCollector& metrics, const ReportConfig& config = {});
+// `waterfalls`: inline SVG tile waterfalls (waterfall.h), shown in their own section when given.
+std::string html_report(const nlohmann::json& summary, const MetricsCollector& metrics, const ReportConfig& config = {},
+                        const std::string& waterfalls = {});
 
 // Every report's <head>: charset, title, the shared stylesheet and report_check_script().
 std::string report_page_head(const std::string& title);

@@ -1012,10 +1012,9 @@ namespace {
 // null check as a possible null dereference).
 std::string mrc_str(const nlohmann::json& j, const char* key) {
   if (!j.is_object()) return {};
-  const auto it = j.find(key);
-  if (it == j.end()) return {};
-  const auto* p = it->get_ptr<const std::string*>();
-  return p ? *p : std::string();
+  for (const auto& [k, v] : j.items())  // (find()'s iterator: GCC 12 -O3 in some unity batches, the same warning)
+    if (k == key) return v.is_string() ? v.get<std::string>() : std::string();
+  return {};
 }
 
 std::string sweep_mrc_section(const nlohmann::json& meta, const std::vector<nlohmann::json>& rows) {

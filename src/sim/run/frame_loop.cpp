@@ -19,6 +19,7 @@
 #include "sim/run/run_summary.h"
 #include "sim/run/runtime_setup.h"
 #include "sim/run/systems.h"
+#include "sim/run/timeline.h"
 #include "sim/trace/trace_resample.h"
 #include "sim/view/scene.h"
 #include "stream/exec/sim_executor.h"
@@ -167,6 +168,11 @@ SystemRun::SystemRun(const ReplayConfig& cfg, const FramePlan& plan, TextureExte
     system_->record_pool_accesses(&accesses_->pool);
   }
   link_Bps_ = cfg.upload.link_MBps * 1e6;
+  if (env.timeline) {
+    pipe_->set_observer(env.timeline);
+    system_->record_vram_evictions(env.timeline->eviction_log());
+    env.timeline->begin_run(plan.period_s, env.clock_name, plan.trace.name);
+  }
   res_.metrics.set_system_columns(system_->frame_counter_names());
   res_.metrics.set_warmup_s(cfg.metrics.warmup_s);
   if (env_.on_start) env_.on_start(*system_);
@@ -203,6 +209,7 @@ void SystemRun::begin_frame(int f, Ticks now) {
   frame_ = f;
   now_ = now;
   c0_ = pipe_->counters();
+  if (env_.timeline) env_.timeline->begin_frame(f, now);
   rt_->begin_frame(now);
   if (rt_->frame() != f) throw std::logic_error("SystemRun::begin_frame: frames out of order");
 }
@@ -254,6 +261,7 @@ void SystemRun::on_upload(const TileUpload& t, FrameRow& row) {
   level_upload_[u.key.level()] += u.bytes;
   row.upload_bytes += u.bytes;
   ++row.uploads;
+  if (env_.timeline) env_.timeline->on_upload(u, frame_, now_, lat.upload, true);
   if (env_.on_upload) env_.on_upload(u, t.slot);
 }
 
@@ -340,6 +348,11 @@ void SystemRun::step(const FrameView& view, PopinShare* share) {
   row.produced = static_cast<std::uint32_t>(c1.produced - c0_.produced);
   row.produce_ms = static_cast<double>(c1.produce_ns - c0_.produce_ns) * 1e-6;
   system_->frame_counters(row.system);
+  if (env_.timeline) {  // the uploads the system refused (stale), evictions, first samples
+    for (const UploadItem& u : uploads) env_.timeline->on_upload_if_stale(u, frame_, now_);
+    env_.timeline->end_frame(frame_, now_, *system_, row.measured,
+                             row.samples ? static_cast<double>(row.blurry) / static_cast<double>(row.samples) : 0.0);
+  }
   res_.metrics.add_frame(row);
 }
 

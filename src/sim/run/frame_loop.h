@@ -38,6 +38,7 @@ class IStreamingSystem;
 class IThrottlePolicy;
 class RenderAhead;
 class SimExecutor;
+class TimelineRecorder;
 
 // Each cache level's access sequence during a replay (opt-in: ReplayEnv::accesses), what the
 // offline simulator, Belady's bound and miss-ratio curves replay (cache/policy/access.h).
@@ -79,6 +80,9 @@ struct ReplayEnv {
   // Non-null: each level's access sequence is appended here (AccessLogs). Null: nothing is
   // recorded and nothing is paid.
   AccessLogs* accesses = nullptr;
+  // Non-null: every tile request's stages are recorded here (`--timeline`, timeline.h). Null: the
+  // loop pays a null check per hook.
+  TimelineRecorder* timeline = nullptr;
 };
 
 struct ReplayResult {

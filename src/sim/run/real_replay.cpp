@@ -260,6 +260,7 @@ RealRun run_real(const ReplayConfig& cfg, const Trace& trace, const IScene& scen
       if (const auto* terrain = dynamic_cast<const TerrainSystem*>(&sys)) producer->set_decals(terrain->decal_layer());
     };
   env.progress = options.progress;
+  env.timeline = options.timeline;
   // The frame loop's own cost: wall and CPU time (this thread) from one frame's start to the next
   // frame's pacing point. Wall well above CPU means the thread waited for a core.
   std::vector<double> work_wall_ms, work_cpu_ms;

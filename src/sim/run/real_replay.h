@@ -31,6 +31,8 @@ TileSizer store_sizer(const TileStore& store);
 // so both clocks see the same faster camera. Throws InputError("--speed") outside (0, 1000].
 void apply_speed(ReplayConfig& cfg, Trace& trace, double speed);
 
+class TimelineRecorder;
+
 struct RealClockOptions {
   std::function<void(int, int)> progress;  // as ReplayEnv::progress
   // Bytes of host memory the RAM cache's buffers and the VRAM arena may take together; 0: what
@@ -39,6 +41,8 @@ struct RealClockOptions {
   // The terrain: keep every composed tile's work and time (RealRun::produced_tiles), for
   // `vtsim calibrate --samples` (docs/produced.md, "Calibrating from the replay's own tiles").
   bool record_produced_tiles = false;
+  // Non-null: every tile request's stages, with wall times (`--timeline`, timeline.h).
+  TimelineRecorder* timeline = nullptr;
 };
 
 struct RealRun {

@@ -61,6 +61,7 @@ void Pipeline::on_result(JobResult& r) {
   const TileKey key = idit->second;
   by_id_.erase(idit);
   Request& q = requests_.at(key);
+  if (observer_) observer_->on_job(r, q.prefetch, q.sizes.produce.produced());
   if (r.bytes_read) {
     counters_.disk_bytes_by_level[key.level()] += r.bytes_read;
     counters_.disk_bytes += r.bytes_read;
@@ -198,6 +199,7 @@ void Pipeline::set_needs(const std::vector<Need>& needs) {
           }
         }
       }
+      if (observer_ && !q.prefetch) observer_->on_request(q.key, frame_, now_, q.ram_hit, q.sizes.produce.produced());
       requests_.emplace(n.key, std::move(q));
       continue;
     }
@@ -212,6 +214,7 @@ void Pipeline::set_needs(const std::vector<Need>& needs) {
       record_ram(n.key, q.sizes.decoded_bytes);
       q.needed_frame = frame_;
       q.needed_time = now_;
+      if (observer_) observer_->on_request(q.key, frame_, now_, false, false);
     }
     if (!q.prefetch) q.priority = n.priority;
     if (q.state == State::cancelling) q.revived = true;

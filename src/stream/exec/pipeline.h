@@ -40,6 +40,7 @@
 #include "core/tile_key.h"
 #include "core/time.h"
 #include "stream/exec/i_executor.h"
+#include "stream/exec/pipeline_observer.h"
 #include "stream/exec/produce.h"
 
 namespace vtsim {
@@ -171,6 +172,9 @@ class Pipeline {
   // counters().ram_hits + ram_misses) appends an Access {tile key bits, decoded bytes} to `log`,
   // and begin_frame opens a frame in it. Null stops recording. `log` must outlive the recording.
   void record_ram_accesses(AccessLog* log) { ram_log_ = log; }
+  // Opt-in: from now on the observer sees every request, job and unserved end
+  // (pipeline_observer.h); null stops. It must outlive the observation.
+  void set_observer(IPipelineObserver* observer) { observer_ = observer; }
   int frame() const { return frame_; }
   Ticks now() const { return now_; }
 
@@ -200,7 +204,9 @@ class Pipeline {
   void drop(TileKey key);
   // A demand request leaving unserved: recorded for the latency's censoring (prefetches are not requests).
   void end_unserved(const Request& q, Ticks end, Unserved why) {
-    if (!q.prefetch) unserved_.push_back({q.needed_time, end, why});
+    if (q.prefetch) return;
+    unserved_.push_back({q.needed_time, end, why});
+    if (observer_) observer_->on_unserved(q.key, end, why);
   }
   // The RAM tier: LruCache for "lru" (the fast path: a predictable branch, no virtual call),
   // PolicyCache for any other policy.
@@ -216,6 +222,7 @@ class Pipeline {
   LruCache<RamEntry> ram_;
   std::unique_ptr<PolicyCache<RamEntry>> ram_any_;  // set: the RAM tier is this one, ram_ stays empty
   AccessLog* ram_log_ = nullptr;
+  IPipelineObserver* observer_ = nullptr;
   std::unordered_map<TileKey, Request, TileKeyHash> requests_;
   std::unordered_map<RequestId, TileKey> by_id_;
   std::unordered_map<TileKey, Ticks, TileKeyHash> failed_;  // key -> time it failed

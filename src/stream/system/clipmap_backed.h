@@ -3,6 +3,7 @@
 // produced) share: residency is the clip stack's (cache/clipmap.h), so the residency queries,
 // the MaxTextureLOD clamp, the windows an engine mirrors and the render-ahead marks all forward
 // to it. A derived system adds its needs, commits and statistics.
+#include <bit>
 #include <cstdint>
 #include <vector>
 
@@ -38,11 +39,21 @@ class ClipmapBacked : public IStreamingSystem {
   void record_marks(std::vector<std::uint64_t>* out) const override { cm_.record_marks(out); }
   void apply_marks(const std::vector<std::uint64_t>& marks) const override { cm_.apply_marks(marks); }
   std::uint64_t vram_evictions() const override { return cm_.stats().vram_evictions; }
+  void record_vram_evictions(std::vector<TileKey>* log) override { evict_log_ = log; }
+  int tile_sampled(TileKey key) const override { return cm_.sampled(key); }
 
   const Clipmap& clipmap() const { return cm_; }
 
  protected:
+  // A commit overwrote `ev` (Clipmap::commit): each of its resident layers into the eviction log.
+  void log_evicted(TileKey key, const Clipmap::Evicted& ev) {
+    if (!ev.mask || !evict_log_) return;
+    for (std::uint32_t m = ev.mask; m; m &= m - 1)
+      evict_log_->push_back(TileKey(static_cast<std::uint32_t>(std::countr_zero(m)), key.level(), ev.tx, ev.ty));
+  }
+
   Clipmap cm_;
+  std::vector<TileKey>* evict_log_ = nullptr;  // record_vram_evictions
 };
 
 }  // namespace vtsim

@@ -1,5 +1,7 @@
 #include "stream/system/clipmap_system.h"
 
+#include <bit>
+
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -113,6 +115,7 @@ bool ClipmapSystem::commit(TileKey key, int frame) {
     return TileKey(0, l, x, y).bits;
   };
   if (ev.mask) evicted_at_[pack(key.level(), ev.tx, ev.ty)] = frame;
+  log_evicted(key, ev);
   if (key.layer() == 0 && !evicted_at_.empty()) {
     auto it = evicted_at_.find(pack(key.level(), key.x(), key.y()));
     if (it != evicted_at_.end()) {

@@ -157,6 +157,13 @@ class IStreamingSystem : public IResidency {
   // Opt-in: from now on, every change of the page table (map, unmap) appends a PageTableUpdate to
   // `log`, in order; null stops. A system without a page table records nothing.
   virtual void record_page_table(std::vector<PageTableUpdate>* /*log*/) {}
+  // Opt-in (the tile timeline, sim/run/timeline.h): from now on, every tile layer evicted from
+  // VRAM (one per layer the summary's vram_evictions counts) appends its key to `log`; null stops.
+  virtual void record_vram_evictions(std::vector<TileKey>* /*log*/) {}
+  // Whether a sample has resolved to this tile layer since it became resident: -1 not resident
+  // (or the system cannot tell), 0 resident and not sampled yet, 1 sampled (the marks the pop-in
+  // measurement makes, set_mark_sampled). O(1).
+  virtual int tile_sampled(TileKey /*key*/) const { return -1; }
   // Each level's clipmap window, finest level first; empty for a system without windows.
   virtual void clip_windows(std::vector<ClipWindow>& out) const { out.clear(); }
   // Opt-in: from now on, every page of the pool this system wants each frame appends an Access

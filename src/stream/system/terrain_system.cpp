@@ -276,7 +276,9 @@ bool TerrainSystem::commit(TileKey key, int) {
     return true;
   }
   const int l = static_cast<int>(key.level());
-  if (!cm_.commit(key)) return false;
+  Clipmap::Evicted ev;
+  if (!cm_.commit(key, &ev)) return false;
+  log_evicted(key, ev);
   dirty_.erase(key.bits);
   if (key.layer() == 0) {
     ++produced_[static_cast<std::size_t>(l)];

@@ -103,6 +103,9 @@ void VtSystem::on_removed(const PagePool::Removed& r) {
   if (r.reason == PagePool::Removal::kEvicted) {
     evicted_layers_ += layers;
     if (!r.sampled) evicted_unsampled_layers_ += layers;
+    if (evict_log_)
+      for (std::uint32_t m = r.mask; m; m &= m - 1)
+        evict_log_->push_back(TileKey(static_cast<std::uint32_t>(std::countr_zero(m)), r.page.level(), r.page.x(), r.page.y()));
     evicted_at_.put(r.page.bits, frame_);
     if (evicted_at_.size() > 65536) {  // forget evictions too old to count as thrash
       scratch_keys_.clear();
@@ -477,6 +480,12 @@ bool VtSystem::accepts(TileKey key) const {
   const int layer = static_cast<int>(key.layer());
   if (layer >= s_.layers) return false;
   return pool_.reserved(page_key(static_cast<int>(key.level()), key.x(), key.y()));
+}
+
+int VtSystem::tile_sampled(TileKey key) const {
+  const TileKey page = page_key(static_cast<int>(key.level()), key.x(), key.y());
+  if (!(pool_.resident_mask(page) & (1u << key.layer()))) return -1;
+  return pool_.sampled(pool_.slot_of(page)) ? 1 : 0;
 }
 
 std::int64_t VtSystem::vram_slot(TileKey key) const {

@@ -87,6 +87,8 @@ class VtSystem final : public IStreamingSystem {
   bool commit(TileKey key, int frame) override;
   bool accepts(TileKey key) const override;
   void record_page_table(std::vector<PageTableUpdate>* log) override { pt_log_ = log; }
+  void record_vram_evictions(std::vector<TileKey>* log) override { evict_log_ = log; }
+  int tile_sampled(TileKey key) const override;
   std::int64_t vram_slot(TileKey key) const override;
   void set_mark_sampled(bool on) override { mark_sampled_ = on; }
   bool uses_spans() const override { return true; }
@@ -231,6 +233,7 @@ class VtSystem final : public IStreamingSystem {
   std::uint64_t pool_misses_no_slot_ = 0;  // of those, in no slot and with no reservation yet
   AccessLog* pool_log_ = nullptr;          // record_pool_accesses
   std::vector<PageTableUpdate>* pt_log_ = nullptr;  // record_page_table
+  std::vector<TileKey>* evict_log_ = nullptr;       // record_vram_evictions
 };
 
 }  // namespace vtsim
