@@ -25,9 +25,11 @@ SETS = ["view.divisor=8"]
 
 
 def strip_run(summary):
-    """A summary without the run's own cost (wall time, RSS): what two replays of one config share."""
+    """A summary without the run's own cost (wall time, RSS) and the build's commit (the module and
+    the CLI may be linked at different commits of a build tree): what two replays of one config share."""
     s = dict(summary)
     s.pop("run", None)
+    s["provenance"] = {k: v for k, v in s["provenance"].items() if k != "vtsim_commit"}
     return s
 
 
