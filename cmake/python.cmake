@@ -25,7 +25,7 @@ endif()
 if(NOT Python3_FOUND OR NOT pybind11_FOUND)
   message(WARNING "Python 3 development files or pybind11 not found (Debian: python3-dev pybind11-dev): building "
                   "without the Python module (-DVTSIM_BUILD_PYTHON=OFF silences this)")
-  set(VTSIM_BUILD_PYTHON OFF CACHE BOOL "" FORCE)
+  set(VTSIM_BUILD_PYTHON OFF)  # for this configure only: installing them later builds the module
   return()
 endif()
 message(STATUS "vtsim Python module for ${Python3_EXECUTABLE} (Python ${Python3_VERSION}, pybind11 ${pybind11_VERSION})")
