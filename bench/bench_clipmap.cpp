@@ -22,7 +22,7 @@ int main(int argc, char** argv) {
   h.param("trace_minutes", minutes);
 
   {
-    TraceGenParams g = default_gen_params(TraceKind::walk);
+    TraceGenParams g = default_gen_params("walk");
     g.duration_s = minutes * 60.0;
     const Trace walk = generate_trace(g);
     // One core (feedback rendered in the loop): the figure docs/clipmap.md tracks.
@@ -37,7 +37,7 @@ int main(int argc, char** argv) {
 
   // Closed form vs measured, long straight walks.
   for (const bool diagonal : {false, true}) {
-    TraceGenParams g = default_gen_params(diagonal ? TraceKind::walk_diagonal : TraceKind::walk);
+    TraceGenParams g = default_gen_params(diagonal ? "walk_diagonal" : "walk");
     g.duration_s = minutes * 60.0;
     g.pitch_deg = -30.0;
     const Trace walk = generate_trace(g);

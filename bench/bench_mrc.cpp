@@ -128,7 +128,7 @@ int main(int argc, char** argv) {
 
   // The recorded sequences: the VT walk over the town at divisor 8 (as bench_sweep), default pool.
   const double duration_s = h.pick(600.0, 60.0);
-  vtsim::TraceGenParams tp = vtsim::default_gen_params(vtsim::TraceKind::walk);
+  vtsim::TraceGenParams tp = vtsim::default_gen_params("walk");
   tp.duration_s = duration_s;
   tp.start_m = {30.0, 8.0};
   const vtsim::Trace walk = vtsim::generate_trace(tp);

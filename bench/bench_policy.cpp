@@ -105,7 +105,7 @@ int main(int argc, char** argv) {
   // A recorded sequence: the VT pool's wanted pages of the 10-minute town walk at divisor 8 (60 s
   // with --quick), at 256 pages, just below the curve's knee (~274 pages, docs/cache.md).
   {
-    vtsim::TraceGenParams tp = vtsim::default_gen_params(vtsim::TraceKind::walk);
+    vtsim::TraceGenParams tp = vtsim::default_gen_params("walk");
     tp.duration_s = h.pick(600.0, 60.0);
     tp.start_m = {30.0, 8.0};
     const vtsim::RecordedReplay rec = vtsim::record_accesses(

@@ -5,7 +5,7 @@
 //     ProduceModel fitted to them (fit_produce_model). Times are the thread's CPU time (the machine
 //     is shared: descheduled time is not production). Side by side: one 256² 8-layer tile against a
 //     memcpy of the bytes its blend reads (8 layers × 256² × 4 B);
-//  2. production per frame — the seed-002 terrain (run.system = terrain, 8 brushes a sector) on a
+//  2. production per frame — the terrain (run.system = terrain, 8 brushes a sector) on a
 //     20 s 1.5 m/s walk in the simulated clock with the fitted model and one production server:
 //     the tiles each frame completes are recorded (a recording executor around the SimExecutor,
 //     the same results bit for bit), then produced for real frame by frame on one core, with
@@ -91,7 +91,7 @@ struct FrameFigures {
   int mismatched_rows = 0;  // frames whose recorded sim ms differs from the CSV row's produce_ms
 };
 
-// The seed-002 terrain's replay with `model`, then each frame's tiles produced for real.
+// The terrain's replay with `model`, then each frame's tiles produced for real.
 FrameFigures replay_and_produce(const Trace& walk, const ProduceModel& model, int tiles_per_frame, const ProduceScene& scene,
                                 int reps) {
   const std::vector<std::string> sets = {
@@ -313,8 +313,8 @@ int main(int argc, char** argv) {
                  r->ref.median * T * T * 1e-6, r->ratio);
   }
 
-  // 2. Production per frame on the seed-002 walk.
-  TraceGenParams g = default_gen_params(TraceKind::walk);
+  // 2. Production per frame on the terrain walk.
+  TraceGenParams g = default_gen_params("walk");
   g.duration_s = quick ? 3.0 : 20.0;
   g.speed_mps = 1.5;
   const Trace walk = generate_trace(g);

@@ -135,7 +135,7 @@ int main(int argc, char** argv) {
   {
     const ReplayConfig town = load_replay_config("", {"scene.kind=town", "view.divisor=8"}, "vt");
     auto scene = make_scene_from_config(town);
-    TraceGenParams gp = default_gen_params(TraceKind::walk);
+    TraceGenParams gp = default_gen_params("walk");
     gp.duration_s = frames / 60.0;
     gp.start_m = {30.0, 8.0};  // bench_vt's walk
     const Trace walk = generate_trace(gp);

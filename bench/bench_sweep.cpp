@@ -7,8 +7,8 @@
 //                          its own view in the loop), side by side; ratio = separate / sweep;
 //  - <sys>16_1core         one core, against real time × 16 (ratio = × real time per config;
 //                          the sweep issue's targets: VT >= 150, clipmap >= 1,500);
-//  - <sys>16_2core         two threads (a team stepping the systems, render-ahead on one more),
-//                          against one core side by side (target >= 1.8);
+//  - <sys>16_2core         two threads (a leader and a follower sharing the renders,
+//                          docs/sweep.md "Every core"), against one core side by side (target >= 1.8);
 //  - <sys>16_2core_ceiling two one-core sweeps at once against the same two in turn: what two
 //                          cores of the machine give this work with nothing shared (no target).
 // Every case checks that the sweep's rows equal the separate replays' summaries.
@@ -134,12 +134,12 @@ int main(int argc, char** argv) {
                         duration_s);
   };
 
-  TraceGenParams tp = default_gen_params(TraceKind::walk);
+  TraceGenParams tp = default_gen_params("walk");
   tp.duration_s = duration_s;
   tp.start_m = {30.0, 8.0};  // along the town's first street (as bench_vt)
   system_cases("vt", {"run.system=vt", "scene.kind=town", "view.divisor=8"}, generate_trace(tp), "vt.pool_pages",
                {"256", "512", "1024", "2048"}, 150.0);
-  TraceGenParams pp = default_gen_params(TraceKind::walk);
+  TraceGenParams pp = default_gen_params("walk");
   pp.duration_s = duration_s;
   system_cases("clipmap", {"run.system=clipmap", "view.divisor=8"}, generate_trace(pp), "ram.capacity_MiB",
                {"32", "64", "128", "256"}, 1500.0);

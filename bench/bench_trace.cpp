@@ -55,7 +55,7 @@ int main(int argc, char** argv) {
                                                     .string();
   const std::string tmp = (std::filesystem::temp_directory_path() / "vtsim_bench_trace.csv").string();
 
-  TraceGenParams p = default_gen_params(TraceKind::turn);
+  TraceGenParams p = default_gen_params("turn");
   p.duration_s = h.pick(600.0, 60.0);
   const Trace t = generate_trace(p);
   save_trace(t, tmp);

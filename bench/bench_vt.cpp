@@ -41,11 +41,11 @@ int main(int argc, char** argv) {
   bench::Harness h("vt", static_cast<int>(args.size()), args.data(), 3, 3);
 
   const double duration_s = h.pick(600.0, 60.0);
-  TraceGenParams gp = default_gen_params(TraceKind::walk);
+  TraceGenParams gp = default_gen_params("walk");
   gp.duration_s = duration_s;
   gp.start_m = {30.0, 8.0};  // along the town's first street, heading east (900 m in 10 min)
   const Trace walk = generate_trace(gp);
-  TraceGenParams sp = default_gen_params(TraceKind::still);
+  TraceGenParams sp = default_gen_params("static");
   sp.duration_s = duration_s;
   sp.start_m = {30.0, 8.0};
   const Trace still = generate_trace(sp);

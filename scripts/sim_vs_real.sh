@@ -9,7 +9,7 @@
 # io.queue_depth, so the real runs read with io_uring and the simulated disk has that depth).
 # VTSIM_SYSTEM=clipmap (default): no border, the standard walk and drive traces (§6).
 # VTSIM_SYSTEM=vt: pages with a 4-texel border, the town walk at 1× and 4× (§7a).
-# VTSIM_SYSTEM=terrain: the seed-002 terrain (docs/examples/terrain.toml), no store: the [produce]
+# VTSIM_SYSTEM=terrain: the terrain (docs/examples/terrain.toml), no store: the [produce]
 # keys fitted to the tiles of a real-clock calibration walk (another walk than the one compared),
 # then production per frame and per tile on traces/walk.csv (docs/produced.md, "Calibrating from
 # the replay's own tiles").

@@ -22,7 +22,7 @@ cpu() { local s; read -ra s < /proc/$$/stat; echo $(( (s[15] + s[16]) / tck )); 
 phase() { echo "== $1 at $(date -u +%T), ${SECONDS}s into the run, $(cpu)s CPU"; }
 
 # Sanitizer builds at -O1 with line tables only (-g1): ASan+UBSan at -O2 -g compiled 2x slower
-# (37.6 s vs 18.7 s for src/sim/run/compare.cpp) for stack traces that -g1 already gives file:line.
+# (37.6 s vs 18.7 s for src/sim/compare/compare.cpp) for stack traces that -g1 already gives file:line.
 san=(-DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1")
 dirs=() ; argsets=()
 for v in $variants; do

@@ -1,4 +1,4 @@
-// Atlases (seed 004, docs/produced.md "Atlases (seed 004)"): mip-by-mip wrapped borders, the
+// Atlases (crazii 2017, docs/produced.md "Atlases (crazii 2017)"): mip-by-mip wrapped borders, the
 // bleeding they prevent, the levels they cover, and the errors for bad brushes.
 #include <doctest/doctest.h>
 

@@ -11,7 +11,7 @@
 #include "cache/policy/simulate.h"
 #include "cache/policy/i_replacement.h"
 #include "sim/run/cache_bounds.h"
-#include "sim/run/report_html.h"
+#include "sim/report/report_html.h"
 #include "sim/run/replay.h"
 #include "sim/run/replay_config.h"
 #include "sim/trace/trace_gen.h"
@@ -22,7 +22,7 @@ using namespace vtsim;
 namespace {
 
 Trace bounds_turn(double seconds) {
-  TraceGenParams p = default_gen_params(TraceKind::turn);
+  TraceGenParams p = default_gen_params("turn");
   p.duration_s = seconds;
   p.event_s = seconds / 2;
   return generate_trace(p);

@@ -119,7 +119,7 @@ TEST_CASE("empty inputs: an empty access file is an error naming it, not a curve
 }
 
 TEST_CASE("trace cut: the poses between two times, an interpolated pose at each end, times kept") {
-  vtsim::TraceGenParams p = vtsim::default_gen_params(vtsim::TraceKind::walk);
+  vtsim::TraceGenParams p = vtsim::default_gen_params("walk");
   p.duration_s = 2.0;
   const vtsim::Trace t = vtsim::generate_trace(p);
   const vtsim::Trace c = vtsim::cut_trace(t, 0.5, 1.25);

@@ -11,7 +11,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "sim/run/compare.h"
+#include "sim/compare/compare.h"
 #include "sim/run/metric_direction.h"
 #include "trace_test_util.h"
 

@@ -345,7 +345,7 @@ TEST_CASE("disk presets, each: a why, a device the simulated clock can serve, an
 }
 
 TEST_CASE("streaming systems, each: a short replay runs, uploads, measures and is the same twice") {
-  TraceGenParams g = default_gen_params(TraceKind::walk);
+  TraceGenParams g = default_gen_params("walk");
   g.duration_s = 2.0;
   g.start_m = {30.0, 8.0};  // along the town's first street
   const Trace walk = generate_trace(g);

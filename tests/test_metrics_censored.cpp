@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "sim/run/compare.h"
+#include "sim/compare/compare.h"
 #include "sim/run/metrics.h"
 #include "sim/run/replay.h"
 #include "sim/trace/trace_gen.h"

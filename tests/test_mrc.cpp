@@ -19,7 +19,7 @@
 #include "cache/policy/mrc.h"
 #include "core/error.h"
 #include "core/tile_key.h"
-#include "sim/run/mrc_chart.h"
+#include "sim/report/mrc_chart.h"
 #include "test_util.h"
 #include "view_test_util.h"
 

@@ -266,7 +266,7 @@ TEST_CASE("config: ram.policy and vt.pool_policy take a table name, another is r
 namespace {
 
 Trace live_turn(double seconds) {
-  TraceGenParams p = default_gen_params(TraceKind::turn);
+  TraceGenParams p = default_gen_params("turn");
   p.duration_s = seconds;
   p.event_s = seconds / 2;
   return generate_trace(p);

@@ -37,7 +37,7 @@ ReplayConfig bound_cfg(const TileStore& store, const std::vector<std::string>& s
 }
 
 Trace still_trace(double seconds) {
-  TraceGenParams g = default_gen_params(TraceKind::still);
+  TraceGenParams g = default_gen_params("static");
   g.start_m = {16.0, 16.0};
   g.duration_s = seconds;
   g.image_width = 640;
@@ -47,7 +47,7 @@ Trace still_trace(double seconds) {
 
 // 24 m in 2 s across the small store: a texel window of 768 at level 0, many tiles in and out.
 Trace fast_walk_trace() {
-  TraceGenParams g = default_gen_params(TraceKind::walk);
+  TraceGenParams g = default_gen_params("walk");
   g.start_m = {4.0, 16.0};
   g.speed_mps = 12.0;
   g.duration_s = 2.0;

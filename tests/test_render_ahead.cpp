@@ -127,7 +127,7 @@ TEST_CASE("render-ahead: keep_samples switched while jobs run — the buffers eq
 TEST_CASE("render-ahead: a replay's summary and per-frame CSV do not depend on the thread count") {
   // A walk with a pause (equal poses: reused buffers), feedback every 2nd frame, a separate pop-in
   // buffer: every path that decides which frames render.
-  TraceGenParams g = default_gen_params(TraceKind::walk);
+  TraceGenParams g = default_gen_params("walk");
   g.duration_s = 3.0;
   g.start_m = {30.0, 8.0};
   Trace t = generate_trace(g);

@@ -92,7 +92,7 @@ TEST_CASE("closed form: an exact 45° walk steps both axes in the same frame: 2n
 }
 
 TEST_CASE("a static camera costs no IO and no uploads after warm-up") {
-  TraceGenParams g = default_gen_params(TraceKind::still);
+  TraceGenParams g = default_gen_params("static");
   g.duration_s = 10.0;
   const ReplayResult r = replay(generate_trace(g), {});  // default devices: NVMe, 16 tiles/frame
   const auto& frames = r.metrics.frames();
@@ -109,7 +109,7 @@ TEST_CASE("a static camera costs no IO and no uploads after warm-up") {
 }
 
 TEST_CASE("a camera 10^7 m from the origin behaves exactly like one at the origin") {
-  TraceGenParams g = default_gen_params(TraceKind::walk);
+  TraceGenParams g = default_gen_params("walk");
   g.duration_s = 5.0;
   Trace near = generate_trace(g);
   g.start_m += glm::dvec2(1.0e7, 1.0e7);
@@ -128,7 +128,7 @@ TEST_CASE("a camera 10^7 m from the origin behaves exactly like one at the origi
 }
 
 TEST_CASE("determinism: two runs give the same summary and frames, bit for bit") {
-  TraceGenParams g = default_gen_params(TraceKind::drive);
+  TraceGenParams g = default_gen_params("drive");
   g.duration_s = 5.0;
   const Trace t = generate_trace(g);
   const std::vector<std::string> sets = {"disk.preset=hdd", "io.fault_rate=0.05", "decode.throughput_MBps=300"};
@@ -164,7 +164,7 @@ class CountingScene final : public IScene {
 }  // namespace
 
 TEST_CASE("paced (the real clock's loop): the first views are rendered before frame 0, and nothing else changes") {
-  TraceGenParams g = default_gen_params(TraceKind::walk);
+  TraceGenParams g = default_gen_params("walk");
   g.duration_s = 1.0;
   const Trace t = generate_trace(g);
   for (const char* system : {"clipmap", "vt"})
@@ -198,7 +198,7 @@ TEST_CASE("paced (the real clock's loop): the first views are rendered before fr
 }
 
 TEST_CASE("the upload budget is never exceeded in a replay") {
-  TraceGenParams g = default_gen_params(TraceKind::drive);
+  TraceGenParams g = default_gen_params("drive");
   g.duration_s = 4.0;
   const ReplayResult r = replay(generate_trace(g), {"upload.tiles_per_frame=5", "upload.bytes_per_frame=200000"});
   std::uint64_t total = 0;
@@ -212,7 +212,7 @@ TEST_CASE("the upload budget is never exceeded in a replay") {
 
 TEST_CASE("the throttle engages when the camera outruns the disk and relaxes when it stops") {
   // Drive for 8 s on an HDD, then stand still for 8 s.
-  TraceGenParams g = default_gen_params(TraceKind::drive);
+  TraceGenParams g = default_gen_params("drive");
   g.duration_s = 8.0;
   Trace t = generate_trace(g);
   test::hold_last_pose(t, 480);

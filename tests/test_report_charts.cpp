@@ -1,4 +1,4 @@
-// The report's chart scales and ticks (src/sim/run/svg_chart.h), the side-by-side report
+// The report's chart scales and ticks (src/sim/report/svg_chart.h), the side-by-side report
 // (report_runs.h) and the replay report's contents (report_html.h).
 #include <doctest/doctest.h>
 
@@ -8,9 +8,9 @@
 #include <string>
 #include <vector>
 
-#include "sim/run/report_html.h"
-#include "sim/run/report_runs.h"
-#include "sim/run/svg_chart.h"
+#include "sim/report/report_html.h"
+#include "sim/report/report_runs.h"
+#include "sim/report/svg_chart.h"
 #include "test_util.h"
 
 namespace {

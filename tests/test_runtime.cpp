@@ -29,7 +29,7 @@ ReplayConfig runtime_cfg(const char* system, const std::vector<std::string>& set
 }
 
 Trace runtime_walk(double seconds) {
-  TraceGenParams p = default_gen_params(TraceKind::walk);
+  TraceGenParams p = default_gen_params("walk");
   p.duration_s = seconds;
   p.image_width = 640;
   p.image_height = 360;

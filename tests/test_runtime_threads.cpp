@@ -35,7 +35,7 @@ ReplayConfig runtime_vt_cfg(const std::vector<std::string>& sets = {}) {
 }
 
 Trace runtime_still(double seconds) {
-  TraceGenParams g = default_gen_params(TraceKind::still);
+  TraceGenParams g = default_gen_params("static");
   g.start_m = {16.0, 16.0};
   g.duration_s = seconds;
   g.image_width = 640;

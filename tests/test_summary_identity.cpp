@@ -12,11 +12,11 @@
 
 #include "core/hash.h"
 #include "real_test_util.h"
-#include "sim/run/compare.h"
+#include "sim/compare/compare.h"
 #include "sim/run/provenance.h"
 #include "sim/run/real_replay.h"
 #include "sim/run/replay.h"
-#include "sim/run/report_html.h"
+#include "sim/report/report_html.h"
 #include "sim/trace/trace_gen.h"
 #include "sim/trace/trace_import.h"
 #include "sim/trace/trace_resample.h"
@@ -109,7 +109,7 @@ ReplayConfig identity_store_cfg(const TileStore& store, const std::vector<std::s
 }
 
 Trace identity_still_trace() {
-  TraceGenParams g = default_gen_params(TraceKind::walk);
+  TraceGenParams g = default_gen_params("walk");
   g.start_m = {4.0, 16.0};
   g.duration_s = 1.0;
   g.image_width = 640;

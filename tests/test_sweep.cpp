@@ -182,7 +182,7 @@ TEST_CASE("sweep: configs with another view are refused by the lockstep runner, 
   CHECK(view_key(a) != view_key(b));
   CHECK(view_key(a) == view_key(c));
   const auto scene = make_scene_from_config(a);
-  CHECK_THROWS_AS(run_lockstep({&a, &b}, generate_trace(default_gen_params(TraceKind::walk)), *scene, 1), std::invalid_argument);
+  CHECK_THROWS_AS(run_lockstep({&a, &b}, generate_trace(default_gen_params("walk")), *scene, 1), std::invalid_argument);
 }
 
 TEST_CASE("sweep: a spec expands explicit configs × grid, first axis slowest, in the file's order") {
@@ -460,12 +460,12 @@ TEST_CASE("sweep: shards by I/N or from Slurm's array variables") {
 
 TEST_CASE("sweep: generator lines are a generated trace's name") {
   const TraceGenParams p = parse_gen_line("turn duration_s=30 start_m=30,8 turn_deg=-90 image=640x360", "g");
-  CHECK(p.kind == TraceKind::turn);
+  CHECK(p.kind == "turn");
   CHECK(p.duration_s == 30.0);
   CHECK(p.start_m == glm::dvec2(30.0, 8.0));
   CHECK(p.turn_deg == -90.0);
   CHECK(p.image_width == 640);
-  const Trace t = generate_trace(default_gen_params(TraceKind::orbit));
+  const Trace t = generate_trace(default_gen_params("orbit"));
   const Trace again = generate_trace(parse_gen_line(t.name, "g"));
   CHECK(again.name == t.name);
   CHECK(again.poses.size() == t.poses.size());

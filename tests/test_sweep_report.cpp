@@ -1,4 +1,4 @@
-// The sweep report (sim/sweep/sweep_report.h): the Pareto front on hand-made points, and the page
+// The sweep report (sim/report/sweep_report.h): the Pareto front on hand-made points, and the page
 // of synthetic sweeps: every metric chart, the front tables, failed rows escaped, same bytes for
 // the same inputs, no axes, one config, a metric the summaries lack.
 #include <doctest/doctest.h>
@@ -8,7 +8,7 @@
 #include <functional>
 #include <set>
 
-#include "sim/sweep/sweep_report.h"
+#include "sim/report/sweep_report.h"
 #include "test_util.h"
 
 using nlohmann::json;

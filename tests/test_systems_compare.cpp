@@ -1,5 +1,5 @@
 // Issue 27: the three systems side by side (docs/produced.md, "Three systems side by side") and the
-// terrain's `vtsim capacity` report (docs/produced.md, "Capacity: seed 002 checked").
+// terrain's `vtsim capacity` report (docs/produced.md, "Capacity: VT Terrain Design checked").
 #include <doctest/doctest.h>
 
 #include <fstream>
@@ -94,7 +94,7 @@ TEST_CASE("systems: one sweep row per system, production time only for the terra
   CHECK_THROWS_WITH_AS(sweep_table(out, bad), doctest::Contains("add run.system to --rows or --col"), InputError);
 }
 
-TEST_CASE("systems: vtsim capacity --system terrain carries seed 002's figures, text and JSON, and names bad fields") {
+TEST_CASE("systems: vtsim capacity --system terrain carries VT Terrain Design's figures, text and JSON, and names bad fields") {
   test::TempDir d;
   const std::string cfg = std::string(" -c ") + VTSIM_SOURCE_DIR + "/docs/examples/terrain.toml";
   test::CliRun r = test::run_vtsim_capture("capacity --system terrain --json" + cfg, d.file("err"));
@@ -102,7 +102,7 @@ TEST_CASE("systems: vtsim capacity --system terrain carries seed 002's figures, 
   const nlohmann::json j = nlohmann::json::parse(r.out);
   CHECK(j["terrain"]["texels"][0] == 8388608);
   CHECK(j["stored_texel_bytes"].get<double>() == 281474976710656.0);  // 2^46 texels × 4 B = 256 TiB
-  CHECK(j["seed_stored_texel_bytes"].get<double>() == 4e14);         // the seed's 10 km: 363.8 TiB
+  CHECK(j["far_cry_4_stored_texel_bytes"].get<double>() == 4e14);    // Far Cry 4's 10 km: 363.8 TiB
   CHECK(j["brushes"] == 3072);
   CHECK(j["brush_bytes_mip0"] == 12884901888ull);
   CHECK(j["brush_bytes_all_mips"] == 17179865088ull);
@@ -124,7 +124,7 @@ TEST_CASE("systems: vtsim capacity --system terrain carries seed 002's figures, 
 
   r = test::run_vtsim_capture("capacity --system terrain --camera 4352,4352" + cfg, d.file("err"));
   REQUIRE(r.code == 0);
-  CHECK(test::contains(r.out, "256.00 TiB (281,474,976,710,656 B); seed 002's 10 km at 10 texels/cm: 363.80 TiB"));
+  CHECK(test::contains(r.out, "256.00 TiB (281,474,976,710,656 B); Far Cry 4's 10 km at 10 texels/cm: 363.80 TiB"));
   CHECK(test::contains(r.out, "12288.0 MiB at mip 0; every mip 16384.0 MiB (17,179,865,088 B)"));
   CHECK(test::contains(r.out, "768 (3 a sector) × 512² × 4 B = 768.0 MiB"));
   CHECK(test::contains(r.out, "13 levels × 2048² × 4 B = 208.0 MiB"));

@@ -47,7 +47,7 @@ ReplayConfig small_terrain(const std::vector<std::string>& more = {}) {
 }
 
 Trace small_walk(double seconds) {
-  TraceGenParams g = default_gen_params(TraceKind::walk);
+  TraceGenParams g = default_gen_params("walk");
   g.start_m = {28.0, 32.0};
   g.speed_mps = 4.0;
   g.duration_s = seconds;

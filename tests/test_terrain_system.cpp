@@ -17,7 +17,7 @@ using namespace vtsim;
 
 namespace {
 
-// Seed 002 at vtsim's scale: 16 × 16 sectors of 512 m, 1024 texels/m (2^23 texels a side),
+// VT Terrain Design's terrain at vtsim's scale: 16 × 16 sectors of 512 m, 1024 texels/m (2^23 texels a side),
 // clipsize 2048 in 256-texel tiles: 12 stack levels (0-11) over the pyramid (12-23).
 std::vector<std::string> terrain_sets() {
   return {"texture.width=8388608", "texture.height=8388608", "texture.texels_per_m=1024", "texture.tile_size=256",
@@ -157,7 +157,7 @@ TEST_CASE("terrain: a footprint invalidates the finest resident tiles under it, 
   CHECK(w.decals >= 1);
 }
 
-TEST_CASE("terrain: capacity figures of seed 002, exact") {
+TEST_CASE("terrain: capacity figures of VT Terrain Design, exact") {
   const TerrainCapacity c = terrain_capacity(TerrainConfig{}, 1024.0, 2048, 4096.0, 4096.0);
   CHECK(c.texels_side_x == 8388608);
   CHECK(c.stored_equiv_bytes == 281474976710656.0);  // 2^46 texels × 4 B = 256 TiB
@@ -209,7 +209,7 @@ TEST_CASE("terrain: the throttle reads the production rate and clamps the level 
       "clipmap.clipsize=256", "terrain.sectors_x=4", "terrain.sectors_y=4",    "terrain.sector_m=16",
       "terrain.brushes_per_sector=4", "terrain.brush_size=64", "terrain.brush_tree_levels=3",
       "terrain.mask_size=64", "view.divisor=16", "throttle.policy=deadline"};
-  TraceGenParams g = default_gen_params(TraceKind::walk);
+  TraceGenParams g = default_gen_params("walk");
   g.start_m = {28.0, 32.0};
   g.speed_mps = 4.0;
   g.duration_s = 3.0;

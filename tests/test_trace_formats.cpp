@@ -36,7 +36,7 @@ namespace {
 
 // A walk with turns: 4 s at 60 Hz, turning 270 degrees in 1.5 s from t = 1 s.
 Trace formats_walk_with_turns() {
-  TraceGenParams p = default_gen_params(TraceKind::turn);
+  TraceGenParams p = default_gen_params("turn");
   p.duration_s = 4.0;
   p.event_s = 1.0;
   p.turn_deg = 270.0;

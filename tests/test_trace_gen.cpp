@@ -19,7 +19,7 @@ using vtsim::test::kForward;
 using vtsim::test::kUp;
 constexpr double kPi = std::numbers::pi;
 
-Trace gen(TraceKind k) { return generate_trace(default_gen_params(k)); }
+Trace gen(std::string_view k) { return generate_trace(default_gen_params(k)); }
 
 // Positions near 4096 m carry ~1e-12 m of rounding, so a 1/60 s step's speed is good to ~1e-10.
 void check_speed(const Trace& t, double v) {
@@ -33,7 +33,7 @@ void check_speed(const Trace& t, double v) {
 }  // namespace
 
 TEST_CASE("walk: closed-form positions, 60 Hz for 20 s, eye height, pitch -15") {
-  const Trace t = gen(TraceKind::walk);
+  const Trace t = gen("walk");
   REQUIRE(t.poses.size() == 1201);
   CHECK(t.image_width == 1920);
   CHECK(t.image_height == 1080);
@@ -52,24 +52,24 @@ TEST_CASE("walk: closed-form positions, 60 Hz for 20 s, eye height, pitch -15") 
 }
 
 TEST_CASE("walk_diagonal stays on x = y - run, drive and flight have their speeds and heights") {
-  const Trace d = gen(TraceKind::walk_diagonal);
+  const Trace d = gen("walk_diagonal");
   for (const Pose& p : d.poses) CHECK(p.pos_m.x == p.pos_m.y);
   CHECK(d.poses[600].pos_m.x == 4096.0 + std::sqrt(0.5) * 15.0);
   check_speed(d, 1.5);
-  const Trace r = gen(TraceKind::run);
+  const Trace r = gen("run");
   CHECK(r.poses[1200].pos_m == glm::dvec3(4196.0, 4096.0, 1.7));
   check_speed(r, 5.0);
-  const Trace v = gen(TraceKind::drive);
+  const Trace v = gen("drive");
   CHECK(v.poses[1200].pos_m == glm::dvec3(4496.0, 4096.0, 1.5));
   check_speed(v, 20.0);
-  const Trace f = gen(TraceKind::flight);
+  const Trace f = gen("flight");
   CHECK(f.poses[1200].pos_m == glm::dvec3(6096.0, 4096.0, 300.0));
   CHECK((f.poses[0].q * kForward).z == doctest::Approx(-0.5));  // pitch -30
   check_speed(f, 100.0);
 }
 
 TEST_CASE("turn: 180 degrees in 0.5 s at 10 s while walking") {
-  const Trace t = gen(TraceKind::turn);
+  const Trace t = gen("turn");
   REQUIRE(t.poses.size() == 1201);
   CHECK((t.poses[600].q * kForward).x > 0.96);   // t = 10: the turn starts
   CHECK((t.poses[630].q * kForward).x < -0.96);  // t = 10.5: turned around
@@ -84,14 +84,14 @@ TEST_CASE("turn: 180 degrees in 0.5 s at 10 s while walking") {
   CHECK(s.speed_max_mps <= 1.5 + 1e-9);
   CHECK(s.speed_p50_mps == doctest::Approx(1.5).epsilon(1e-9));
   // A clockwise turn mirrors the path.
-  TraceGenParams p = default_gen_params(TraceKind::turn);
+  TraceGenParams p = default_gen_params("turn");
   p.turn_deg = -180.0;
   const Trace m = generate_trace(p);
   CHECK(m.poses[1200].pos_m.y == doctest::Approx(4096.0 - 2.0 * radius).epsilon(1e-13));
 }
 
 TEST_CASE("teleport: one cut of 2 km between frames 599 and 600") {
-  const Trace t = gen(TraceKind::teleport);
+  const Trace t = gen("teleport");
   CHECK(t.poses[599].pos_m.y == 4096.0);
   CHECK(t.poses[600].pos_m == glm::dvec3(4096.0 + 15.0, 6096.0, 1.7));
   const TraceStats s = trace_stats(t);
@@ -103,7 +103,7 @@ TEST_CASE("teleport: one cut of 2 km between frames 599 and 600") {
 }
 
 TEST_CASE("orbit: on the circle, looking at the centre's foot, one lap in 20 s") {
-  const Trace t = gen(TraceKind::orbit);
+  const Trace t = gen("orbit");
   const glm::dvec2 c(4096.0, 4096.0);
   for (std::size_t i = 0; i < t.poses.size(); i += 37) {
     const Pose& p = t.poses[i];
@@ -126,8 +126,8 @@ TEST_CASE("orbit: on the circle, looking at the centre's foot, one lap in 20 s")
 }
 
 TEST_CASE("static: no motion") {
-  const Trace t = gen(TraceKind::still);
-  CHECK(kind_name(TraceKind::still) == "static");
+  const Trace t = gen("static");
+  CHECK(trace_generators().find("static") != nullptr);
   REQUIRE(t.poses.size() == 1201);
   for (const Pose& p : t.poses) CHECK(p.pos_m == glm::dvec3(4096.0, 4096.0, 1.7));
   const TraceStats s = trace_stats(t);
@@ -136,7 +136,7 @@ TEST_CASE("static: no motion") {
 }
 
 TEST_CASE("generation is reproducible and exact far into a long trace") {
-  TraceGenParams p = default_gen_params(TraceKind::walk);
+  TraceGenParams p = default_gen_params("walk");
   p.duration_s = 600.0;
   const Trace a = generate_trace(p), b = generate_trace(p);
   REQUIRE(a.poses.size() == 36001);
@@ -154,22 +154,22 @@ TEST_CASE("generation is reproducible and exact far into a long trace") {
 TEST_CASE("generator parameters out of range name the field") {
   struct Case {
     const char* field;
-    TraceKind kind;
+    const char* kind;
     void (*set)(TraceGenParams&);
   };
   const Case cases[] = {
-      {"duration_s", TraceKind::walk, [](TraceGenParams& p) { p.duration_s = -1; }},
-      {"fps", TraceKind::walk, [](TraceGenParams& p) { p.fps = 0; }},
-      {"duration_s", TraceKind::walk, [](TraceGenParams& p) { p.duration_s = 1e6; p.fps = 1000; }},
-      {"speed_mps", TraceKind::run, [](TraceGenParams& p) { p.speed_mps = std::nan(""); }},
-      {"pitch_deg", TraceKind::walk, [](TraceGenParams& p) { p.pitch_deg = 91; }},
-      {"vfov_deg", TraceKind::walk, [](TraceGenParams& p) { p.vfov_deg = 0; }},
-      {"image_width", TraceKind::walk, [](TraceGenParams& p) { p.image_width = 0; }},
-      {"event_s", TraceKind::turn, [](TraceGenParams& p) { p.event_s = 30; }},
-      {"turn_s", TraceKind::turn, [](TraceGenParams& p) { p.turn_s = 0; }},
-      {"jump_m", TraceKind::teleport, [](TraceGenParams& p) { p.jump_m = -5; }},
-      {"radius_m", TraceKind::orbit, [](TraceGenParams& p) { p.radius_m = 0; }},
-      {"start_m", TraceKind::walk, [](TraceGenParams& p) { p.start_m.x = INFINITY; }},
+      {"duration_s", "walk", [](TraceGenParams& p) { p.duration_s = -1; }},
+      {"fps", "walk", [](TraceGenParams& p) { p.fps = 0; }},
+      {"duration_s", "walk", [](TraceGenParams& p) { p.duration_s = 1e6; p.fps = 1000; }},
+      {"speed_mps", "run", [](TraceGenParams& p) { p.speed_mps = std::nan(""); }},
+      {"pitch_deg", "walk", [](TraceGenParams& p) { p.pitch_deg = 91; }},
+      {"vfov_deg", "walk", [](TraceGenParams& p) { p.vfov_deg = 0; }},
+      {"image_width", "walk", [](TraceGenParams& p) { p.image_width = 0; }},
+      {"event_s", "turn", [](TraceGenParams& p) { p.event_s = 30; }},
+      {"turn_s", "turn", [](TraceGenParams& p) { p.turn_s = 0; }},
+      {"jump_m", "teleport", [](TraceGenParams& p) { p.jump_m = -5; }},
+      {"radius_m", "orbit", [](TraceGenParams& p) { p.radius_m = 0; }},
+      {"start_m", "walk", [](TraceGenParams& p) { p.start_m.x = INFINITY; }},
   };
   for (const Case& c : cases) {
     CAPTURE(c.field);
@@ -177,6 +177,7 @@ TEST_CASE("generator parameters out of range name the field") {
     c.set(p);
     CHECK(contains(input_error([&] { generate_trace(p); }), std::string(c.field) + ":"));
   }
-  CHECK(contains(input_error([] { parse_trace_kind("fly", "kind"); }), "walk, walk_diagonal"));
-  CHECK(parse_trace_kind("static", "kind") == TraceKind::still);
+  CHECK(contains(input_error([] { find_trace_generator("fly", "kind"); }), "walk, walk_diagonal"));
+  CHECK(contains(input_error([] { find_trace_generator("fligt", "kind"); }), "did you mean 'flight'?"));
+  CHECK(find_trace_generator("static", "kind").name == "static");
 }

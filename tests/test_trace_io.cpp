@@ -81,8 +81,8 @@ TEST_CASE("native format round-trips bit-exactly") {
     CHECK(format_trace(load_trace(dir.file("a.csv"))) == format_trace(t));
   }
   SUBCASE("every generated kind") {
-    for (TraceKind k : all_trace_kinds()) {
-      TraceGenParams p = default_gen_params(k);
+    for (const TraceGenerator& k : trace_generators().entries()) {
+      TraceGenParams p = default_gen_params(k.name);
       p.duration_s = 12.0;
       const Trace t = generate_trace(p);
       save_trace(t, dir.file("g.csv"));

@@ -83,7 +83,7 @@ void fuzz(const std::string& seed_text, const std::string& path, int rounds, std
 
 TEST_CASE("mutated native, TUM, EuRoC and KITTI files load validly or raise InputError") {
   ScratchDir dir;
-  TraceGenParams p = default_gen_params(TraceKind::turn);
+  TraceGenParams p = default_gen_params("turn");
   p.duration_s = 1.0;
   p.event_s = 0.5;
   const std::string native = format_trace(generate_trace(p));
@@ -106,9 +106,9 @@ TEST_CASE("mutated native, TUM, EuRoC and KITTI files load validly or raise Inpu
 }
 
 TEST_CASE("the standard traces in traces/ are what scripts/gen_traces.sh generates") {
-  for (TraceKind k : all_trace_kinds()) {
-    const std::string path = std::string(VTSIM_SOURCE_DIR) + "/traces/" + std::string(kind_name(k)) + ".csv";
+  for (const TraceGenerator& k : trace_generators().entries()) {
+    const std::string path = std::string(VTSIM_SOURCE_DIR) + "/traces/" + std::string(k.name) + ".csv";
     CAPTURE(path);
-    CHECK(vtsim::test::slurp(path) == format_trace(generate_trace(default_gen_params(k))));
+    CHECK(vtsim::test::slurp(path) == format_trace(generate_trace(default_gen_params(k.name))));
   }
 }

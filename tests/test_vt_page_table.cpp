@@ -188,7 +188,7 @@ TEST_CASE("vt capacity: RAGE's 128K texture and Yao 2011's arithmetic") {
   CHECK(c.pages_level0 == 1024 * 1024);
   CHECK(c.levels == 11);  // 1024 pages a side down to 1: 11 levels
   CHECK(c.page_table_entries == (std::uint64_t{1} << 20) + (1 << 18) + (1 << 16) + (1 << 14) + (1 << 12) + (1 << 10) + 256 + 64 + 16 + 4 + 1);
-  // Yao 2011 §2: 6 screens × 3 overdraw × 1680 × 1050 × 4 B = 127,008,000 B (121.1 MiB; the seed
+  // Yao 2011 §2: 6 screens × 3 overdraw × 1680 × 1050 × 4 B = 127,008,000 B (121.1 MiB; Yao 2011
   // says "120MB").
   CHECK(c.screen_texels == doctest::Approx(6.0 * 3.0 * 1680 * 1050));
   CHECK(c.pool_pages == 1938);  // ceil(31,752,000 / 16384)

@@ -1,4 +1,4 @@
-// vtsim atlas build: brush images packed into a texture atlas (seed 004, stream/produce/atlas.h),
+// vtsim atlas build: brush images packed into a texture atlas (crazii 2017, stream/produce/atlas.h),
 // each kept level written as an image plus a JSON manifest (docs/produced.md, "vtsim atlas build").
 #include <fmt/format.h>
 
@@ -93,7 +93,7 @@ void register_atlas_commands(CLI::App& app) {
   b->add_option("--cols", a->params.cols, "cells per row")->capture_default_str();
   b->add_option("--rows", a->params.rows, "cell rows (0: as many as the brushes need)")->capture_default_str();
   b->add_option("--border", a->params.border, "texels of wrapped border around each cell at level 0 (4 = one BC block)")->capture_default_str();
-  b->add_option("--transition", a->params.transition, "texels cross-faded at each brush edge (seed 004 §7; 0 = none)")->capture_default_str();
+  b->add_option("--transition", a->params.transition, "texels cross-faded at each brush edge (crazii 2017 item 7; 0 = none)")->capture_default_str();
   b->add_flag("--constant-border", a->params.constant_border, "keep the border at every level (each level its own texture), covering all levels");
   b->add_option("--max-side", a->params.max_side, "largest atlas side allowed, texels")->capture_default_str();
   b->add_option("--format", a->ext, "image format of the levels: png or tif (8 bits a channel)")->capture_default_str();

@@ -28,7 +28,7 @@ struct CalibrateArgs {
   double seconds = 0.4;
   bool buffered = false, quick = false, quiet = false, json = false, produce = false;
   int produce_workers = 2;
-  double produce_texel_m = 1.0 / 1024;  // output texel the compositor is timed at (level 0 of the seed-002 terrain)
+  double produce_texel_m = 1.0 / 1024;  // output texel the compositor is timed at (level 0 of the default terrain, VT Terrain Design's)
   std::vector<std::string> samples;      // produced-tiles CSVs of real-clock replays: fit to those instead of timing
   bool cpu_time = false;                 // with samples: fit their thread CPU time, not their wall time
   std::uint64_t seed = 1;

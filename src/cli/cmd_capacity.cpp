@@ -1,7 +1,7 @@
 // vtsim capacity: memory of a clipmap (stack + pyramid, per layer) against a full mip chain, and
 // Yao 2007 §2-3's table recomputed (docs/clipmap.md); for --system vt, a virtual texture's disk
 // size, page-table size and the physical pool a screen needs, and Yao 2011's arithmetic checked
-// (docs/vt.md "Capacity"); for --system terrain, seed 002's produced clipmap from a config: stored
+// (docs/vt.md "Capacity"); for --system terrain, VT Terrain Design's produced clipmap from a config: stored
 // texels against stored brushes and masks, the clipmap, and the brushes resident to render
 // (docs/produced.md "Capacity").
 #include <fmt/format.h>
@@ -23,6 +23,7 @@
 #include "cli/format.h"
 #include "core/error.h"
 #include "sim/run/replay_config.h"
+#include "sim/run/systems.h"
 
 namespace vtsim::cli {
 
@@ -33,7 +34,7 @@ struct CapacityArgs {
   int clipsize = 1024, tile = 128;
   std::string layers = "albedo:rgba8";
   bool json = false, seed_table = false;
-  std::string system = "clipmap";
+  std::string system = RunConfig{}.system;  // the replay's default system
   // vt
   int border = 0;
   std::string screen = "1920x1080";
@@ -228,7 +229,7 @@ std::uint64_t brush_mip_bytes_of(const TerrainConfig& t, int m) {
 }
 
 void run_terrain_capacity(const CapacityArgs& a) {
-  const ReplayConfig cfg = load_cli_config(a.configs, a.sets, "terrain");
+  const ReplayConfig cfg = load_cli_config(a.configs, a.sets, a.system);
   const TerrainConfig& t = cfg.terrain;
   const double world_x = t.sector_m * t.sectors_x, world_y = t.sector_m * t.sectors_y;
   // The camera in world metres (default: the terrain's centre, a sector corner with an even count).
@@ -248,8 +249,8 @@ void run_terrain_capacity(const CapacityArgs& a) {
   const std::uint64_t brush_disk =
       static_cast<std::uint64_t>(static_cast<double>(c.brush_bytes_all_mips) / t.brush_compression);
   const std::uint64_t stored = brush_disk + c.mask_bytes;
-  // Seed 002's own world: 10 km × 10 km at 10 texels/cm, 4 B a texel (its "363.8 T").
-  constexpr double kSeedStoredTexelBytes = 1e7 * 1e7 * 4.0;
+  // Far Cry 4's world (Chen 2015): 10 km × 10 km at 10 texels/cm, 4 B a texel (VT Terrain Design's "363.8 T").
+  constexpr double kFarCry4StoredTexelBytes = 1e7 * 1e7 * 4.0;
   const ClipmapMemory mem = clipmap_memory({c.texels_side_x, c.texels_side_y}, cfg.texture.tile_size, clipsize);
   nlohmann::json levels = nlohmann::json::array();
   for (std::size_t l = 0; l < c.level_mip.size(); ++l) {
@@ -263,8 +264,8 @@ void run_terrain_capacity(const CapacityArgs& a) {
                                           brush_mip_bytes_of(t, m)}});
   }
   nlohmann::json j;
-  j["system"] = "terrain";
-  j["terrain"] = {{"sectors", {t.sectors_x, t.sectors_y}},
+  j["system"] = a.system;
+  j[a.system] = {{"sectors", {t.sectors_x, t.sectors_y}},
                   {"sector_m", t.sector_m},
                   {"world_m", {world_x, world_y}},
                   {"texels_per_m", cfg.texture.texels_per_m},
@@ -274,7 +275,7 @@ void run_terrain_capacity(const CapacityArgs& a) {
                   {"brush_tree_levels", t.brush_tree_levels},
                   {"mask_size", t.mask_size}};
   j["stored_texel_bytes"] = c.stored_equiv_bytes;
-  j["seed_stored_texel_bytes"] = kSeedStoredTexelBytes;
+  j["far_cry_4_stored_texel_bytes"] = kFarCry4StoredTexelBytes;
   j["brushes"] = c.brushes;
   j["brush_bytes_mip0"] = c.brush_bytes_mip0;
   j["brush_bytes_all_mips"] = c.brush_bytes_all_mips;
@@ -300,8 +301,8 @@ void run_terrain_capacity(const CapacityArgs& a) {
              "({} quadtree levels), masks of {}²\n",
              t.sectors_x, t.sectors_y, t.sector_m, world_x, world_y, cfg.texture.texels_per_m, c.texels_side_x, c.texels_side_y,
              t.brushes_per_sector, t.brush_size, t.brush_tree_levels, t.mask_size);
-  fmt::print("  stored texels, 4 B     {} ({} B); seed 002's 10 km at 10 texels/cm: {}\n", human_bytes(c.stored_equiv_bytes),
-             with_commas(static_cast<std::uint64_t>(c.stored_equiv_bytes)), human_bytes(kSeedStoredTexelBytes));
+  fmt::print("  stored texels, 4 B     {} ({} B); Far Cry 4's 10 km at 10 texels/cm: {}\n", human_bytes(c.stored_equiv_bytes),
+             with_commas(static_cast<std::uint64_t>(c.stored_equiv_bytes)), human_bytes(kFarCry4StoredTexelBytes));
   fmt::print("  brushes                {} × {}² × 4 B = {} at mip 0; every mip {} ({} B); on disk / {} = {}\n", c.brushes, t.brush_size,
              mib(static_cast<double>(c.brush_bytes_mip0)), mib(static_cast<double>(c.brush_bytes_all_mips)),
              with_commas(c.brush_bytes_all_mips), t.brush_compression, mib(static_cast<double>(brush_disk)));
@@ -339,20 +340,29 @@ CapacityArgs capacity_with_config(const CapacityArgs& a) {
   return b;
 }
 
+// The systems whose capacity report is `r`, as "a, b".
+std::string systems_reporting(CapacityReport r) {
+  std::string names;
+  for (const SystemInfo& s : streaming_systems().entries())
+    if (s.caps.capacity == r) names += (names.empty() ? "" : ", ") + std::string(s.name);
+  return names;
+}
+
 void run_capacity(const CapacityArgs& args) {
-  if (args.system != "terrain" && !args.camera.empty()) throw InputError("--camera", "only with --system terrain");
-  if (args.system != "clipmap" && args.system != "vt" && args.system != "terrain")
-    throw InputError("--system", "'" + args.system + "': one of clipmap, vt, terrain");
-  const CapacityArgs a = args.system == "terrain" ? args : capacity_with_config(args);
-  if (a.system == "vt") {
+  const SystemInfo* info = streaming_systems().find(args.system);
+  const CapacityReport report = info ? info->caps.capacity : CapacityReport::window_stack;
+  if (report != CapacityReport::produced && !args.camera.empty())
+    throw InputError("--camera", "only with --system " + systems_reporting(CapacityReport::produced));
+  if (!info) throw InputError("--system", "'" + args.system + "': one of " + streaming_systems().names(", "));
+  const CapacityArgs a = report == CapacityReport::produced ? args : capacity_with_config(args);
+  if (report == CapacityReport::page_pool) {
     run_vt_capacity(a);
     return;
   }
-  if (a.system == "terrain") {
+  if (report == CapacityReport::produced) {
     run_terrain_capacity(a);
     return;
   }
-  if (a.system != "clipmap") throw InputError("--system", "'" + a.system + "': one of clipmap, vt, terrain");
   if (a.seed_table) {
     print_seed_table();
     return;
@@ -416,8 +426,8 @@ void register_capacity_commands(CLI::App& app) {
   auto a = std::make_shared<CapacityArgs>();
   auto* c = app.add_subcommand("capacity", "VRAM needed by a clipmap (stack + pyramid per layer) vs a full mip chain; "
                                            "for --system vt: disk, page table and the pool a screen needs; for --system terrain: "
-                                           "seed 002's stored brushes and masks, clipmap and resident brushes");
-  c->add_option("--system", a->system, "clipmap | vt | terrain")->capture_default_str();
+                                           "VT Terrain Design's stored brushes and masks, clipmap and resident brushes");
+  c->add_option("--system", a->system, streaming_systems().names(" | "))->capture_default_str();
   c->add_option("--width,--size", a->width, "level-0 width, texels (any size)")->capture_default_str()->check(CLI::Range(std::int64_t{1}, std::int64_t{1} << 40));
   c->add_option("--height", a->height, "level-0 height, texels (default: = width)")->check(CLI::Range(std::int64_t{0}, std::int64_t{1} << 40));
   c->add_option("--clipsize", a->clipsize, "clip stack window side N, texels")->capture_default_str();

@@ -1,10 +1,10 @@
 // vtsim compare: metric-by-metric comparison of two summaries or two benchmark JSONs with
 // per-metric tolerances; exit 0 same or within tolerance, 1 regression, 2 bad input
-// (docs/compare.md). The logic is in src/sim/run/compare.h.
+// (docs/compare.md). The logic is in src/sim/compare/compare.h.
 #include <fmt/format.h>
 
 #include "cli/commands.h"
-#include "sim/run/compare.h"
+#include "sim/compare/compare.h"
 
 namespace vtsim::cli {
 

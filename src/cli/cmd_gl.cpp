@@ -23,12 +23,14 @@
 #include "core/image_io.h"
 #include "sim/view/gpu_model.h"
 #include "sim/view/scene.h"
+#include "sim/view/scene_town.h"
 #ifdef VTSIM_HAVE_GL
 #include "gl/gl_check.h"
 #include "gl/gl_context.h"
 #include "gl/gl_renderer.h"
 #include "gl/gl_replay.h"
 #include "stream/store/tile_store.h"
+#include "stream/system/vt_system.h"
 #endif
 #include "cli/config_load.h"
 
@@ -37,7 +39,7 @@ namespace vtsim::cli {
 namespace gl_cmd {
 
 struct GlOptions {
-  std::string scene = "town";
+  std::string scene = kTownScene;
   std::string file;
   double mesh_unit_m = 1.0;  // mesh (assimp): metres per file unit
   unsigned long long seed = 1;
@@ -268,7 +270,7 @@ void run_check(const GlOptions& o) {
 }
 
 void run_replay(const GlOptions& o) {
-  const ReplayConfig cfg = load_cli_config(o.configs, o.sets, "vt", o.trace == "-");
+  const ReplayConfig cfg = load_cli_config(o.configs, o.sets, VtSystem::kName, o.trace == "-");
   if (o.trace.empty()) throw InputError("--trace", "a trace is required");
   if (o.store.empty()) throw InputError("--store", "a tile store is required (vtsim store gen)");
   const Trace trace = load_cli_trace(o.trace, o.allow_repairs);

@@ -20,7 +20,7 @@
 #include "cli/trace_load.h"
 #include "cli/format.h"
 #include "core/error.h"
-#include "sim/run/mrc_chart.h"
+#include "sim/report/mrc_chart.h"
 #include "sim/run/replay.h"
 #include "sim/run/replay_config.h"
 #include "sim/run/systems.h"
@@ -167,7 +167,7 @@ void run_mrc(const MrcArgs& a) {
     const ReplayConfig cfg = with_inputs(a.configs, "--config", false,
                                          [&](const std::vector<std::string>& p) { return load_replay_config(p, a.sets, a.system); });
     const Trace trace = load_cli_trace(a.trace, a.allow_repairs);
-    std::string level = a.level.empty() ? (cfg.run.system == "vt" ? "pool" : "ram") : a.level;
+    std::string level = a.level.empty() ? std::string(streaming_systems().at(cfg.run.system).caps.mrc_level) : a.level;
     if (level != "ram" && level != "pool") throw InputError("--level", fmt::format("'{}' is not ram or pool", level));
     RecordedReplay r = record_accesses(cfg, trace);
     if (level == "pool" && r.accesses.pool.frame_start.empty())

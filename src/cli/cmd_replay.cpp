@@ -15,12 +15,12 @@
 #include "sim/run/real_replay.h"
 #include "sim/run/replay.h"
 #include "sim/run/systems.h"
-#include "sim/run/report_html.h"
+#include "sim/report/report_html.h"
 #include "sim/view/scene.h"
-#include "sim/view/scene_town.h"
 #include "sim/run/feedback_replay.h"
 #include "sim/trace/trace_import.h"
 #include "stream/store/tile_store.h"
+#include "stream/system/vt_system.h"
 
 namespace vtsim::cli {
 
@@ -57,12 +57,8 @@ std::string blind_replay_warning(const MetricsCollector& m, const Trace& trace, 
   const double y1 = tx.origin_y_m + static_cast<double>(tx.height) / tx.texels_per_m;
   std::string where = fmt::format("the texture covers x {:.1f}..{:.1f} m, y {:.1f}..{:.1f} m", tx.origin_x_m, x1,
                                   tx.origin_y_m, y1);
-  if (cfg.scene.kind == "town") {  // the town's layout is fixed (SceneConfig's defaults) from the texture's origin
-    const double S = town_size_m(SceneConfig{});
-    where = fmt::format("the town covers x {:.1f}..{:.1f} m, y {:.1f}..{:.1f} m (a walk in it: `vtsim trace gen walk "
-                        "--start 30,8`)",
-                        tx.origin_x_m, tx.origin_x_m + S, tx.origin_y_m, tx.origin_y_m + S);
-  }
+  if (const SceneInfo* scene = scenes().find(cfg.scene.kind); scene && scene->where)  // a fixed layout (the town)
+    where = scene->where(tx.origin_x_m, tx.origin_y_m);
   return fmt::format("no frame saw a textured surface (0 samples in {} measured frames): the trace starts at "
                      "({:.1f}, {:.1f}, {:.1f}) m and {} (texture.origin_x_m, texture.origin_y_m, "
                      "texture.texels_per_m; docs/traces.md)",
@@ -117,8 +113,8 @@ std::string format_summary(const nlohmann::json& s) {
   out += fmt::format("  cache       RAM hit ratio {:.1f}%, {} RAM evictions, {} VRAM evictions\n",
                      100.0 * c["ram_hit_ratio"].get<double>(), c["ram_evictions"].get<std::uint64_t>(),
                      c["vram_evictions"].get<std::uint64_t>());
-  if (s.contains("vt") && s["vt"].contains("pool")) {
-    const auto& v = s["vt"];
+  if (s.contains(VtSystem::kName) && s[VtSystem::kName].contains("pool")) {
+    const auto& v = s[VtSystem::kName];
     out += fmt::format("  vt          pool {} pages ({:.0f}% in use, mean), {} evictions, {} rescues, pressure max {:.2f}, "
                        "bias max {:.2f}; page table {} texels rewritten (baked)\n",
                        v["pool_pages"].get<std::uint64_t>(), 100.0 * v["per_frame"]["pool_occupancy"]["mean"].get<double>(),
@@ -140,8 +136,8 @@ std::string format_summary(const nlohmann::json& s) {
   };
   if (s["cache"].contains("ram_bounds"))
     bounds_line("ram bounds", s["cache"]["ram_bounds"], s["cache"]["ram_misses"].get<std::uint64_t>(), "bytes");
-  if (s.contains("vt") && s["vt"].contains("pool") && s["vt"]["pool"].contains("bounds"))
-    bounds_line("pool bounds", s["vt"]["pool"]["bounds"], s["vt"]["pool"]["misses"].get<std::uint64_t>(), "pages");
+  if (s.contains(VtSystem::kName) && s[VtSystem::kName].contains("pool") && s[VtSystem::kName]["pool"].contains("bounds"))
+    bounds_line("pool bounds", s[VtSystem::kName]["pool"]["bounds"], s[VtSystem::kName]["pool"]["misses"].get<std::uint64_t>(), "pages");
   out += fmt::format("  throttle    {} frames throttled, max clamp {}, {} changes ({})\n", t["frames_throttled"].get<std::size_t>(),
                      t["max_clamp"].get<int>(), t["changes"].get<std::size_t>(), t["policy"].get<std::string>());
   if (s["faults"]["faults"].get<std::uint64_t>() > 0)

@@ -1,5 +1,5 @@
 // vtsim report RUN.json…: several replay summaries side by side in one HTML page
-// (docs/report.md). The page is built by src/sim/run/report_runs.h.
+// (docs/report.md). The page is built by src/sim/report/report_runs.h.
 #include <fmt/format.h>
 
 #include <memory>
@@ -9,8 +9,8 @@
 #include "cli/cli_io.h"
 #include "cli/commands.h"
 #include "core/error.h"
-#include "sim/run/compare.h"
-#include "sim/run/report_runs.h"
+#include "sim/compare/compare.h"
+#include "sim/report/report_runs.h"
 
 namespace vtsim::cli {
 

@@ -142,7 +142,7 @@ void register_gen(CLI::App* trace) {
       "                 in 20 s (5*pi m/s)\n"
       "  static         1.7 m, pitch -15, no motion\n"
       "Example: vtsim trace gen flight --duration 600 -o flight_10min.csv");
-  c->add_option("kind", a->kind, "walk, walk_diagonal, run, drive, flight, turn, teleport, orbit, static")
+  c->add_option("kind", a->kind, trace_generators().names(", "))
       ->required();
   c->add_option("-o,--output", a->out, "Output native trace (.csv; - for stdout)")->required();
   auto* o_duration = c->add_option("--duration", a->duration, "Length in seconds");
@@ -162,13 +162,13 @@ void register_gen(CLI::App* trace) {
   auto* o_radius = c->add_option("--radius", a->radius, "orbit: radius in metres");
   c->callback([=] {
     check_output("--output", a->out);  // before the work
-    const TraceKind kind = parse_trace_kind(a->kind, "kind");
-    TraceGenParams p = default_gen_params(kind);
+    const TraceGenerator& kind = find_trace_generator(a->kind, "kind");
+    TraceGenParams p = default_gen_params(kind.name);
     const bool duration_given = o_duration->count() > 0;
     if (duration_given) p.duration_s = a->duration;
     if (o_fps->count()) p.fps = a->fps;
     if (o_speed->count()) p.speed_mps = a->speed;
-    else if (kind == TraceKind::orbit && duration_given && std::isfinite(p.duration_s) && p.duration_s > 0)
+    else if (kind.lap && duration_given && std::isfinite(p.duration_s) && p.duration_s > 0)
       p.speed_mps = 2.0 * std::numbers::pi * p.radius_m / p.duration_s;  // keep one lap
     if (o_heading->count()) p.heading_deg = a->heading;
     if (o_height->count()) p.height_m = a->height;
@@ -185,7 +185,7 @@ void register_gen(CLI::App* trace) {
     if (o_jump->count()) p.jump_m = a->jump;
     if (o_jump_heading->count()) p.jump_heading_deg = a->jump_heading;
     if (o_radius->count()) {
-      if (kind == TraceKind::orbit && !o_speed->count() && a->radius > 0 && std::isfinite(a->radius))
+      if (kind.lap && !o_speed->count() && a->radius > 0 && std::isfinite(a->radius))
         p.speed_mps *= a->radius / p.radius_m;  // keep the lap time
       p.radius_m = a->radius;
     }

@@ -18,7 +18,6 @@
 #include "core/camera.h"
 #include "stream/system/feedback.h"
 #include "sim/view/scene.h"
-#include "sim/view/scene_heightfield.h"
 #include "sim/trace/trace_import.h"
 #include "sim/view/view_image.h"
 #include "sim/run/replay.h"
@@ -87,17 +86,28 @@ void parse_view_size(const std::string& s, int& w, int& h) {
   h = static_cast<int>(b);
 }
 
-void run_view(const ViewOptions& o) {
-  check_output("--out", o.out);  // before the work
-  SceneConfig cfg = o.mesh;  // the --mesh-* flags; every other field is set below
+// What `vtsim view` renders: the scene, the view parameters and the tile size, from the flags, or
+// from the replay config given (-c / --set) with the flags given on top.
+struct ViewSetup {
+  SceneConfig cfg;
   ViewParams vp;
-  int tile_size = o.tile_size;
-  const bool from_config = !o.configs.empty() || !o.sets.empty();
+  int tile_size = 0;
+  bool from_config = false;
+};
+
+ViewSetup view_setup(const ViewOptions& o) {
+  ViewSetup v;
+  SceneConfig& cfg = v.cfg;
+  ViewParams& vp = v.vp;
+  int& tile_size = v.tile_size;
+  cfg = o.mesh;  // the --mesh-* flags; every other field is set below
+  tile_size = o.tile_size;
+  const bool from_config = v.from_config = !o.configs.empty() || !o.sets.empty();
   if (!from_config) {
     cfg.kind = find_scene(o.scene).name;
     cfg.size_x_m = cfg.size_y_m = o.terrain_size_m;
     cfg.texels_per_m = o.texels_per_m;
-    cfg.file = cfg.kind == "mesh" ? o.obj : o.heightmap;  // the two options predate SceneConfig::file
+    cfg.file = find_scene(cfg.kind).file_kind == SceneFile::mesh ? o.obj : o.heightmap;  // the two options predate SceneConfig::file
     cfg.spacing_m = o.spacing_m;
     cfg.height_scale_m = o.height_scale_m;
     cfg.z0_m = o.z0_m;
@@ -115,7 +125,8 @@ void run_view(const ViewOptions& o) {
     if (given("--scene")) cfg.kind = find_scene(o.scene).name;
     if (given("--terrain-size")) cfg.size_x_m = cfg.size_y_m = o.terrain_size_m;
     if (given("--texels-per-m")) cfg.texels_per_m = o.texels_per_m;
-    if (cfg.kind == "mesh" ? given("--obj") : given("--heightmap")) cfg.file = cfg.kind == "mesh" ? o.obj : o.heightmap;
+    const bool mesh_file = find_scene(cfg.kind).file_kind == SceneFile::mesh;
+    if (mesh_file ? given("--obj") : given("--heightmap")) cfg.file = mesh_file ? o.obj : o.heightmap;
     if (given("--spacing")) cfg.spacing_m = o.spacing_m;
     if (given("--height-scale")) cfg.height_scale_m = o.height_scale_m;
     if (given("--z0")) cfg.z0_m = o.z0_m;
@@ -137,6 +148,16 @@ void run_view(const ViewOptions& o) {
     if (given("--far")) vp.far_m = o.far_m;
     if (!given("--tile-size")) tile_size = rc.texture.tile_size;
   }
+  return v;
+}
+
+void run_view(const ViewOptions& o) {
+  check_output("--out", o.out);  // before the work
+  ViewSetup setup = view_setup(o);
+  SceneConfig& cfg = setup.cfg;
+  const ViewParams& vp = setup.vp;
+  const int tile_size = setup.tile_size;
+  const bool from_config = setup.from_config;
   if (o.zoom < 1 || o.zoom > 64) throw InputError("--zoom", "must be in [1, 64]");
   // Checked whether or not the scene reads them (the generated heightfield has no height scale).
   if (!(o.spacing_m > 0.0) || !std::isfinite(o.spacing_m)) throw InputError("--spacing", "must be finite and > 0");
@@ -159,18 +180,17 @@ void run_view(const ViewOptions& o) {
     for (const auto& [field, flag] : kMeshFlags)
       if (e.where() == field) throw InputError(flag, std::string(e.what()).substr(e.where().size() + 2));
     if (e.where() != "scene.file") throw;
-    throw InputError(cfg.kind == "mesh" ? "--obj" : "--heightmap", std::string(e.what()).substr(e.where().size() + 2));
+    throw InputError(find_scene(cfg.kind).file_kind == SceneFile::mesh ? "--obj" : "--heightmap",
+                     std::string(e.what()).substr(e.where().size() + 2));
   }
   for (const std::string& w : scene->load_warnings()) warn(w);
   const std::string scene_name = from_config ? cfg.kind : o.scene;
   const double build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_build).count();
   if (o.agl) {
     double ground = 0.0;
-    if (const auto* hs = dynamic_cast<const HeightfieldScene*>(scene.get())) {
-      ground = hs->height_at(pos.x, pos.y);
+    if (const std::optional<double> z = scene->ground_z(pos.x, pos.y)) {
+      ground = *z;
       if (!std::isfinite(ground)) throw InputError("--agl", "the position is outside the heightfield");
-    } else if (cfg.kind == "plane") {
-      ground = cfg.plane_z_m;
     }
     pos.z += ground;
   }

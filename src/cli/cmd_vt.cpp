@@ -14,6 +14,7 @@
 #include "sim/run/replay.h"
 #include "sim/view/scene.h"
 #include "sim/trace/trace_import.h"
+#include "stream/system/vt_system.h"
 
 namespace vtsim::cli {
 
@@ -94,8 +95,8 @@ void run_compare(const VtCompareArgs& a) {
     throw InputError("--json", "prints to stdout already: give --markdown / --json-file a file");
   const auto files = trace_files(a.traces.empty() ? std::vector<std::string>{default_traces_dir()} : a.traces);
   // The shared budget: one config for every run, the policy the only difference.
-  ReplayConfig base = load_replay_config(a.configs, a.sets, "vt");
-  if (base.run.system != "vt")  // --set run.system=... comes after the command's own "vt"
+  ReplayConfig base = load_replay_config(a.configs, a.sets, VtSystem::kName);
+  if (base.run.system != VtSystem::kName)  // --set run.system=... comes after the command's own system
     throw InputError("config", "field 'run.system': vt compare replays the vt system, not '" + base.run.system + "'");
   nlohmann::json rows = nlohmann::json::array();
   auto scene = make_scene_from_config(base);
@@ -105,7 +106,7 @@ void run_compare(const VtCompareArgs& a) {
     for (const auto& policy : policies) {
       std::vector<std::string> sets = a.sets;
       sets.push_back("throttle.policy=" + policy);
-      const ReplayConfig cfg = load_replay_config(a.configs, sets, "vt");
+      const ReplayConfig cfg = load_replay_config(a.configs, sets, VtSystem::kName);
       if (!a.quiet) progress_line(fmt::format("vt compare: {} / {}", name, policy));
       const ReplayResult r = run_replay(cfg, trace, *scene);
       const auto& s = r.summary;
@@ -129,9 +130,9 @@ void run_compare(const VtCompareArgs& a) {
                       {"latency_p99", num(s["latency_ms"]["p99"])},
                       {"disk_MBps", num(s["bandwidth"]["disk_read_MBps"])},
                       {"upload_MBps", num(s["bandwidth"]["upload_MBps"])},
-                      {"evictions", s["vt"]["pool"]["evictions"]},
-                      {"thrash", s["vt"]["vram_thrash"]},
-                      {"pressure_max", num(s["vt"]["per_frame"]["pool_pressure"]["max"])},
+                      {"evictions", s[VtSystem::kName]["pool"]["evictions"]},
+                      {"thrash", s[VtSystem::kName]["vram_thrash"]},
+                      {"pressure_max", num(s[VtSystem::kName]["per_frame"]["pool_pressure"]["max"])},
                       {"max_bias", max_bias},
                       {"max_clamp", max_clamp}});
     }
@@ -186,7 +187,7 @@ void run_compare(const VtCompareArgs& a) {
 }  // namespace
 
 void register_vt_commands(CLI::App& app) {
-  auto* vt = app.add_subcommand("vt", "Virtual texturing tools (docs/vt.md)");
+  auto* vt = app.add_subcommand(VtSystem::kName, "Virtual texturing tools (docs/vt.md)");
   vt->require_subcommand(1);
   auto a = std::make_shared<VtCompareArgs>();
   auto* c = vt->add_subcommand("compare", "Replay traces under each residency policy at equal budgets; print a Markdown table");

@@ -1,6 +1,6 @@
 #pragma once
 // What built this binary: the version (CMake's project version) and the source tree's git commit,
-// for the provenance of every output (docs/metrics.md, "provenance"). The commit comes from one
+// for the provenance of every output (docs/metrics.md, "What the run was"). The commit comes from one
 // small generated file (cmake/git_commit.cmake) so that a new commit relinks, never recompiles the rest.
 
 namespace vtsim {

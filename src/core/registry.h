@@ -14,13 +14,16 @@
 #include <string_view>
 #include <vector>
 
+#include "core/text.h"
+
 namespace vtsim {
 
 // Levenshtein distance of two short strings. O(|a|·|b|).
 std::size_t edit_distance(std::string_view a, std::string_view b);
 
-// The candidate closest to `word` by edit distance when it is close enough to be a typo (distance
-// below 4 and below the length of the shorter of the two); empty otherwise.
+// The candidate closest to `word` by edit distance when it is close enough to be a typo: fewer
+// than 4 edits, and at most half the length of the shorter of the two ("arc" is 2 edits from
+// "lru" but no typo of it); the earlier in `candidates` on a tie; empty otherwise.
 std::string closest_name(std::string_view word, const std::vector<std::string_view>& candidates);
 
 template <class Entry>
@@ -57,8 +60,7 @@ class Registry {
   std::string unknown(std::string_view name) const {
     std::vector<std::string_view> names;
     for (const Entry& e : entries_) names.push_back(e.name);
-    // A value may be a megabyte of junk: quote its start only.
-    const std::string shown = name.size() > 100 ? std::string(name.substr(0, 100)) + "..." : std::string(name);
+    const std::string shown = text::shown(name, 100);
     std::string msg = "unknown " + what_ + " '" + shown + "' (one of: " + this->names();
     const std::string close = closest_name(name, names);
     if (!close.empty()) msg += "; did you mean '" + close + "'?";

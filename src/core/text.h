@@ -3,6 +3,7 @@
 // Shared by the readers of traces, access logs, produced-tile CSVs and reports, so that they
 // accept and refuse the same spellings.
 #include <charconv>
+#include <string>
 #include <string_view>
 #include <system_error>
 
@@ -21,6 +22,12 @@ inline std::string_view trim_line(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
   while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
   return s;
+}
+
+// t for a message: its first `max` bytes and "..." when it is longer (a value may be a megabyte
+// of junk: quote its start only).
+inline std::string shown(std::string_view t, std::size_t max) {
+  return t.size() > max ? std::string(t.substr(0, max)) + "..." : std::string(t);
 }
 
 // All of t as a T (std::from_chars: no leading '+', no spaces; integers in `base`). False for an

@@ -71,6 +71,126 @@ double peak_rss_mb() {
   return 0.0;
 }
 
+// Every entry of the GPU's page table names a resident page's (slot, level).
+bool gl_page_table_consistent(const GlReplayRun& run, const StreamedVt& vt, TextureExtent ext, int tile, int levels) {
+  std::map<std::int64_t, int> slot_level;
+  for (const auto& [page, slot] : run.page_table) slot_level[slot] = static_cast<int>(page.level());
+  bool ok = run.page_table.size() == run.pool_pages.size();
+  for (const auto& [page, slot] : run.pool_pages) {
+    const auto it = run.page_table.find(page);
+    ok = ok && it != run.page_table.end() && it->second == static_cast<std::int64_t>(slot);
+  }
+  const std::int64_t W = ext.width, H = ext.height;
+  for (int l = 0; l < levels && ok; ++l) {
+    const std::int64_t tx = (std::max<std::int64_t>(W >> l, 1) + tile - 1) / tile, ty = (std::max<std::int64_t>(H >> l, 1) + tile - 1) / tile;
+    for (std::int64_t y = 0; y < ty && ok; ++y)
+      for (std::int64_t x = 0; x < tx && ok; ++x) {
+        const std::uint32_t e = vt.entry(l, x, y);
+        if (e == StreamedVt::kNone) continue;
+        const int el = static_cast<int>(e >> 24);
+        const auto s = slot_level.find(static_cast<std::int64_t>(e & 0xffffffu));
+        ok = el >= l && s != slot_level.end() && s->second == el &&
+             run.page_table.count(TileKey(0, static_cast<std::uint32_t>(el), x >> (el - l), y >> (el - l))) == 1;
+      }
+  }
+  return ok;
+}
+
+// The summary, in `vtsim replay`'s schema (the sections this client measures).
+void gl_summary(GlReplayRun& run, Context& ctx, const ReplayConfig& bound, const FramePlan& plan, StreamingRuntime& rt,
+                const StreamedVt& vt, const std::vector<std::uint64_t>& level_upload, const FeedbackSettings& fs,
+                const GlReplayOptions& o, std::uint64_t feedback_read) {
+  MetricsCollector& m = run.result.metrics;
+  const int levels = rt.system().num_levels();
+  const PipelineCounters& c = rt.pipeline().counters();
+  for (int l = 0; l < levels; ++l)
+    m.add_level_bytes(l, c.disk_bytes_by_level[static_cast<std::size_t>(l)], level_upload[static_cast<std::size_t>(l)]);
+  const double duration_s = plan.duration_s;
+  const auto MBps = [&](std::uint64_t bytes) { return static_cast<double>(bytes) / duration_s / 1e6; };
+  nlohmann::json& s = run.result.summary;
+  s["schema"] = kSummarySchema;
+  s["provenance"] = build_json();
+  s["config"] = config_json(bound);
+  s["system"] = bound.run.system;
+  s["clock"] = "gl";
+  s["trace"] = {{"name", plan.trace.name},
+                {"path", plan.trace.source_path},
+                {"content_hash", trace_hash_json(plan.trace)},
+                {"poses", plan.input_poses},
+                {"poses_duration_s", plan.input_duration_s},
+                {"frames", plan.frames},
+                {"duration_s", duration_s},
+                {"fps", 1.0 / plan.period_s},
+                {"image", {plan.trace.image_width, plan.trace.image_height}}};
+  s["bandwidth"] = {
+      {"disk_read_MBps", MBps(c.disk_bytes)},
+      {"decoded_MBps", MBps(c.decoded_bytes)},
+      {"upload_MBps", MBps(c.upload_bytes)},
+      {"prefetch_read_MBps", MBps(c.prefetch_disk_bytes)},
+      {"disk_read_bytes", c.disk_bytes},
+      {"decoded_bytes", c.decoded_bytes},
+      {"upload_bytes", c.upload_bytes},
+      {"prefetch_read_bytes", c.prefetch_disk_bytes},
+      {"disk_reads", c.disk_reads},
+      {"uploads", c.uploads},
+      {"upload_bytes_per_frame", m.upload_per_frame_json()["bytes"]},
+      {"upload_tiles_per_frame", m.upload_per_frame_json()["tiles"]},
+      {"per_level", m.per_level_json(duration_s)},
+      {"wasted", {{"read_bytes_cancelled_after_io", c.wasted_read_bytes},
+                  {"uploaded_bytes_never_sampled", rt.system().evicted_unsampled_bytes()},
+                  {"cancelled_before_io", c.cancelled_queued},
+                  {"cancelled_after_io", c.cancelled_after_read},
+                  {"dropped_before_upload", c.dropped_before_upload}}}};
+  s["latency_ms"] = m.latency_json();
+  s["popin"] = m.popin_json(bound.metrics.sharp_margin);
+  const double lookups = static_cast<double>(c.ram_hits + c.ram_misses);
+  s["cache"] = {{"ram_hit_ratio", lookups > 0 ? static_cast<double>(c.ram_hits) / lookups : 0.0},
+                {"ram_hits", c.ram_hits},
+                {"ram_misses", c.ram_misses},
+                {"ram_evictions", c.ram_evictions},
+                {"ram_evicted_bytes", c.ram_evicted_bytes},
+                {"ram_thrash", c.ram_thrash},
+                {"ram_policy", bound.ram.policy},
+                {"prefetch_requests", c.prefetch_requests},
+                {"prefetch_hits", c.prefetch_hits},
+                {"vram_evictions", rt.system().vram_evictions()},
+                {"vram_thrash", rt.system().vram_thrash()},
+                {"requests", c.requests},
+                {"needs", c.needs}};
+  s["throttle"] = m.throttle_json();
+  s["throttle"]["policy"] = bound.throttle.policy;
+  s["faults"] = {{"faults", c.faults},
+                 {"retries", c.retries},
+                 {"failed_tiles", c.failed_tiles},
+                 {"io_error", c.fault_by_kind[static_cast<int>(Fault::io_error)]},
+                 {"short_read", c.fault_by_kind[static_cast<int>(Fault::short_read)]},
+                 {"checksum", c.fault_by_kind[static_cast<int>(Fault::checksum)]},
+                 {"decode_error", c.fault_by_kind[static_cast<int>(Fault::decode_error)]},
+                 {"bad_record", c.fault_by_kind[static_cast<int>(Fault::bad_record)]}};
+  s[bound.run.system] = rt.system().stats_json();
+  s["resources"] = resources_json(bound, rt.system(), s[bound.run.system], m);
+  s["run"] = {{"wall_s", run.seconds},
+              {"render_threads", 0},
+              {"loop_cpu_s", 0.0},
+              {"frames_per_s", run.seconds > 0 ? plan.frames / run.seconds : 0.0},
+              {"x_realtime", run.seconds > 0 ? duration_s / run.seconds : 0.0},
+              {"peak_rss_MB", peak_rss_mb()}};
+  s["gl"] = {{"renderer", ctx.renderer()},
+             {"gl_version", ctx.version()},
+             {"platform", ctx.platform()},
+             {"gl_errors", ctx.errors()},
+             {"feedback", {buffer_extent(plan.trace.image_width, fs.divisor), buffer_extent(plan.trace.image_height, fs.divisor)}},
+             {"feedback_latency_frames", o.latency},
+             {"feedback_frames_read", feedback_read},
+             {"sink_uploads", run.sink_uploads},
+             {"gpu_page_copies", run.gpu_copies},
+             {"upload_gpu_ms_total", vt.upload_gpu_ms()},
+             {"upload_timed_frames", vt.timed_frames()},
+             {"seconds", run.seconds},
+             {"frames_per_s", run.seconds > 0 ? plan.frames / run.seconds : 0.0},
+             {"page_table_consistent", run.page_table_consistent}};
+}
+
 }  // namespace
 
 GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& trace, const TileStore& store,
@@ -176,119 +296,9 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
   run.gpu_copies = vt.copies();
   run.page_table = vt.page_table();
   rt->system().pool_pages(run.pool_pages);
-  // Every entry of the GPU's page table names a resident page's (slot, level).
-  {
-    std::map<std::int64_t, int> slot_level;
-    for (const auto& [page, slot] : run.page_table) slot_level[slot] = static_cast<int>(page.level());
-    bool ok = run.page_table.size() == run.pool_pages.size();
-    for (const auto& [page, slot] : run.pool_pages) {
-      const auto it = run.page_table.find(page);
-      ok = ok && it != run.page_table.end() && it->second == static_cast<std::int64_t>(slot);
-    }
-    const std::int64_t W = ext.width, H = ext.height;
-    for (int l = 0; l < levels && ok; ++l) {
-      const std::int64_t tx = (std::max<std::int64_t>(W >> l, 1) + tile - 1) / tile, ty = (std::max<std::int64_t>(H >> l, 1) + tile - 1) / tile;
-      for (std::int64_t y = 0; y < ty && ok; ++y)
-        for (std::int64_t x = 0; x < tx && ok; ++x) {
-          const std::uint32_t e = vt.entry(l, x, y);
-          if (e == StreamedVt::kNone) continue;
-          const int el = static_cast<int>(e >> 24);
-          const auto s = slot_level.find(static_cast<std::int64_t>(e & 0xffffffu));
-          ok = el >= l && s != slot_level.end() && s->second == el &&
-               run.page_table.count(TileKey(0, static_cast<std::uint32_t>(el), x >> (el - l), y >> (el - l))) == 1;
-        }
-    }
-    run.page_table_consistent = ok;
-  }
+  run.page_table_consistent = gl_page_table_consistent(run, vt, ext, tile, levels);
 
-  // The summary, in `vtsim replay`'s schema (the sections this client measures).
-  const PipelineCounters& c = rt->pipeline().counters();
-  for (int l = 0; l < levels; ++l)
-    m.add_level_bytes(l, c.disk_bytes_by_level[static_cast<std::size_t>(l)], level_upload[static_cast<std::size_t>(l)]);
-  const double duration_s = plan.duration_s;
-  const auto MBps = [&](std::uint64_t bytes) { return static_cast<double>(bytes) / duration_s / 1e6; };
-  nlohmann::json& s = run.result.summary;
-  s["schema"] = kSummarySchema;
-  s["provenance"] = build_json();
-  s["config"] = config_json(bound);
-  s["system"] = bound.run.system;
-  s["clock"] = "gl";
-  s["trace"] = {{"name", plan.trace.name},
-                {"path", plan.trace.source_path},
-                {"content_hash", trace_hash_json(plan.trace)},
-                {"poses", plan.input_poses},
-                {"poses_duration_s", plan.input_duration_s},
-                {"frames", plan.frames},
-                {"duration_s", duration_s},
-                {"fps", 1.0 / plan.period_s},
-                {"image", {plan.trace.image_width, plan.trace.image_height}}};
-  s["bandwidth"] = {
-      {"disk_read_MBps", MBps(c.disk_bytes)},
-      {"decoded_MBps", MBps(c.decoded_bytes)},
-      {"upload_MBps", MBps(c.upload_bytes)},
-      {"prefetch_read_MBps", MBps(c.prefetch_disk_bytes)},
-      {"disk_read_bytes", c.disk_bytes},
-      {"decoded_bytes", c.decoded_bytes},
-      {"upload_bytes", c.upload_bytes},
-      {"prefetch_read_bytes", c.prefetch_disk_bytes},
-      {"disk_reads", c.disk_reads},
-      {"uploads", c.uploads},
-      {"upload_bytes_per_frame", m.upload_per_frame_json()["bytes"]},
-      {"upload_tiles_per_frame", m.upload_per_frame_json()["tiles"]},
-      {"per_level", m.per_level_json(duration_s)},
-      {"wasted", {{"read_bytes_cancelled_after_io", c.wasted_read_bytes},
-                  {"uploaded_bytes_never_sampled", rt->system().evicted_unsampled_bytes()},
-                  {"cancelled_before_io", c.cancelled_queued},
-                  {"cancelled_after_io", c.cancelled_after_read},
-                  {"dropped_before_upload", c.dropped_before_upload}}}};
-  s["latency_ms"] = m.latency_json();
-  s["popin"] = m.popin_json(bound.metrics.sharp_margin);
-  const double lookups = static_cast<double>(c.ram_hits + c.ram_misses);
-  s["cache"] = {{"ram_hit_ratio", lookups > 0 ? static_cast<double>(c.ram_hits) / lookups : 0.0},
-                {"ram_hits", c.ram_hits},
-                {"ram_misses", c.ram_misses},
-                {"ram_evictions", c.ram_evictions},
-                {"ram_evicted_bytes", c.ram_evicted_bytes},
-                {"ram_thrash", c.ram_thrash},
-                {"ram_policy", bound.ram.policy},
-                {"prefetch_requests", c.prefetch_requests},
-                {"prefetch_hits", c.prefetch_hits},
-                {"vram_evictions", rt->system().vram_evictions()},
-                {"vram_thrash", rt->system().vram_thrash()},
-                {"requests", c.requests},
-                {"needs", c.needs}};
-  s["throttle"] = m.throttle_json();
-  s["throttle"]["policy"] = bound.throttle.policy;
-  s["faults"] = {{"faults", c.faults},
-                 {"retries", c.retries},
-                 {"failed_tiles", c.failed_tiles},
-                 {"io_error", c.fault_by_kind[static_cast<int>(Fault::io_error)]},
-                 {"short_read", c.fault_by_kind[static_cast<int>(Fault::short_read)]},
-                 {"checksum", c.fault_by_kind[static_cast<int>(Fault::checksum)]},
-                 {"decode_error", c.fault_by_kind[static_cast<int>(Fault::decode_error)]},
-                 {"bad_record", c.fault_by_kind[static_cast<int>(Fault::bad_record)]}};
-  s[bound.run.system] = rt->system().stats_json();
-  s["resources"] = resources_json(bound, rt->system(), s[bound.run.system], m);
-  s["run"] = {{"wall_s", run.seconds},
-              {"render_threads", 0},
-              {"loop_cpu_s", 0.0},
-              {"frames_per_s", run.seconds > 0 ? plan.frames / run.seconds : 0.0},
-              {"x_realtime", run.seconds > 0 ? duration_s / run.seconds : 0.0},
-              {"peak_rss_MB", peak_rss_mb()}};
-  s["gl"] = {{"renderer", ctx.renderer()},
-             {"gl_version", ctx.version()},
-             {"platform", ctx.platform()},
-             {"gl_errors", ctx.errors()},
-             {"feedback", {buffer_extent(plan.trace.image_width, fs.divisor), buffer_extent(plan.trace.image_height, fs.divisor)}},
-             {"feedback_latency_frames", o.latency},
-             {"feedback_frames_read", feedback_read},
-             {"sink_uploads", run.sink_uploads},
-             {"gpu_page_copies", run.gpu_copies},
-             {"upload_gpu_ms_total", vt.upload_gpu_ms()},
-             {"upload_timed_frames", vt.timed_frames()},
-             {"seconds", run.seconds},
-             {"frames_per_s", run.seconds > 0 ? plan.frames / run.seconds : 0.0},
-             {"page_table_consistent", run.page_table_consistent}};
+  gl_summary(run, ctx, bound, plan, *rt, vt, level_upload, fs, o, feedback_read);
   return run;
 }
 

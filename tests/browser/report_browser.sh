@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # ctest report_browser (label browser): the HTML reports rendered in headless Chromium. Writes a
 # replay report of each system (clipmap, vt) and a `vtsim report` of both runs, opens each with
-# `?check` (report_check_script in src/sim/run/report_html.h measures every chart text's bounding
+# `?check` (report_check_script in src/sim/report/report_html.h measures every chart text's bounding
 # box in the DOM) and fails on overlapping texts, a text outside its chart, or a console error;
 # writes a full-page screenshot of each next to it, for a person to open:
 #   WORKDIR/{clipmap,vt,runs}.html and .png

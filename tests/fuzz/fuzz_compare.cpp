@@ -3,7 +3,7 @@
 #include <string>
 
 #include "fuzz_targets.h"
-#include "sim/run/compare.h"
+#include "sim/compare/compare.h"
 
 namespace vtsim::fuzz {
 

@@ -42,7 +42,7 @@ TEST_CASE("gl: streaming a still view through the runtime uploads the runtime's 
   const std::string path = gl_stream_store();
   const TileStore store = TileStore::open(path);
   const ReplayConfig cfg = load_replay_config("", {"texture.texels_per_m=32", "view.divisor=1"}, "vt");
-  TraceGenParams tg = default_gen_params(TraceKind::still);
+  TraceGenParams tg = default_gen_params("static");
   tg.start_m = {8.0, 8.0};
   tg.duration_s = 1.0;  // 60 frames: the view is streamed within ~10 of them, the rest is margin for a loaded machine
   tg.image_width = 256;
@@ -75,7 +75,7 @@ TEST_CASE("gl: streaming a still view through the runtime uploads the runtime's 
 TEST_CASE("gl: gl replay refuses a config the store does not match, before the first frame") {
   const std::string path = gl_stream_store();
   const TileStore store = TileStore::open(path);
-  TraceGenParams tg = default_gen_params(TraceKind::still);
+  TraceGenParams tg = default_gen_params("static");
   tg.start_m = {8.0, 8.0};
   tg.duration_s = 0.1;
   tg.image_width = 64;

@@ -39,7 +39,7 @@ bool access_number(std::string_view t, std::uint64_t& v) {
 }
 
 std::string access_shown(std::string_view t) {
-  return t.size() > 40 ? std::string(t.substr(0, 40)) + "..." : std::string(t);
+  return text::shown(t, 40);
 }
 
 }  // namespace

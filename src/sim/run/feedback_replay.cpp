@@ -10,7 +10,9 @@
 #include <fmt/format.h>
 
 #include "core/error.h"
+#include "sim/run/systems.h"
 #include "stream/system/i_system.h"
+#include "stream/system/vt_system.h"
 
 namespace vtsim {
 
@@ -99,8 +101,9 @@ ReplayResult run_feedback_replay(const ReplayConfig& cfg, const std::string& pat
   // block by block, so a long trace is never held whole.
   FeedbackReader pass1(path);
   const FeedbackHeader h = pass1.header();
-  if (cfg.run.system != "vt")
-    throw InputError("--feedback", fmt::format("run.system '{}': feedback replays drive a virtual texture (vt) only", cfg.run.system));
+  if (!streaming_systems().at(cfg.run.system).caps.page_pool)
+    throw InputError("--feedback", fmt::format("run.system '{}': feedback replays drive a virtual texture ({}) only", cfg.run.system,
+                                               VtSystem::kName));
   if (cfg.view.popin_divisor > 0 && cfg.view.popin_divisor != cfg.view.divisor)
     throw InputError("--feedback", fmt::format("view.popin_divisor = {}: a feedback replay measures pop-in on the trace's tiles "
                                                "(its feedback resolution); set view.popin_divisor = 0", cfg.view.popin_divisor));

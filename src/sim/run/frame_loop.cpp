@@ -22,6 +22,7 @@
 #include "sim/view/scene.h"
 #include "stream/exec/sim_executor.h"
 #include "stream/system/i_system.h"
+#include "stream/system/vt_system.h"
 #include "stream/throttle/i_throttle.h"
 
 namespace vtsim {
@@ -192,7 +193,7 @@ void SystemRun::add_cache_bounds(nlohmann::json& s) const {
     pool.pages = true;
     pool.locked_from_level = sys["lock_from_level"].get<int>();
     const auto locked = sys["locked_pages"].get<std::uint64_t>();
-    pool.capacity = cfg_.vt.pool_pages > locked ? cfg_.vt.pool_pages - locked : 0;
+    pool.capacity = VtSystem::unlocked_slots(cfg_.vt.pool_pages, locked);
     sys["pool"]["bounds"] = level_bounds(accesses_->pool, pool);
   }
 }

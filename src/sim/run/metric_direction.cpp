@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cstring>
 
-#include "sim/run/compare.h"
+#include "sim/run/metric_path.h"
 
 namespace vtsim {
 

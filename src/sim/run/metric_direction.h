@@ -12,7 +12,7 @@ namespace vtsim {
 enum class MetricDirection { lower, higher, neither };
 
 struct MetricDirectionRule {
-  const char* pattern;  // '*' matches any run of characters (compare's glob_match)
+  const char* pattern;  // '*' matches any run of characters (glob_match, metric_path.h)
   MetricDirection direction;
   const char* why;
 };

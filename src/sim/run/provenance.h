@@ -1,5 +1,5 @@
 #pragma once
-// What a run was, besides its metrics (docs/metrics.md, "What a run was"): the summary's schema
+// What a run was, besides its metrics (docs/metrics.md, "What the run was"): the summary's schema
 // name, the build (version, git commit, compiler), the machine of a real-clock run, the effective
 // config as JSON and the trace's identity. Pure functions but machine_json (reads /proc, uname).
 #include <nlohmann/json.hpp>

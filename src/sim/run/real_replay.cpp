@@ -107,7 +107,7 @@ void apply_speed(ReplayConfig& cfg, Trace& trace, double speed) {
   cfg.run.fps *= speed;
 }
 
-bool produced_system(const ReplayConfig& cfg) { return cfg.run.system == "terrain"; }
+bool produced_system(const ReplayConfig& cfg) { return streaming_systems().at(cfg.run.system).caps.produces_tiles; }
 
 void check_real_clock_system(const ReplayConfig& cfg, bool have_store) {
   if (!produced_system(cfg)) {
@@ -118,8 +118,9 @@ void check_real_clock_system(const ReplayConfig& cfg, bool have_store) {
   // The terrain stores nothing the tile path reads: its tiles are composed and its brush mips
   // served from memory by the TerrainProducer (docs/produced.md, "The real clock").
   if (have_store)
-    throw InputError("--store", "run.system 'terrain' produces its tiles and serves its brush mips from memory in the real clock "
-                                "(docs/produced.md, \"The real clock\"): it reads no store; drop --store");
+    throw InputError("--store", fmt::format("run.system '{}' produces its tiles and serves its brush mips from memory in the real "
+                                            "clock (docs/produced.md, \"The real clock\"): it reads no store; drop --store",
+                                            cfg.run.system));
   for (const LayerSpec& L : cfg.texture.layers.specs)
     if (L.format != "rgba8")
       throw InputError("config", fmt::format("field 'texture.layers': layer '{}' is {}; the terrain's CPU compositor writes rgba8 "
@@ -159,6 +160,54 @@ produce::TerrainProducerParams terrain_producer_params(const ReplayConfig& cfg) 
 
 namespace {
 
+// Host memory the size of the RAM cache and of the VRAM the arena stands for, allocated before
+// the first frame: both must fit together in what this process may use, checked before either
+// is allocated (core/host_memory.h says why). Returns the arena; `layer_bytes` its layers' tile sizes.
+std::unique_ptr<VramArena> real_clock_arena(const ReplayConfig& cfg, const TileStore* store, const ThreadedExecutorConfig& xc,
+                                            const RealClockOptions& options, std::vector<std::uint32_t>& layer_bytes) {
+  const std::uint64_t usable = options.memory_limit_bytes > 0 ? options.memory_limit_bytes : usable_memory_bytes();
+  const auto mib = [](std::uint64_t b) { return static_cast<double>(b) / 1048576.0; };
+  const std::uint64_t reserve = store ? ThreadedExecutor::reserved_pages(*store, xc) * ThreadedExecutor::page_bytes(*store) : 0;
+  if (reserve > usable)
+    throw InputError("config", fmt::format("field 'ram.capacity_MiB': the RAM cache's buffers need {:.1f} MiB, more than "
+                                           "the {:.1f} MiB of memory this process may use",
+                                           mib(reserve), mib(usable)));
+  if (store)
+    for (std::uint32_t i = 0; i < store->layer_count(); ++i) layer_bytes.push_back(store->tile_bytes(i));
+  else
+    for (const LayerSpec& L : cfg.texture.layers.specs) layer_bytes.push_back(static_cast<std::uint32_t>(tile_decoded_bytes(cfg, L)));
+  const SystemInfo& system = streaming_systems().at(cfg.run.system);
+  try {
+    return std::make_unique<VramArena>(system.vram_arena(cfg, layer_bytes, usable - reserve));
+  } catch (const VramArena::ArenaTooLarge& e) {
+    throw InputError("config", fmt::format("field '{}': the VRAM arena needs {:.1f} MiB, more than the {:.1f} MiB of "
+                                           "memory this process may use ({:.1f} MiB) less the RAM cache's buffers "
+                                           "({:.1f} MiB, ram.capacity_MiB)",
+                                           system.vram_field, mib(e.bytes), mib(e.limit), mib(usable), mib(reserve)));
+  } catch (const std::bad_alloc&) {
+    throw InputError("config", fmt::format("field '{}': the VRAM arena does not fit in host memory", system.vram_field));
+  }
+}
+
+// The tiles the pipeline gave up on (faulted more than io.max_retries times in a row), named so
+// a corrupt store can be repaired: the first kMaxListed in key order; `more`: how many more.
+nlohmann::json failed_tiles_json(const ThreadedExecutor& exec, const ReplayConfig& cfg, std::size_t& more) {
+  constexpr std::size_t kMaxListed = 50;  // enough to see a pattern (one level, one file region), small in the JSON
+  nlohmann::json failed = nlohmann::json::array();
+  std::size_t& failed_more = more;
+  failed_more = 0;
+  for (const ThreadedExecutor::TileFaults& t : exec.faulted_tiles()) {
+    if (t.in_a_row <= static_cast<std::uint32_t>(cfg.io.max_retries)) continue;
+    if (failed.size() == kMaxListed) {
+      ++failed_more;
+      continue;
+    }
+    failed.push_back({{"layer", t.key.layer()}, {"level", t.key.level()}, {"x", t.key.x()}, {"y", t.key.y()},
+                      {"fault", std::string(fault_name(t.fault))}, {"reason", t.error}, {"attempts", t.in_a_row}});
+  }
+  return failed;
+}
+
 RealRun run_real(const ReplayConfig& cfg, const Trace& trace, const IScene& scene, const TileStore* store,
                  const RealClockOptions& options) {
   check_real_clock_system(cfg, store != nullptr);
@@ -176,33 +225,9 @@ RealRun run_real(const ReplayConfig& cfg, const Trace& trace, const IScene& scen
   xc.faults = cfg.io.faults;
   xc.tile_memory_bytes = static_cast<std::uint64_t>(cfg.ram.capacity_MiB * 1048576.0);
 
-  // Host memory the size of the RAM cache and of the VRAM the arena stands for, allocated before
-  // the first frame: both must fit together in what this process may use, checked before either
-  // is allocated (core/host_memory.h says why).
-  const std::uint64_t usable = options.memory_limit_bytes > 0 ? options.memory_limit_bytes : usable_memory_bytes();
-  const auto mib = [](std::uint64_t b) { return static_cast<double>(b) / 1048576.0; };
-  const std::uint64_t reserve = store ? ThreadedExecutor::reserved_pages(*store, xc) * ThreadedExecutor::page_bytes(*store) : 0;
-  if (reserve > usable)
-    throw InputError("config", fmt::format("field 'ram.capacity_MiB': the RAM cache's buffers need {:.1f} MiB, more than "
-                                           "the {:.1f} MiB of memory this process may use",
-                                           mib(reserve), mib(usable)));
   std::vector<std::uint32_t> layer_bytes;
-  if (store)
-    for (std::uint32_t i = 0; i < store->layer_count(); ++i) layer_bytes.push_back(store->tile_bytes(i));
-  else
-    for (const LayerSpec& L : cfg.texture.layers.specs) layer_bytes.push_back(static_cast<std::uint32_t>(tile_decoded_bytes(cfg, L)));
   RealRun run;
-  const SystemInfo& system = streaming_systems().at(cfg.run.system);
-  try {
-    run.arena = std::make_unique<VramArena>(system.vram_arena(cfg, layer_bytes, usable - reserve));
-  } catch (const VramArena::ArenaTooLarge& e) {
-    throw InputError("config", fmt::format("field '{}': the VRAM arena needs {:.1f} MiB, more than the {:.1f} MiB of "
-                                           "memory this process may use ({:.1f} MiB) less the RAM cache's buffers "
-                                           "({:.1f} MiB, ram.capacity_MiB)",
-                                           system.vram_field, mib(e.bytes), mib(e.limit), mib(usable), mib(reserve)));
-  } catch (const std::bad_alloc&) {
-    throw InputError("config", fmt::format("field '{}': the VRAM arena does not fit in host memory", system.vram_field));
-  }
+  run.arena = real_clock_arena(cfg, store, xc, options, layer_bytes);
   VramArena& arena = *run.arena;
   // The terrain: production threads only (produce.workers), composing and serving from one
   // shared scene built here, before frame 0 (its build is start-up).
@@ -315,24 +340,11 @@ RealRun run_real(const ReplayConfig& cfg, const Trace& trace, const IScene& scen
   }
   rc["injected_faults"] = {{"io_error", inj.io_error}, {"short_read", inj.short_read}, {"checksum", inj.checksum}, {"slow", inj.slow}};
   rc["fault_examples"] = exec.fault_examples();
-  // The tiles the pipeline gave up on (faulted more than io.max_retries times in a row), named so
-  // a corrupt store can be repaired: the first kMaxListed in key order, and how many more.
-  constexpr std::size_t kMaxListed = 50;  // enough to see a pattern (one level, one file region), small in the JSON
-  nlohmann::json failed = nlohmann::json::array();
   std::size_t failed_more = 0;
-  for (const ThreadedExecutor::TileFaults& t : exec.faulted_tiles()) {
-    if (t.in_a_row <= static_cast<std::uint32_t>(cfg.io.max_retries)) continue;
-    if (failed.size() == kMaxListed) {
-      ++failed_more;
-      continue;
-    }
-    failed.push_back({{"layer", t.key.layer()}, {"level", t.key.level()}, {"x", t.key.x()}, {"y", t.key.y()},
-                      {"fault", std::string(fault_name(t.fault))}, {"reason", t.error}, {"attempts", t.in_a_row}});
-  }
-  rc["failed_tiles"] = failed;
+  rc["failed_tiles"] = failed_tiles_json(exec, cfg, failed_more);
   rc["failed_tiles_not_listed"] = failed_more;
   if (producer) {
-    rc["producer"] = {{"kind", "terrain"},
+    rc["producer"] = {{"kind", cfg.run.system},  // the system that produces its tiles
                       {"produce_workers", cfg.produce.workers},
                       {"tiles_composed", producer->tiles()},
                       {"brush_mips_served", producer->brushes()},

@@ -11,21 +11,12 @@
 namespace vtsim {
 
 SceneConfig scene_config_of(const ReplayConfig& cfg) {
-  SceneConfig sc;
-  sc.kind = cfg.scene.kind;
+  SceneConfig sc = cfg.scene;  // kind, file, height scale, mesh_* (the scene.* keys)
   sc.texels_per_m = cfg.texture.texels_per_m;
   sc.size_x_m = static_cast<double>(cfg.texture.width) / cfg.texture.texels_per_m;
   sc.size_y_m = static_cast<double>(cfg.texture.height) / cfg.texture.texels_per_m;
   sc.origin_x_m = cfg.texture.origin_x_m;
   sc.origin_y_m = cfg.texture.origin_y_m;
-  sc.file = cfg.scene.file;
-  sc.height_scale_m = cfg.scene.height_scale_m;
-  sc.mesh_loader = cfg.scene.mesh_loader;
-  sc.mesh_unit_m = cfg.scene.mesh_unit_m;
-  sc.mesh_up = cfg.scene.mesh_up;
-  sc.mesh_uv_set = static_cast<int>(cfg.scene.mesh_uv_set);
-  sc.mesh_no_uv = cfg.scene.mesh_no_uv;
-  sc.mesh_planar_m = cfg.scene.mesh_planar_m;
   return sc;
 }
 

@@ -1,5 +1,5 @@
 #pragma once
-// A whole replay in one call: a trace drives one streaming system (clipmap or virtual texture)
+// A whole replay in one call: a trace drives one streaming system (clipmap, virtual texture or produced terrain)
 // through the request pipeline in the simulated clock (device models) or the real clock (real
 // files and threads), and measures latency, pop-in and bandwidth (docs/architecture.md,
 // docs/metrics.md). The frame loop's steps are in frame_loop.h.

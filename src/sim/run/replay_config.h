@@ -5,13 +5,19 @@
 // binds to the very member the code reads: no mirrored fields and no copying. Loaded from one
 // table for both the TOML file and `--set key=value`, then validated as a whole with the offending
 // field named (Intel SFS's TileUpdateManagerDesc is the model: defaulted fields, one line of why
-// each; the whys live in the table, replay_config.cpp).
+// each; the whys live in the table, replay_config_keys.cpp).
+//
+// The struct and its inline helpers are data: the streaming systems' table (systems.h) reads
+// them. The key table, validation and loading declared below read that table in turn, so they are
+// defined above it, in replay_config_keys.cpp: the includes run one way.
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
 
 #include "core/config_table.h"
 #include "core/view.h"
+#include "sim/view/scene.h"
 #include "stream/exec/device_model.h"
 #include "stream/exec/fault_layer.h"
 #include "stream/exec/produce.h"
@@ -53,19 +59,6 @@ struct TextureConfig {
   int tile_size = 128;             // tile (VT: page) payload, texels a side
   int border = 0;                  // tile border, texels a side (stored T + 2B)
   LayerList layers;
-};
-
-struct SceneSettings {
-  std::string kind = "plane";      // a name of scenes() (sim/view/scene.h)
-  std::string file;                // the scene's input file (heightfield image, OBJ mesh)
-  double height_scale_m = 200.0;   // heightfield: metres for a full-range sample
-  // mesh (SceneConfig's mesh_* fields, sim/view/mesh_import.h)
-  std::string mesh_loader = "auto";
-  double mesh_unit_m = 1.0;
-  std::string mesh_up = "auto";
-  std::int64_t mesh_uv_set = 0;
-  std::string mesh_no_uv = "untextured";
-  double mesh_planar_m = 1.0;
 };
 
 struct ViewConfig {
@@ -114,7 +107,7 @@ struct MetricsConfig {
 struct ReplayConfig {
   RunConfig run;
   TextureConfig texture;
-  SceneSettings scene;
+  SceneConfig scene;               // sim/view/scene.h: the scene.* keys; its placement is [texture]'s (scene_config_of)
   ViewConfig view;
   ClipmapConfig clipmap;           // stream/system/clipmap_system.h
   VtConfig vt;                     // stream/system/vt_system.h
@@ -150,11 +143,25 @@ ReplayConfig load_replay_config(const std::vector<std::string>& config_paths, co
 std::string config_reference_markdown();
 
 // Bytes of one tile of a layer in RAM/VRAM (payload plus border) and on disk.
-std::uint64_t tile_decoded_bytes(const ReplayConfig& c, const LayerSpec& layer);
-std::uint64_t tile_disk_bytes(const ReplayConfig& c, const LayerSpec& layer);
+inline std::uint64_t tile_decoded_bytes(const ReplayConfig& c, const LayerSpec& layer) {
+  const double side = static_cast<double>(c.texture.tile_size + 2 * c.texture.border);
+  return static_cast<std::uint64_t>(std::ceil(side * side * layer.bytes_per_texel));
+}
+inline std::uint64_t tile_disk_bytes(const ReplayConfig& c, const LayerSpec& layer) {
+  return static_cast<std::uint64_t>(std::ceil(static_cast<double>(tile_decoded_bytes(c, layer)) / layer.compression_ratio));
+}
 
 // The view parameters the renderer takes from the [view] section (lod_bias and max_aniso as
 // float, as the renderer computes them).
-ViewParams view_params(const ViewConfig& v);
+inline ViewParams view_params(const ViewConfig& v) {
+  ViewParams p;
+  p.divisor = v.divisor;
+  p.lod_bias = static_cast<float>(v.lod_bias);
+  p.anisotropic = v.anisotropic;
+  p.max_aniso = static_cast<float>(v.max_aniso);
+  p.near_m = v.near_m;
+  p.far_m = v.far_m;
+  return p;
+}
 
 }  // namespace vtsim

@@ -12,11 +12,11 @@ const Registry<SystemInfo>& streaming_systems() {
       "streaming system",
       {
           system_entry<ClipmapSystem, &ReplayConfig::clipmap>(
-              "clipmap", "clipmap (Tanner 1998, Yao 2007): toroidal windows that follow the camera over a static mip pyramid"),
+              "clipmap (Tanner 1998, Yao 2007): toroidal windows that follow the camera over a static mip pyramid"),
           system_entry<VtSystem, &ReplayConfig::vt>(
-              "vt", "sparse virtual texturing (van Waveren 2009, Yao 2011): feedback-driven pages in a physical page pool"),
+              "sparse virtual texturing (van Waveren 2009, Yao 2011): feedback-driven pages in a physical page pool"),
           clipmap_system_entry<TerrainSystem, &ReplayConfig::terrain>(
-              "terrain", "seed 002 terrain (Ka Chen, Far Cry 4): a clipmap whose levels are produced from brushes and masks"),
+              "VT Terrain Design's terrain (after Chen 2015, Far Cry 4): a clipmap whose levels are produced from brushes and masks"),
       });
   return table;
 }

@@ -12,6 +12,7 @@
 #include "core/registry.h"
 #include "sim/run/replay_config.h"
 #include "stream/system/i_system.h"
+#include "stream/system/system_caps.h"
 
 namespace vtsim {
 
@@ -29,6 +30,8 @@ struct SystemInfo {
   // it does not fit). Throws VramArena::ArenaTooLarge.
   VramArena (*vram_arena)(const ReplayConfig& c, std::vector<std::uint32_t> layer_bytes, std::uint64_t host_limit);
   std::string_view vram_field;
+  // What it can do (stream/system/system_caps.h): asked instead of its name.
+  SystemCaps caps;
 };
 
 const Registry<SystemInfo>& streaming_systems();
@@ -43,10 +46,10 @@ std::unique_ptr<IStreamingSystem> make_system(const ReplayConfig& c, TextureExte
 
 // A table entry from a system class S and its section of ReplayConfig: S::Config, a constructor
 // S(const SystemSetup&, const S::Config&), and static validate, store_levels, kStoreLevels,
-// vram_arena and kVramField (see stream/system/clipmap_system.h).
+// vram_arena, kVramField, kName and kCaps (see stream/system/clipmap_system.h).
 template <class S, typename S::Config ReplayConfig::*Section>
-SystemInfo system_entry(std::string_view name, std::string_view why) {
-  return {name,
+SystemInfo system_entry(std::string_view why) {
+  return {S::kName,
           why,
           [](const ReplayConfig& c) { S::validate(system_setup(c), c.*Section, c.throttle); },
           [](const ReplayConfig& c, TextureExtent extent) -> std::unique_ptr<IStreamingSystem> {
@@ -57,15 +60,16 @@ SystemInfo system_entry(std::string_view name, std::string_view why) {
           [](const ReplayConfig& c, std::vector<std::uint32_t> layer_bytes, std::uint64_t host_limit) {
             return S::vram_arena(system_setup(c), c.*Section, std::move(layer_bytes), host_limit);
           },
-          S::kVramField};
+          S::kVramField,
+          S::kCaps};
 }
 
 // A table entry for a system whose windows read the [clipmap] section besides its own (the terrain):
 // a constructor S(const SystemSetup&, const ClipmapConfig&, const S::Config&) and
 // validate(setup, clipmap, section, throttle); store_levels and vram_arena take [clipmap].
 template <class S, typename S::Config ReplayConfig::*Section>
-SystemInfo clipmap_system_entry(std::string_view name, std::string_view why) {
-  return {name,
+SystemInfo clipmap_system_entry(std::string_view why) {
+  return {S::kName,
           why,
           [](const ReplayConfig& c) { S::validate(system_setup(c), c.clipmap, c.*Section, c.throttle); },
           [](const ReplayConfig& c, TextureExtent extent) -> std::unique_ptr<IStreamingSystem> {
@@ -76,7 +80,8 @@ SystemInfo clipmap_system_entry(std::string_view name, std::string_view why) {
           [](const ReplayConfig& c, std::vector<std::uint32_t> layer_bytes, std::uint64_t host_limit) {
             return S::vram_arena(system_setup(c), c.clipmap, std::move(layer_bytes), host_limit);
           },
-          S::kVramField};
+          S::kVramField,
+          S::kCaps};
 }
 
 }  // namespace vtsim

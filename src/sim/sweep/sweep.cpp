@@ -32,7 +32,7 @@
 #include "sim/run/provenance.h"
 #include "sim/run/replay.h"
 #include "sim/sweep/lockstep.h"
-#include "sim/sweep/sweep_report.h"
+#include "sim/report/sweep_report.h"
 #include "sim/view/mesh_import.h"
 #include "sim/view/scene.h"
 
@@ -650,78 +650,60 @@ SweepShard parse_shard(const std::string& text, const std::string& where) {
   return s;
 }
 
-SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
-  const auto wall0 = std::chrono::steady_clock::now();
-  const double cpu0 = process_cpu_s();
-  std::vector<std::string> trace_warnings;
-  const std::vector<Trace> traces = load_sweep_traces(spec, &trace_warnings);
-  const SweepIdentity id = sweep_identity(spec, traces);
-  const std::string& hash = id.hash;
-  SceneCache scenes;
-  check_metrics(spec, traces, scenes);  // before anything is written
-  const fs::path out(opts.out_dir);
-  const fs::path parts = out / "parts";
-  std::error_code ec;
-  make_output_dir("-o", opts.out_dir);  // the last level only: a missing parent is refused
-  const OutputLock out_lock(out, "this sweep");
-  fs::create_directory(parts, ec);
-  if (ec) throw InputError(parts.string(), "cannot create the directory: " + ec.message());
-  const fs::path shard_file = out / "shard.json";
-  std::set<std::string> changed;  // inputs that changed since the directory was written
-  if (fs::exists(shard_file)) {
-    const nlohmann::json old = parse_json(read_regular_file(shard_file.string(), kMaxJsonBytes, "not a shard file"),
-                                          shard_file.string());
-    if (old.value("spec_hash", std::string()) != hash) {
-      if (old.value("structure_hash", std::string()) != id.structure || !old.contains("inputs") || !old["inputs"].is_object())
-        throw InputError(shard_file.string(), fmt::format("holds a sweep of another spec (hash {}, this spec {}): give another "
-                                                          "-o, or delete the directory",
-                                                          old.value("spec_hash", std::string("?")), hash));
-      // The same spec over inputs that changed: name them; re-run what read them only when asked.
-      // A file that was missing (its rows failed, and are retried anyway) is not a reason to refuse.
-      std::string what;
-      for (const auto& [name, v] : id.inputs.items()) {
-        const nlohmann::json* o = old["inputs"].contains(name) ? &old["inputs"][name] : nullptr;
-        if (o && o->is_object() && o->value("hash", std::string()) == v["hash"].get<std::string>()) continue;
-        changed.insert(name);
-        if (o && o->is_object() && o->value("missing", false)) continue;
-        std::string detail;
-        if (name == "build" && o && o->is_object())
-          detail = fmt::format(" (its rows were made by {}; this is {})", o->value("what", std::string("?")), v.value("what", std::string("?")));
-        else if (v.contains("trace"))
-          detail = " (" + v.value("what", std::string("?")) + ")";
-        what += (what.empty() ? "" : ", ") + name + detail;
-      }
-      for (const auto& [name, v] : old["inputs"].items())
-        if (!id.inputs.contains(name)) changed.insert(name), what += (what.empty() ? "" : ", ") + name + " (no longer read)";
-      if (!opts.rerun_changed && !what.empty())
-        throw InputError(opts.out_dir, fmt::format("{} changed since {} was written; use a new -o or --rerun-changed "
-                                                   "(re-runs the rows that read {})",
-                                                   what, opts.out_dir, changed.size() == 1 ? "it" : "them"));
-    }
-    if (old.value("shard", -1) != opts.shard.index || old.value("count", -1) != opts.shard.count)
-      throw InputError(shard_file.string(), fmt::format("holds shard {}/{} of this spec, not {}/{}", old.value("shard", -1),
-                                                        old.value("count", -1), opts.shard.index, opts.shard.count));
-  }
-  const nlohmann::json meta = spec_meta(spec, traces, hash);
-  const std::vector<WorkItem> items = work_order(spec);
-  const auto [b, e] = shard_range(items.size(), opts.shard);
-  const std::vector<Task> tasks = make_tasks(items, b, e);
-  nlohmann::json shard = {{"schema", kSchema}, {"spec_hash", hash}, {"structure_hash", id.structure}, {"inputs", id.inputs},
-                          {"shard", opts.shard.index}, {"count", opts.shard.count}, {"items", {b, e}}, {"complete", false},
-                          {"meta", meta}};
+namespace {
 
-  // Restart: the tasks whose part is on disk are done (a part is renamed into place whole), unless
-  // a row of it failed (retried: the failure may have been the machine's, a file since fixed) or
-  // an input it read changed. A part whose inputs are unchanged gets this identity's header.
-  for (const auto& f : fs::directory_iterator(parts))
-    if (is_atomic_temp_name(f.path().filename().string()) || f.path().extension() == ".tmp")  // ".tmp": older builds' name
-      fs::remove(f.path(), ec);
-  SweepRunStats st;
-  st.input_warnings = std::move(trace_warnings);
-  st.rows = e - b;
+// The inputs that changed since an existing output directory was written (its shard.json, if
+// any): a directory of another spec or shard is refused, changed inputs are unless rerun_changed.
+std::set<std::string> changed_inputs(const fs::path& shard_file, const SweepIdentity& id, const SweepOptions& opts) {
+  const std::string& hash = id.hash;
+  std::set<std::string> changed;
+  if (!fs::exists(shard_file)) return changed;
+  const nlohmann::json old = parse_json(read_regular_file(shard_file.string(), kMaxJsonBytes, "not a shard file"),
+                                        shard_file.string());
+  if (old.value("spec_hash", std::string()) != hash) {
+    if (old.value("structure_hash", std::string()) != id.structure || !old.contains("inputs") || !old["inputs"].is_object())
+      throw InputError(shard_file.string(), fmt::format("holds a sweep of another spec (hash {}, this spec {}): give another "
+                                                        "-o, or delete the directory",
+                                                        old.value("spec_hash", std::string("?")), hash));
+    // The same spec over inputs that changed: name them; re-run what read them only when asked.
+    // A file that was missing (its rows failed, and are retried anyway) is not a reason to refuse.
+    std::string what;
+    for (const auto& [name, v] : id.inputs.items()) {
+      const nlohmann::json* o = old["inputs"].contains(name) ? &old["inputs"][name] : nullptr;
+      if (o && o->is_object() && o->value("hash", std::string()) == v["hash"].get<std::string>()) continue;
+      changed.insert(name);
+      if (o && o->is_object() && o->value("missing", false)) continue;
+      std::string detail;
+      if (name == "build" && o && o->is_object())
+        detail = fmt::format(" (its rows were made by {}; this is {})", o->value("what", std::string("?")), v.value("what", std::string("?")));
+      else if (v.contains("trace"))
+        detail = " (" + v.value("what", std::string("?")) + ")";
+      what += (what.empty() ? "" : ", ") + name + detail;
+    }
+    for (const auto& [name, v] : old["inputs"].items())
+      if (!id.inputs.contains(name)) changed.insert(name), what += (what.empty() ? "" : ", ") + name + " (no longer read)";
+    if (!opts.rerun_changed && !what.empty())
+      throw InputError(opts.out_dir, fmt::format("{} changed since {} was written; use a new -o or --rerun-changed "
+                                                 "(re-runs the rows that read {})",
+                                                 what, opts.out_dir, changed.size() == 1 ? "it" : "them"));
+  }
+  if (old.value("shard", -1) != opts.shard.index || old.value("count", -1) != opts.shard.count)
+    throw InputError(shard_file.string(), fmt::format("holds shard {}/{} of this spec, not {}/{}", old.value("shard", -1),
+                                                      old.value("count", -1), opts.shard.index, opts.shard.count));
+  return changed;
+}
+
+// The tasks still to run: those whose part is on disk are done (a part is renamed into place
+// whole), unless a row of it failed (retried: the failure may have been the machine's, a file
+// since fixed) or an input it read changed. A part whose inputs are unchanged gets this identity's
+// header. `total_frames`: the frames the tasks to run will replay (for the progress).
+std::vector<const Task*> tasks_to_run(const std::vector<Task>& tasks, const fs::path& parts, const SweepSpec& spec,
+                                      const std::vector<Trace>& traces, const SweepIdentity& id,
+                                      const std::set<std::string>& changed, SweepRunStats& st, std::uint64_t& total_frames) {
+  const std::string& hash = id.hash;
+  std::error_code ec;
   std::vector<const Task*> todo;
-  std::uint64_t total_frames = 0;
-  std::vector<std::uint64_t> task_frames;
+  total_frames = 0;
   for (const Task& t : tasks) {
     const fs::path p = parts / part_name(t);
     if (fs::exists(p)) {
@@ -747,6 +729,46 @@ SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
     const double dur = tr.poses.back().t_s - tr.poses.front().t_s;
     total_frames += t.count * static_cast<std::uint64_t>(fps > 0 ? dur * fps + 1 : static_cast<double>(tr.poses.size()));
   }
+  return todo;
+}
+
+}  // namespace
+
+SweepRunStats run_sweep(const SweepSpec& spec, const SweepOptions& opts) {
+  const auto wall0 = std::chrono::steady_clock::now();
+  const double cpu0 = process_cpu_s();
+  std::vector<std::string> trace_warnings;
+  const std::vector<Trace> traces = load_sweep_traces(spec, &trace_warnings);
+  const SweepIdentity id = sweep_identity(spec, traces);
+  const std::string& hash = id.hash;
+  SceneCache scenes;
+  check_metrics(spec, traces, scenes);  // before anything is written
+  const fs::path out(opts.out_dir);
+  const fs::path parts = out / "parts";
+  std::error_code ec;
+  make_output_dir("-o", opts.out_dir);  // the last level only: a missing parent is refused
+  const OutputLock out_lock(out, "this sweep");
+  fs::create_directory(parts, ec);
+  if (ec) throw InputError(parts.string(), "cannot create the directory: " + ec.message());
+  const fs::path shard_file = out / "shard.json";
+  const std::set<std::string> changed = changed_inputs(shard_file, id, opts);  // since the directory was written
+  const nlohmann::json meta = spec_meta(spec, traces, hash);
+  const std::vector<WorkItem> items = work_order(spec);
+  const auto [b, e] = shard_range(items.size(), opts.shard);
+  const std::vector<Task> tasks = make_tasks(items, b, e);
+  nlohmann::json shard = {{"schema", kSchema}, {"spec_hash", hash}, {"structure_hash", id.structure}, {"inputs", id.inputs},
+                          {"shard", opts.shard.index}, {"count", opts.shard.count}, {"items", {b, e}}, {"complete", false},
+                          {"meta", meta}};
+
+  // Restart (tasks_to_run): the parts on disk that are still good are kept.
+  for (const auto& f : fs::directory_iterator(parts))
+    if (is_atomic_temp_name(f.path().filename().string()) || f.path().extension() == ".tmp")  // ".tmp": older builds' name
+      fs::remove(f.path(), ec);
+  SweepRunStats st;
+  st.input_warnings = std::move(trace_warnings);
+  st.rows = e - b;
+  std::uint64_t total_frames = 0;
+  const std::vector<const Task*> todo = tasks_to_run(tasks, parts, spec, traces, id, changed, st, total_frames);
   write_atomic(shard_file, shard.dump(2) + "\n");
   st.tasks = todo.size();
 

@@ -103,27 +103,6 @@ ReplayConfig make_point(const ReplayConfig& base, const KeyValues& values, const
 
 }  // namespace
 
-const nlohmann::json* summary_path(const nlohmann::json& summary, std::string_view path) {
-  const nlohmann::json* p = &summary;
-  for (;;) {
-    const std::size_t dot = path.find('.');
-    const std::string part(path.substr(0, dot));
-    if (p->is_object()) {
-      const auto it = p->find(part);
-      if (it == p->end()) return nullptr;
-      p = &*it;
-    } else if (p->is_array()) {
-      std::size_t i = 0;
-      if (!text::parse_whole(part, i) || i >= p->size()) return nullptr;
-      p = &(*p)[i];
-    } else {
-      return nullptr;
-    }
-    if (dot == std::string_view::npos) return p;
-    path.remove_prefix(dot + 1);
-  }
-}
-
 const std::vector<std::string>& default_sweep_metrics() {
   static const std::vector<std::string> m = {
       "popin.blurry_fraction_mean", "popin.blurry_fraction_p99", "popin.time_to_sharp_s.mean",
@@ -133,20 +112,49 @@ const std::vector<std::string>& default_sweep_metrics() {
   return m;
 }
 
-SweepSpec load_sweep_spec(const std::string& path) {
-  const std::string text = read_regular_file(path, kMaxSpecBytes, "not a sweep spec");
-  const toml::table tbl = parse_toml_text(text, path);
-  SweepSpec spec;
-  spec.path = path;
+namespace {
+
+// The spec's [tune] table (spec.tune; InputError naming its line otherwise).
+void spec_tune(const toml::node& node, const std::string& path, SweepSpec& spec) {
+  const auto* t = node.as_table();
+  if (!t) throw InputError(at_line(path, line_of(node)), "key 'tune': expected a [tune] table");
+  spec.tune.line = line_of(node);
+  for (const auto& [tk, tn] : *t) {
+    const std::string tkey(tk.str());
+    const std::string tw = at_line(path, line_of(tn));
+    if (tkey == "constraints") {
+      for (const std::string& c : strings(tn, path, "tune.constraints")) {
+        spec.tune.constraints.push_back(parse_tune_constraint(c, tw));
+        spec.tune.constraints.back().line = line_of(tn);
+      }
+    } else if (tkey == "costs") {
+      spec.tune.costs = strings(tn, path, "tune.costs");
+    } else {
+      throw InputError(tw, "unknown key 'tune." + tkey + "' (keys: constraints, costs)");
+    }
+  }
+}
+
+// The spec's top-level keys, in the file's order, into `spec`; the [grid] and [[configs]] it
+// holds, and the lines of `config` and `set`, for the steps after.
+struct SpecTop {
+  const toml::table* grid = nullptr;
+  const toml::array* configs = nullptr;
+  long long config_line = 0, set_line = 0;
+};
+
+SpecTop spec_top_keys(const toml::table& tbl, const std::string& path, SweepSpec& spec) {
   const fs::path dir = fs::path(path).parent_path();
   std::vector<std::pair<std::string, const toml::node*>> top;
   for (const auto& [k, node] : tbl) top.emplace_back(std::string(k.str()), &node);
   std::stable_sort(top.begin(), top.end(), [](const auto& a, const auto& b) {  // the file's order
     return line_of(*a.second) < line_of(*b.second);
   });
-  const toml::table* grid = nullptr;
-  const toml::array* configs = nullptr;
-  long long config_line = 0, set_line = 0;
+  SpecTop r;
+  const toml::table*& grid = r.grid;
+  const toml::array*& configs = r.configs;
+  long long& config_line = r.config_line;
+  long long& set_line = r.set_line;
   for (const auto& [key, node] : top) {
     const std::string where = at_line(path, line_of(*node));
     if (key == "name") {
@@ -184,24 +192,8 @@ SweepSpec load_sweep_spec(const std::string& path) {
       grid = node->as_table();
       if (!grid) throw InputError(where, "key 'grid': expected a table of key = [values]");
     } else if (key == "tune") {
-      const auto* t = node->as_table();
-      if (!t) throw InputError(where, "key 'tune': expected a [tune] table");
       spec.tune.present = true;
-      spec.tune.line = line_of(*node);
-      for (const auto& [tk, tn] : *t) {
-        const std::string tkey(tk.str());
-        const std::string tw = at_line(path, line_of(tn));
-        if (tkey == "constraints") {
-          for (const std::string& c : strings(tn, path, "tune.constraints")) {
-            spec.tune.constraints.push_back(parse_tune_constraint(c, tw));
-            spec.tune.constraints.back().line = line_of(tn);
-          }
-        } else if (tkey == "costs") {
-          spec.tune.costs = strings(tn, path, "tune.costs");
-        } else {
-          throw InputError(tw, "unknown key 'tune." + tkey + "' (keys: constraints, costs)");
-        }
-      }
+      spec_tune(*node, path, spec);
     } else if (key == "allow_repairs") {
       if (!node->as_boolean()) throw InputError(where, "key 'allow_repairs': expected true or false");
       spec.allow_repairs = node->as_boolean()->get();
@@ -219,13 +211,15 @@ SweepSpec load_sweep_spec(const std::string& path) {
                                   "' (keys: name, config, set, traces, generate, allow_repairs, metrics, blur_bound, [grid], [[configs]], [tune])");
     }
   }
-  if (spec.traces.empty()) throw InputError(path, "no traces: give traces = [\"file.csv\", \"dir/*.csv\"] or generate = [\"walk duration_s=60\"]");
-  if (spec.metrics.empty()) spec.metrics = default_sweep_metrics();
+  return r;
+}
 
-  // The base config, as `vtsim replay --config F --set S...` builds it (validated at each point).
+// The base config, as `vtsim replay --config F --set S...` builds it (validated at each point).
+// Errors inside the base config name its file and line; the spec's line says where it was named.
+ReplayConfig spec_base_config(const std::string& path, const SpecTop& top, SweepSpec& spec) {
+  const long long config_line = top.config_line, set_line = top.set_line;
   ReplayConfig base;
   const auto& table = replay_config_table();
-  // Errors inside the base config name its file and line; the spec's line says where it was named.
   if (!spec.base_config.empty()) {
     try {
       load_toml_file(table, base, spec.base_config);
@@ -241,8 +235,11 @@ SweepSpec load_sweep_spec(const std::string& path) {
     }
   }
   spec.base_dump = table.dump(base);
+  return base;
+}
 
-  // Axes.
+// The [grid] axes into spec.grid; each axis's values, as the points take them.
+std::vector<std::vector<ConfigValue>> spec_axes(const toml::table* grid, const std::string& path, SweepSpec& spec) {
   std::vector<std::vector<ConfigValue>> grid_values;
   if (grid) {
     std::vector<std::pair<std::string, const toml::node*>> keys;
@@ -269,9 +266,12 @@ SweepSpec load_sweep_spec(const std::string& path) {
       spec.grid.push_back(std::move(axis));
     }
   }
-  // Explicit configs.
-  std::vector<KeyValues> explicit_sets;
-  std::vector<std::vector<long long>> explicit_lines;
+  return grid_values;
+}
+
+// The [[configs]] tables into spec.configs; each one's values and their lines, for the points.
+void spec_explicit_configs(const toml::array* configs, const std::string& path, SweepSpec& spec,
+                           std::vector<KeyValues>& explicit_sets, std::vector<std::vector<long long>>& explicit_lines) {
   if (configs) {
     for (const auto& e : *configs) {
       const auto* t = e.as_table();
@@ -300,17 +300,13 @@ SweepSpec load_sweep_spec(const std::string& path) {
       spec.configs.push_back(std::move(texts));
     }
   }
-  if (explicit_sets.empty()) explicit_sets.emplace_back(), explicit_lines.emplace_back();
-  for (const std::string& c : spec.tune.costs)
-    if (std::none_of(spec.grid.begin(), spec.grid.end(), [&](const SweepAxis& a) { return a.key == c; }))
-      throw InputError(at_line(path, spec.tune.line), "tune.costs: '" + c + "' is not a [grid] axis");
-  if (spec.tune.present && spec.tune.costs.empty())
-    for (const SweepAxis& a : spec.grid) spec.tune.costs.push_back(a.key);
-  // The constraints' metrics are reported too.
-  for (const TuneConstraint& c : spec.tune.constraints)
-    if (std::find(spec.metrics.begin(), spec.metrics.end(), c.metric) == spec.metrics.end()) spec.metrics.push_back(c.metric);
+}
 
-  // Points: explicit configs × grid (the grid's first axis slowest, its last fastest).
+// The points: explicit configs × grid (the grid's first axis slowest, its last fastest), each
+// made from the base and validated.
+void spec_points(const std::string& path, const ReplayConfig& base, const std::vector<std::vector<ConfigValue>>& grid_values,
+                 const std::vector<KeyValues>& explicit_sets, const std::vector<std::vector<long long>>& explicit_lines,
+                 SweepSpec& spec) {
   std::size_t grid_points = 1;
   for (const SweepAxis& a : spec.grid) {
     grid_points *= a.values.size();
@@ -349,6 +345,36 @@ SweepSpec load_sweep_spec(const std::string& path) {
       spec.points.push_back(std::move(p));
     }
   }
+}
+
+}  // namespace
+
+SweepSpec load_sweep_spec(const std::string& path) {
+  const std::string text = read_regular_file(path, kMaxSpecBytes, "not a sweep spec");
+  const toml::table tbl = parse_toml_text(text, path);
+  SweepSpec spec;
+  spec.path = path;
+  const SpecTop top = spec_top_keys(tbl, path, spec);
+  if (spec.traces.empty()) throw InputError(path, "no traces: give traces = [\"file.csv\", \"dir/*.csv\"] or generate = [\"walk duration_s=60\"]");
+  if (spec.metrics.empty()) spec.metrics = default_sweep_metrics();
+
+  const ReplayConfig base = spec_base_config(path, top, spec);
+
+  const std::vector<std::vector<ConfigValue>> grid_values = spec_axes(top.grid, path, spec);
+  std::vector<KeyValues> explicit_sets;
+  std::vector<std::vector<long long>> explicit_lines;
+  spec_explicit_configs(top.configs, path, spec, explicit_sets, explicit_lines);
+  if (explicit_sets.empty()) explicit_sets.emplace_back(), explicit_lines.emplace_back();
+  for (const std::string& c : spec.tune.costs)
+    if (std::none_of(spec.grid.begin(), spec.grid.end(), [&](const SweepAxis& a) { return a.key == c; }))
+      throw InputError(at_line(path, spec.tune.line), "tune.costs: '" + c + "' is not a [grid] axis");
+  if (spec.tune.present && spec.tune.costs.empty())
+    for (const SweepAxis& a : spec.grid) spec.tune.costs.push_back(a.key);
+  // The constraints' metrics are reported too.
+  for (const TuneConstraint& c : spec.tune.constraints)
+    if (std::find(spec.metrics.begin(), spec.metrics.end(), c.metric) == spec.metrics.end()) spec.metrics.push_back(c.metric);
+
+  spec_points(path, base, grid_values, explicit_sets, explicit_lines, spec);
   return spec;
 }
 

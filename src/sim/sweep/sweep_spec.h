@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "core/trace.h"
+#include "sim/run/metric_path.h"
 #include "sim/run/replay_config.h"
 
 namespace vtsim {
@@ -95,11 +96,6 @@ const std::vector<std::string>& default_sweep_metrics();
 // more dropped poses than the repair policy allows: trace_io.h, check_repairs). The repairs made
 // are appended to *warnings when given (repair_warnings: one line per kind, naming the file).
 Trace load_sweep_trace(const SweepTraceSource& src, std::vector<std::string>* warnings = nullptr, bool allow_repairs = false);
-
-// The value at a metric's dotted path in a replay summary ("popin.time_to_sharp_s.mean"; array
-// elements by number: "bandwidth.per_level.0.disk_read_MBps"), or nullptr. The CSV, the report
-// and tune's constraints all read metrics through it.
-const nlohmann::json* summary_path(const nlohmann::json& summary, std::string_view dotted);
 
 
 }  // namespace vtsim

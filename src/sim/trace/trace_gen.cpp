@@ -3,7 +3,9 @@
 #include <fmt/core.h>
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <charconv>
+#include <iterator>
 
 #include <cmath>
 #include <numbers>
@@ -62,21 +64,31 @@ void validate(const TraceGenParams& p) {
   need(p.image_width >= 1 && p.image_width <= kMaxImageSide, "image_width", p.image_width, "is out of range");
   need(p.image_height >= 1 && p.image_height <= kMaxImageSide, "image_height", p.image_height,
        "is out of range");
-  if (p.kind == TraceKind::turn) {
-    need(std::isfinite(p.turn_deg), "turn_deg", p.turn_deg, "is not finite");
-    need(std::isfinite(p.turn_s) && p.turn_s > 0.0, "turn_s", p.turn_s, "is not finite and > 0");
-  }
-  if (p.kind == TraceKind::turn || p.kind == TraceKind::teleport)
-    need(std::isfinite(p.event_s) && p.event_s >= 0.0 && p.event_s <= p.duration_s, "event_s",
-         p.event_s, "is not within [0, duration_s]");
-  if (p.kind == TraceKind::teleport) {
-    need(std::isfinite(p.jump_m) && p.jump_m >= 0.0 && p.jump_m <= 1e9, "jump_m", p.jump_m,
-         "is not in [0, 1e9] m");
-    need(std::isfinite(p.jump_heading_deg), "jump_heading_deg", p.jump_heading_deg, "is not finite");
-  }
-  if (p.kind == TraceKind::orbit)
-    need(std::isfinite(p.radius_m) && p.radius_m > 0.0 && p.radius_m <= 1e9, "radius_m", p.radius_m,
-         "is not in (0, 1e9] m");
+  find_trace_generator(p.kind, "kind").validate(p);
+}
+
+// The kinds' own checks (validate_trace_gen runs the shared ones first).
+void validate_none(const TraceGenParams&) {}
+
+void validate_event(const TraceGenParams& p) {
+  need(std::isfinite(p.event_s) && p.event_s >= 0.0 && p.event_s <= p.duration_s, "event_s", p.event_s,
+       "is not within [0, duration_s]");
+}
+
+void validate_turn(const TraceGenParams& p) {
+  need(std::isfinite(p.turn_deg), "turn_deg", p.turn_deg, "is not finite");
+  need(std::isfinite(p.turn_s) && p.turn_s > 0.0, "turn_s", p.turn_s, "is not finite and > 0");
+  validate_event(p);
+}
+
+void validate_teleport(const TraceGenParams& p) {
+  validate_event(p);
+  need(std::isfinite(p.jump_m) && p.jump_m >= 0.0 && p.jump_m <= 1e9, "jump_m", p.jump_m, "is not in [0, 1e9] m");
+  need(std::isfinite(p.jump_heading_deg), "jump_heading_deg", p.jump_heading_deg, "is not finite");
+}
+
+void validate_orbit(const TraceGenParams& p) {
+  need(std::isfinite(p.radius_m) && p.radius_m > 0.0 && p.radius_m <= 1e9, "radius_m", p.radius_m, "is not in (0, 1e9] m");
 }
 
 // Heading (degrees) and planar position of the turn trace at time t: straight, a constant-rate
@@ -107,85 +119,104 @@ void turn_state(const TraceGenParams& p, double t, double& heading_deg, glm::dve
   xy = pe + arc(tt) + dir_deg(heading_deg) * (v * (t - te - tt));
 }
 
-std::string describe(const TraceGenParams& p) {
-  std::string s = fmt::format("{} duration_s={} fps={} speed_mps={} heading_deg={} height_m={} ",
-                              kind_name(p.kind), p.duration_s, p.fps, p.speed_mps, p.heading_deg, p.height_m);
-  if (p.kind != TraceKind::orbit) s += fmt::format("pitch_deg={} ", p.pitch_deg);  // orbit: computed
+std::string describe(const TraceGenParams& p, const TraceGenerator& g) {
+  std::string s = fmt::format("{} duration_s={} fps={} speed_mps={} heading_deg={} height_m={} ", g.name, p.duration_s, p.fps,
+                              p.speed_mps, p.heading_deg, p.height_m);
+  if (!g.lap) s += fmt::format("pitch_deg={} ", p.pitch_deg);  // a lap's pitch is computed
   s += fmt::format("vfov_deg={} start_m={},{}", p.vfov_deg, p.start_m.x, p.start_m.y);
-  if (p.kind == TraceKind::turn)
-    s += fmt::format(" turn_deg={} turn_s={} event_s={}", p.turn_deg, p.turn_s, p.event_s);
-  if (p.kind == TraceKind::teleport)
-    s += fmt::format(" jump_m={} jump_heading_deg={} event_s={}", p.jump_m, p.jump_heading_deg, p.event_s);
-  if (p.kind == TraceKind::orbit) s += fmt::format(" radius_m={}", p.radius_m);
-  return s;
+  return s + g.describe(p);
+}
+
+std::string describe_none(const TraceGenParams&) { return {}; }
+std::string describe_turn(const TraceGenParams& p) {
+  return fmt::format(" turn_deg={} turn_s={} event_s={}", p.turn_deg, p.turn_s, p.event_s);
+}
+std::string describe_teleport(const TraceGenParams& p) {
+  return fmt::format(" jump_m={} jump_heading_deg={} event_s={}", p.jump_m, p.jump_heading_deg, p.event_s);
+}
+std::string describe_orbit(const TraceGenParams& p) { return fmt::format(" radius_m={}", p.radius_m); }
+
+// The kinds' defaults over TraceGenParams{} (the walk).
+void defaults_walk(TraceGenParams&) {}
+void defaults_walk_diagonal(TraceGenParams& p) { p.heading_deg = 45.0; }
+void defaults_run(TraceGenParams& p) { p.speed_mps = 5.0; }
+void defaults_drive(TraceGenParams& p) {
+  p.speed_mps = 20.0;
+  p.height_m = 1.5;
+}
+void defaults_flight(TraceGenParams& p) {
+  p.speed_mps = 100.0;
+  p.height_m = 300.0;
+  p.pitch_deg = -30.0;
+}
+void defaults_orbit(TraceGenParams& p) {
+  p.radius_m = 50.0;
+  p.height_m = 30.0;
+  p.speed_mps = 2.0 * kPi * p.radius_m / p.duration_s;  // one lap in the 20 s trace
+}
+void defaults_static(TraceGenParams& p) { p.speed_mps = 0.0; }
+
+// The kinds' motion at time t.
+void pose_straight(const TraceGenParams& p, const TraceGenFixed& f, double t, glm::dvec2& xy, glm::dquat& q) {
+  xy = p.start_m + f.dir * (p.speed_mps * t);
+  q = f.q;
+}
+
+void pose_teleport(const TraceGenParams& p, const TraceGenFixed& f, double t, glm::dvec2& xy, glm::dquat& q) {
+  xy = p.start_m + f.dir * (p.speed_mps * t);
+  if (t >= p.event_s) xy += f.jump;
+  q = f.q;
+}
+
+void pose_turn(const TraceGenParams& p, const TraceGenFixed&, double t, glm::dvec2& xy, glm::dquat& q) {
+  double heading = 0.0;
+  turn_state(p, t, heading, xy);
+  q = yaw_pitch_quat(heading, p.pitch_deg);
+}
+
+void pose_orbit(const TraceGenParams& p, const TraceGenFixed&, double t, glm::dvec2& xy, glm::dquat& q) {
+  // theta: angle of the camera around the centre; the view points back at the centre.
+  const double theta = (p.heading_deg + 180.0) * (kPi / 180.0) + (p.speed_mps / p.radius_m) * t;
+  xy = p.start_m + glm::dvec2(std::cos(theta), std::sin(theta)) * p.radius_m;
+  const double yaw_deg = theta * (180.0 / kPi) + 180.0;
+  const double pitch_deg = -std::atan2(p.height_m, p.radius_m) * (180.0 / kPi);
+  q = yaw_pitch_quat(yaw_deg, pitch_deg);
 }
 
 }  // namespace
 
-std::string_view kind_name(TraceKind k) {
-  switch (k) {
-    case TraceKind::walk: return "walk";
-    case TraceKind::walk_diagonal: return "walk_diagonal";
-    case TraceKind::run: return "run";
-    case TraceKind::drive: return "drive";
-    case TraceKind::flight: return "flight";
-    case TraceKind::turn: return "turn";
-    case TraceKind::teleport: return "teleport";
-    case TraceKind::orbit: return "orbit";
-    case TraceKind::still: return "static";
-  }
-  return "?";
+const Registry<TraceGenerator>& trace_generators() {
+  static const Registry<TraceGenerator> table(
+      "trace kind",
+      {
+          {"walk", "1.5 m/s at eye height 1.7 m, pitch -15: straight along the heading", defaults_walk, validate_none,
+           describe_none, pose_straight, false},
+          {"walk_diagonal", "a walk at heading 45 (stays exactly on x = y)", defaults_walk_diagonal, validate_none, describe_none,
+           pose_straight, false},
+          {"run", "5 m/s, 1.7 m, pitch -15: straight", defaults_run, validate_none, describe_none, pose_straight, false},
+          {"drive", "20 m/s, 1.5 m, pitch -15: straight", defaults_drive, validate_none, describe_none, pose_straight, false},
+          {"flight", "100 m/s, 300 m, pitch -30: straight", defaults_flight, validate_none, describe_none, pose_straight, false},
+          {"turn", "a walk whose heading turns 180 deg in 0.5 s at t = 10 s (a fast turn)", defaults_walk, validate_turn,
+           describe_turn, pose_turn, false},
+          {"teleport", "a walk that jumps 2000 m north at t = 10 s (a cut)", defaults_walk, validate_teleport, describe_teleport,
+           pose_teleport, false},
+          {"orbit", "a circle of 50 m around the start point at 30 m, looking at its foot; one lap in 20 s", defaults_orbit,
+           validate_orbit, describe_orbit, pose_orbit, true},
+          {"static", "1.7 m, pitch -15, no motion", defaults_static, validate_none, describe_none, pose_straight, false},
+      });
+  return table;
 }
 
-const std::vector<TraceKind>& all_trace_kinds() {
-  static const std::vector<TraceKind> kinds = {
-      TraceKind::walk, TraceKind::walk_diagonal, TraceKind::run,   TraceKind::drive, TraceKind::flight,
-      TraceKind::turn, TraceKind::teleport,      TraceKind::orbit, TraceKind::still};
-  return kinds;
+const TraceGenerator& find_trace_generator(std::string_view name, const std::string& where) {
+  if (const TraceGenerator* g = trace_generators().find(name)) return *g;
+  throw InputError(where, trace_generators().unknown(name));
 }
 
-TraceKind parse_trace_kind(std::string_view name, const std::string& where) {
-  std::string names;
-  for (TraceKind k : all_trace_kinds()) {
-    if (name == kind_name(k)) return k;
-    names += names.empty() ? "" : ", ";
-    names += kind_name(k);
-  }
-  throw InputError(where, fmt::format("unknown trace kind '{}' ({})", name, names));
-}
-
-TraceGenParams default_gen_params(TraceKind kind) {
+TraceGenParams default_gen_params(std::string_view kind) {
+  const TraceGenerator& g = find_trace_generator(kind, "kind");
   TraceGenParams p;  // walk
-  p.kind = kind;
-  switch (kind) {
-    case TraceKind::walk:
-    case TraceKind::turn:
-    case TraceKind::teleport:
-      break;
-    case TraceKind::walk_diagonal:
-      p.heading_deg = 45.0;
-      break;
-    case TraceKind::run:
-      p.speed_mps = 5.0;
-      break;
-    case TraceKind::drive:
-      p.speed_mps = 20.0;
-      p.height_m = 1.5;
-      break;
-    case TraceKind::flight:
-      p.speed_mps = 100.0;
-      p.height_m = 300.0;
-      p.pitch_deg = -30.0;
-      break;
-    case TraceKind::orbit:
-      p.radius_m = 50.0;
-      p.height_m = 30.0;
-      p.speed_mps = 2.0 * kPi * p.radius_m / p.duration_s;  // one lap in the 20 s trace
-      break;
-    case TraceKind::still:
-      p.speed_mps = 0.0;
-      break;
-  }
+  p.kind = std::string(g.name);
+  g.defaults(p);
   return p;
 }
 
@@ -194,49 +225,18 @@ Trace generate_trace(const TraceGenParams& p) {
   Trace trace;
   trace.image_width = p.image_width;
   trace.image_height = p.image_height;
-  trace.name = describe(p);
+  const TraceGenerator& g = find_trace_generator(p.kind, "kind");
+  trace.name = describe(p, g);
   const auto last = static_cast<std::int64_t>(std::floor(p.duration_s * p.fps + 1e-6));
   trace.poses.reserve(static_cast<std::size_t>(last + 1));
-  const glm::dvec2 d = dir_deg(p.heading_deg);
-  const glm::dquat q_fixed = yaw_pitch_quat(p.heading_deg, p.pitch_deg);
-  const glm::dvec2 jump = dir_deg(p.jump_heading_deg) * p.jump_m;
+  const TraceGenFixed fixed{dir_deg(p.heading_deg), yaw_pitch_quat(p.heading_deg, p.pitch_deg),
+                            dir_deg(p.jump_heading_deg) * p.jump_m};
   for (std::int64_t i = 0; i <= last; ++i) {
     Pose pose;
     pose.t_s = static_cast<double>(i) / p.fps;
     pose.vfov_deg = p.vfov_deg;
-    const double t = pose.t_s;
     glm::dvec2 xy;
-    switch (p.kind) {
-      case TraceKind::walk:
-      case TraceKind::walk_diagonal:
-      case TraceKind::run:
-      case TraceKind::drive:
-      case TraceKind::flight:
-      case TraceKind::still:
-        xy = p.start_m + d * (p.speed_mps * t);
-        pose.q = q_fixed;
-        break;
-      case TraceKind::teleport:
-        xy = p.start_m + d * (p.speed_mps * t);
-        if (t >= p.event_s) xy += jump;
-        pose.q = q_fixed;
-        break;
-      case TraceKind::turn: {
-        double heading = 0.0;
-        turn_state(p, t, heading, xy);
-        pose.q = yaw_pitch_quat(heading, p.pitch_deg);
-        break;
-      }
-      case TraceKind::orbit: {
-        // theta: angle of the camera around the centre; the view points back at the centre.
-        const double theta = (p.heading_deg + 180.0) * (kPi / 180.0) + (p.speed_mps / p.radius_m) * t;
-        xy = p.start_m + glm::dvec2(std::cos(theta), std::sin(theta)) * p.radius_m;
-        const double yaw_deg = theta * (180.0 / kPi) + 180.0;
-        const double pitch_deg = -std::atan2(p.height_m, p.radius_m) * (180.0 / kPi);
-        pose.q = yaw_pitch_quat(yaw_deg, pitch_deg);
-        break;
-      }
-    }
+    g.pose(p, fixed, pose.t_s, xy, pose.q);
     pose.pos_m = glm::dvec3(xy, p.height_m);
     trace.poses.push_back(pose);
   }
@@ -275,15 +275,24 @@ TraceGenParams parse_gen_line(const std::string& line, const std::string& where)
     b = e + 1;
   }
   if (tokens.empty()) throw InputError(where, "an empty generator line (e.g. \"walk duration_s=600 start_m=30,8\")");
-  const TraceKind kind = parse_trace_kind(tokens[0], where);
-  TraceGenParams p = default_gen_params(kind);
+  const TraceGenerator& g = find_trace_generator(tokens[0], where);
+  TraceGenParams p = default_gen_params(g.name);
+  // The numeric keys, as TraceGenParams names its fields.
+  struct RealKey {
+    const char* name;
+    double TraceGenParams::*field;
+  };
+  static constexpr RealKey kReals[] = {
+      {"duration_s", &TraceGenParams::duration_s}, {"fps", &TraceGenParams::fps},
+      {"speed_mps", &TraceGenParams::speed_mps},   {"heading_deg", &TraceGenParams::heading_deg},
+      {"height_m", &TraceGenParams::height_m},     {"pitch_deg", &TraceGenParams::pitch_deg},
+      {"vfov_deg", &TraceGenParams::vfov_deg},     {"turn_deg", &TraceGenParams::turn_deg},
+      {"turn_s", &TraceGenParams::turn_s},         {"event_s", &TraceGenParams::event_s},
+      {"jump_m", &TraceGenParams::jump_m},         {"jump_heading_deg", &TraceGenParams::jump_heading_deg},
+      {"radius_m", &TraceGenParams::radius_m}};
+  std::vector<const char*> names;
+  for (const RealKey& r : kReals) names.push_back(r.name);
   bool duration = false, speed = false, radius = false;
-  double* const reals[] = {&p.duration_s, &p.fps,      &p.speed_mps, &p.heading_deg, &p.height_m,
-                           &p.pitch_deg,  &p.vfov_deg, &p.turn_deg,  &p.turn_s,      &p.event_s,
-                           &p.jump_m,     &p.jump_heading_deg, &p.radius_m};
-  const char* const names[] = {"duration_s", "fps",     "speed_mps", "heading_deg", "height_m",
-                               "pitch_deg",  "vfov_deg", "turn_deg",  "turn_s",      "event_s",
-                               "jump_m",     "jump_heading_deg", "radius_m"};
   for (std::size_t i = 1; i < tokens.size(); ++i) {
     const std::size_t eq = tokens[i].find('=');
     if (eq == std::string::npos || eq == 0)
@@ -301,22 +310,21 @@ TraceGenParams parse_gen_line(const std::string& line, const std::string& where)
       p.image_height = static_cast<int>(wh.y);
       continue;
     }
-    std::size_t k = 0;
-    while (k < std::size(names) && key != names[k]) ++k;
-    if (k == std::size(names))
+    const RealKey* r = std::find_if(std::begin(kReals), std::end(kReals), [&](const RealKey& k) { return key == k.name; });
+    if (r == std::end(kReals))
       throw InputError(where, fmt::format("unknown generator key '{}' (keys: {}, start_m, image)", key, fmt::join(names, ", ")));
     double x = 0;
     const auto [ptr, ec] = std::from_chars(value.data(), value.data() + value.size(), x);
     if (value.empty() || ec != std::errc() || ptr != value.data() + value.size() || !std::isfinite(x))
       throw InputError(where, fmt::format("{}='{}' is not a finite number", key, value));
-    *reals[k] = x;
-    duration = duration || k == 0;
-    speed = speed || k == 2;
-    radius = radius || k == 12;
+    p.*(r->field) = x;
+    duration = duration || r->field == &TraceGenParams::duration_s;
+    speed = speed || r->field == &TraceGenParams::speed_mps;
+    radius = radius || r->field == &TraceGenParams::radius_m;
   }
-  // As `vtsim trace gen`: an orbit keeps one lap over its duration unless a speed is given.
-  if (kind == TraceKind::orbit && !speed && std::isfinite(p.duration_s) && p.duration_s > 0 && (duration || radius))
-    p.speed_mps = 2.0 * std::numbers::pi * p.radius_m / (duration ? p.duration_s : default_gen_params(kind).duration_s);
+  // As `vtsim trace gen`: a lap keeps one lap over its duration unless a speed is given.
+  if (g.lap && !speed && std::isfinite(p.duration_s) && p.duration_s > 0 && (duration || radius))
+    p.speed_mps = 2.0 * std::numbers::pi * p.radius_m / (duration ? p.duration_s : default_gen_params(g.name).duration_s);
   return p;
 }
 

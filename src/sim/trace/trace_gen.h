@@ -2,26 +2,22 @@
 // The standard synthetic traces (docs/traces.md, "Generators"). Every pose is a closed-form
 // function of its frame index i (t = i / fps, pos = start + v * t * dir, ...), never an
 // accumulated sum, so frame 10^6 is as exact as frame 1 and two runs agree bit for bit.
+#include <glm/gtc/quaternion.hpp>
 #include <glm/vec2.hpp>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "core/registry.h"
 #include "core/trace.h"
 
 namespace vtsim {
-
-enum class TraceKind { walk, walk_diagonal, run, drive, flight, turn, teleport, orbit, still };
-
-std::string_view kind_name(TraceKind k);  // "walk", ..., "static" for TraceKind::still
-TraceKind parse_trace_kind(std::string_view name, const std::string& where);
-const std::vector<TraceKind>& all_trace_kinds();
 
 // The default world: an 8192 m x 8192 m terrain, texture over [0, 8192]^2 m, ground at z = 0.
 inline constexpr double kDefaultWorldSize_m = 8192.0;
 
 struct TraceGenParams {
-  TraceKind kind = TraceKind::walk;
+  std::string kind = "walk";   // a name of trace_generators()
   double duration_s = 20.0;    // [0, 1e6]; frames i = 0 .. floor(duration * fps)
   double fps = 60.0;           // (0, 10000]
   double speed_mps = 1.5;      // [0, 1e5]; along the heading (orbit: along the circle)
@@ -52,7 +48,36 @@ struct TraceGenParams {
 // the same at heading 45; run 5 m/s; drive 20 m/s at 1.5 m; flight 100 m/s at 300 m, pitch -30;
 // turn = walk + 180 deg in 0.5 s at 10 s; teleport = walk + 2 km jump north at 10 s; orbit radius
 // 50 m at 30 m, one lap in 20 s (5*pi m/s); static at 1.7 m, pitch -15.
-TraceGenParams default_gen_params(TraceKind kind);
+// Throws InputError("kind", "unknown trace kind ... did you mean ...") for a name not in the table.
+TraceGenParams default_gen_params(std::string_view kind);
+
+// The motion of one kind at time t: the camera's ground position and its orientation. `fixed`
+// carries what every frame shares (the heading's direction, the fixed view, the teleport's jump).
+struct TraceGenFixed {
+  glm::dvec2 dir;      // the heading's unit direction
+  glm::dquat q;        // the view at the heading and pitch
+  glm::dvec2 jump;     // teleport: the offset after the event
+};
+
+// A kind of generated trace (one line each in trace_gen.cpp's table): its defaults over the
+// walk's, its own parameters' checks, how its own parameters read in the trace's name, and its
+// motion, a closed-form function of t.
+struct TraceGenerator {
+  std::string_view name;
+  std::string_view why;
+  void (*defaults)(TraceGenParams& p);          // the kind's defaults, set over TraceGenParams{}'s
+  void (*validate)(const TraceGenParams& p);    // its own fields; InputError naming the field
+  std::string (*describe)(const TraceGenParams& p);  // its own fields for the trace's name (" radius_m=50")
+  void (*pose)(const TraceGenParams& p, const TraceGenFixed& fixed, double t, glm::dvec2& xy, glm::dquat& q);
+  // A closed path (the orbit): one lap over the duration unless a speed is given, and a computed
+  // pitch (not in the trace's name).
+  bool lap = false;
+};
+
+// The table, in docs/traces.md's order (walk first: TraceGenParams's defaults).
+const Registry<TraceGenerator>& trace_generators();
+// The kind of that name; throws InputError(where, "unknown trace kind ... did you mean ...").
+const TraceGenerator& find_trace_generator(std::string_view name, const std::string& where);
 
 // Throws InputError("<field>", ...) for a parameter out of range (the field name as in the struct).
 Trace generate_trace(const TraceGenParams& p);

@@ -336,217 +336,251 @@ double lw_wrap180(double a) {
   return a;
 }
 
-}  // namespace
+// What level_walk's steps share: the mesh's grid and walker, the parameters, the waypoints and the
+// floor found below each (has_floor: one was).
+struct LwInput {
+  const LwGrid& grid;
+  const LwWalker& walker;
+  const LevelWalkParams& p;
+  const std::vector<glm::dvec3>& wp;
+  std::vector<double> floor;
+  std::vector<char> has_floor;
+};
 
-Trace level_walk(const Mesh& mesh, const std::vector<glm::dvec3>& wp, const LevelWalkParams& p, LevelWalkStats* stats) {
-  lw_validate(p);
-  if (wp.size() < 2)
-    throw InputError("level_walk", fmt::format("{} waypoint(s): a walk needs at least 2", wp.size()));
-  for (std::size_t i = 0; i < wp.size(); ++i)
-    if (!std::isfinite(wp[i].x) || !std::isfinite(wp[i].y) || !std::isfinite(wp[i].z))
-      throw InputError("level_walk", fmt::format("waypoint {} is not finite", i + 1));
-  const LwGrid grid(mesh);
-  const LwWalker walker{grid, p};
-  LevelWalkStats st;
-  st.waypoints = wp.size();
-  st.grid_cells = grid.cells();
+// in_order: the waypoints in the order given, each leg walkable straight, or an InputError.
+void lw_walk_in_order(const LwInput& in, LevelWalkStats& st, LwPath& path, std::vector<std::size_t>& order) {
+  const LwWalker& walker = in.walker;
+  const LevelWalkParams& p = in.p;
+  const std::vector<glm::dvec3>& wp = in.wp;
+  const std::vector<double>& floor = in.floor;
+  const std::vector<char>& has_floor = in.has_floor;
   const std::size_t n = wp.size();
-  std::vector<double> floor(n, 0.0);
-  std::vector<char> has_floor(n, 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    has_floor[i] = walker.floor_below({wp[i].x, wp[i].y}, wp[i].z + 0.1, p.probe_m + 0.1, floor[i]);
-    if (!has_floor[i]) st.no_floor_list.push_back(i);
-  }
-  st.no_floor = st.no_floor_list.size();
   const auto xy = [&](std::size_t i) { return glm::dvec2(wp[i].x, wp[i].y); };
+  for (std::size_t i = 0; i < n; ++i)
+    if (!has_floor[i])
+      throw InputError("level_walk", fmt::format("waypoint {} ({}, {}, {}): no floor within {} m below it", i + 1,
+                                                 wp[i].x, wp[i].y, wp[i].z, p.probe_m));
+  path.add(xy(0), floor[0]);
+  order.push_back(0);
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    std::string why;
+    const LwLeg leg = walker.leg(xy(i), floor[i], xy(i + 1), floor[i + 1], &why);
+    if (leg.floor.empty())
+      throw InputError("level_walk", fmt::format("waypoint {} -> {}: not walkable straight: {}", i + 1, i + 2, why));
+    ++st.legs;
+    const std::size_t m = leg.floor.size() - 1;
+    for (std::size_t k = 1; k <= m; ++k)
+      path.add(leg.a + (leg.b - leg.a) * (static_cast<double>(k) / static_cast<double>(m)), leg.floor[k]);
+    st.path_length_m += leg.length_m;
+    order.push_back(i + 1);
+  }
+}
 
-  LwPath path;
-  std::vector<std::size_t> order;
-  if (p.in_order) {
+// The graph level_walk tours otherwise: nodes (positions, floors) and edges weighted by length.
+struct LwGraph {
+  std::vector<glm::dvec2> nxy;
+  std::vector<double> nfloor;
+  std::vector<std::vector<std::pair<std::size_t, double>>> adj;
+};
+
+LwGraph lw_graph(const LwInput& in, LevelWalkStats& st) {
+  const LwGrid& grid = in.grid;
+  const LwWalker& walker = in.walker;
+  const LevelWalkParams& p = in.p;
+  const std::vector<glm::dvec3>& wp = in.wp;
+  const std::vector<double>& floor = in.floor;
+  const std::vector<char>& has_floor = in.has_floor;
+  const std::size_t n = wp.size();
+  const auto xy = [&](std::size_t i) { return glm::dvec2(wp[i].x, wp[i].y); };
+  LwGraph g;
+  std::vector<glm::dvec2>& nxy = g.nxy;
+  std::vector<double>& nfloor = g.nfloor;
+  // The graph's nodes: the waypoints with a floor (0 .. n-1), then with via_grid_m > 0 via
+  // points: every floor with headroom found on a grid of columns via_grid_m apart (each column
+  // cast down from the top of the mesh, floor after floor, at most 16).
+  for (std::size_t i = 0; i < n; ++i) {
+    nxy.push_back(xy(i));
+    nfloor.push_back(floor[i]);
+  }
+  std::vector<std::vector<std::size_t>> columns;
+  int cols_x = 0, cols_y = 0;
+  if (p.via_grid_m > 0.0) {
+    const glm::dvec3 lo = grid.lo(), hi = grid.hi();
+    cols_x = static_cast<int>(std::min(1e7, std::floor((hi.x - lo.x) / p.via_grid_m) + 1));
+    cols_y = static_cast<int>(std::min(1e7, std::floor((hi.y - lo.y) / p.via_grid_m) + 1));
+    if (static_cast<double>(cols_x) * cols_y > 4e6)
+      throw InputError("level_walk", fmt::format("via_grid_m = {} gives {} x {} columns over the mesh (limit 4M): "
+                                                 "raise it", p.via_grid_m, cols_x, cols_y));
+    columns.resize(static_cast<std::size_t>(cols_x) * static_cast<std::size_t>(cols_y));
+    for (int iy = 0; iy < cols_y; ++iy)
+      for (int ix = 0; ix < cols_x; ++ix) {
+        const glm::dvec2 q(lo.x + (ix + 0.5) * p.via_grid_m, lo.y + (iy + 0.5) * p.via_grid_m);
+        double top = hi.z + 1.0;
+        for (int k = 0; k < 16; ++k) {
+          double t = 0.0, nz = 0.0;
+          if (!grid.hit({q, top}, {0.0, 0.0, -1.0}, top - lo.z + 1.0, t, nz)) break;
+          const double f = top - t;
+          top = f - 0.01;
+          if (nz < p.min_floor_nz || !walker.clear({q, f + 0.05}, {q, f + p.eye_m + 0.1})) continue;
+          columns[static_cast<std::size_t>(iy) * static_cast<std::size_t>(cols_x) + static_cast<std::size_t>(ix)]
+              .push_back(nxy.size());
+          nxy.push_back(q);
+          nfloor.push_back(f);
+        }
+      }
+  }
+  const std::size_t nn = nxy.size();
+  st.via_points = nn - n;
+  // Edges: waypoint pairs within max_leg_m; via points to those of the 8 neighbouring columns;
+  // waypoints to the via points of the columns within 2 cells. Each a walkable straight leg;
+  // weight: its 3-D length.
+  g.adj.resize(nn);
+  std::vector<std::vector<std::pair<std::size_t, double>>>& adj = g.adj;
+  const auto try_edge = [&](std::size_t i, std::size_t j) {
+    if (glm::length(nxy[j] - nxy[i]) > p.max_leg_m) return;
+    const LwLeg leg = walker.leg(nxy[i], nfloor[i], nxy[j], nfloor[j], nullptr, i < n && j < n ? st.refused : nullptr);
+    if (leg.floor.empty()) return;
+    adj[i].push_back({j, leg.length_m});
+    adj[j].push_back({i, leg.length_m});
+    ++st.legs;
+  };
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = i + 1; j < n; ++j)
+      if (has_floor[i] && has_floor[j]) try_edge(i, j);
+  const auto column = [&](int ix, int iy) -> const std::vector<std::size_t>* {
+    if (ix < 0 || iy < 0 || ix >= cols_x || iy >= cols_y) return nullptr;
+    return &columns[static_cast<std::size_t>(iy) * static_cast<std::size_t>(cols_x) + static_cast<std::size_t>(ix)];
+  };
+  for (int iy = 0; iy < cols_y; ++iy)
+    for (int ix = 0; ix < cols_x; ++ix)
+      for (const std::size_t u : *column(ix, iy))
+        for (const auto& [dx, dy] : {std::pair{1, 0}, std::pair{0, 1}, std::pair{1, 1}, std::pair{1, -1}})
+          if (const auto* c = column(ix + dx, iy + dy))
+            for (const std::size_t v : *c) try_edge(u, v);
+  if (p.via_grid_m > 0.0)
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!has_floor[i]) continue;
+      const glm::dvec3 lo = grid.lo();
+      const int cx = static_cast<int>(std::floor((nxy[i].x - lo.x) / p.via_grid_m));
+      const int cy = static_cast<int>(std::floor((nxy[i].y - lo.y) / p.via_grid_m));
+      for (int dy = -2; dy <= 2; ++dy)
+        for (int dx = -2; dx <= 2; ++dx)
+          if (const auto* c = column(cx + dx, cy + dy))
+            for (const std::size_t v : *c) try_edge(i, v);
+    }
+  return g;
+}
+
+// The tour of the graph: from the start (below), each next the nearest unvisited waypoint by
+// Dijkstra, the chain between them string-pulled into straight legs; `order` the waypoints visited.
+void lw_tour(const LwInput& in, const LwGraph& g, LevelWalkStats& st, LwPath& path, std::vector<std::size_t>& order) {
+  const LwWalker& walker = in.walker;
+  const LevelWalkParams& p = in.p;
+  const std::vector<glm::dvec3>& wp = in.wp;
+  const std::vector<double>& floor = in.floor;
+  const std::vector<char>& has_floor = in.has_floor;
+  const std::size_t n = wp.size();
+  const auto xy = [&](std::size_t i) { return glm::dvec2(wp[i].x, wp[i].y); };
+  const std::vector<glm::dvec2>& nxy = g.nxy;
+  const std::vector<double>& nfloor = g.nfloor;
+  const std::vector<std::vector<std::pair<std::size_t, double>>>& adj = g.adj;
+  const std::size_t nn = nxy.size();
+  // Start in the part of the graph holding the most waypoints (ties: the one holding the lowest
+  // index), at its lowest waypoint: with spawn points listed first, the first spawn point there.
+  std::vector<std::size_t> part(nn, nn), part_wp;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (part[i] != nn || adj[i].empty()) continue;
+    part[i] = part_wp.size();
+    std::size_t count = 0;
+    std::vector<std::size_t> stack = {i};
+    while (!stack.empty()) {
+      const std::size_t u = stack.back();
+      stack.pop_back();
+      count += u < n ? 1 : 0;
+      for (const auto& [v, w] : adj[u])
+        if (part[v] == nn) {
+          part[v] = part[i];
+          stack.push_back(v);
+        }
+    }
+    part_wp.push_back(count);
+  }
+  std::size_t start = n;
+  for (std::size_t i = 0; i < n; ++i)
+    if (part[i] != nn && part_wp[part[i]] >= 2 && (start == n || part_wp[part[i]] > part_wp[part[start]])) start = i;
+  if (start == n)
+    throw InputError("level_walk", fmt::format("no two of the {} waypoints ({} with a floor) are joined by walkable "
+                                               "straight legs (line of sight at eye height {} m, floor steps <= {} m, "
+                                               "at most {} m apart{})",
+                                               n, n - st.no_floor, p.eye_m, p.max_step_m, p.max_leg_m,
+                                               p.via_grid_m > 0 ? ", or through via points" : ""));
+  std::vector<char> visited(n, 0);
+  visited[start] = 1;
+  order.push_back(start);
+  path.add(xy(start), floor[start]);
+  std::size_t cur = start;
+  for (;;) {
+    // Dijkstra from cur with a binary heap, O(E log V); ties broken by node index (deterministic).
+    std::vector<double> dist(nn, std::numeric_limits<double>::infinity());
+    std::vector<std::size_t> prev(nn, nn);
+    std::priority_queue<std::pair<double, std::size_t>, std::vector<std::pair<double, std::size_t>>, std::greater<>> heap;
+    dist[cur] = 0.0;
+    heap.push({0.0, cur});
+    while (!heap.empty()) {
+      const auto [d, u] = heap.top();
+      heap.pop();
+      if (d > dist[u]) continue;
+      for (const auto& [v, w] : adj[u])
+        if (d + w < dist[v]) {
+          dist[v] = d + w;
+          prev[v] = u;
+          heap.push({dist[v], v});
+        }
+    }
+    std::size_t target = n;
     for (std::size_t i = 0; i < n; ++i)
-      if (!has_floor[i])
-        throw InputError("level_walk", fmt::format("waypoint {} ({}, {}, {}): no floor within {} m below it", i + 1,
-                                                   wp[i].x, wp[i].y, wp[i].z, p.probe_m));
-    path.add(xy(0), floor[0]);
-    order.push_back(0);
-    for (std::size_t i = 0; i + 1 < n; ++i) {
-      std::string why;
-      const LwLeg leg = walker.leg(xy(i), floor[i], xy(i + 1), floor[i + 1], &why);
-      if (leg.floor.empty())
-        throw InputError("level_walk", fmt::format("waypoint {} -> {}: not walkable straight: {}", i + 1, i + 2, why));
-      ++st.legs;
+      if (!visited[i] && std::isfinite(dist[i]) && (target == n || dist[i] < dist[target])) target = i;
+    if (target == n) break;
+    std::vector<std::size_t> chain;
+    for (std::size_t v = target; v != cur; v = prev[v]) chain.push_back(v);
+    chain.push_back(cur);
+    std::reverse(chain.begin(), chain.end());
+    // String pulling: from each node, the furthest node of the chain (at most 16 ahead) that a
+    // straight leg reaches, so that a path through via points does not zig-zag along the grid.
+    for (std::size_t i = 0; i + 1 < chain.size();) {
+      std::size_t j = std::min(chain.size() - 1, i + 16);
+      LwLeg leg;
+      for (;; --j) {
+        const std::size_t u = chain[i], v = chain[j];
+        leg = walker.leg(nxy[u], nfloor[u], nxy[v], nfloor[v], nullptr);
+        if (!leg.floor.empty() || j == i + 1) break;
+      }
+      if (leg.floor.empty()) {  // cannot happen: chain[i] - chain[i+1] is an edge; stay safe
+        const std::size_t u = chain[i], v = chain[i + 1];
+        leg = walker.leg(nxy[u], nfloor[u], nxy[v], nfloor[v], nullptr);
+      }
       const std::size_t m = leg.floor.size() - 1;
       for (std::size_t k = 1; k <= m; ++k)
         path.add(leg.a + (leg.b - leg.a) * (static_cast<double>(k) / static_cast<double>(m)), leg.floor[k]);
       st.path_length_m += leg.length_m;
-      order.push_back(i + 1);
-    }
-  } else {
-    // The graph's nodes: the waypoints with a floor (0 .. n-1), then with via_grid_m > 0 via
-    // points: every floor with headroom found on a grid of columns via_grid_m apart (each column
-    // cast down from the top of the mesh, floor after floor, at most 16).
-    std::vector<glm::dvec2> nxy;
-    std::vector<double> nfloor;
-    for (std::size_t i = 0; i < n; ++i) {
-      nxy.push_back(xy(i));
-      nfloor.push_back(floor[i]);
-    }
-    std::vector<std::vector<std::size_t>> columns;
-    int cols_x = 0, cols_y = 0;
-    if (p.via_grid_m > 0.0) {
-      const glm::dvec3 lo = grid.lo(), hi = grid.hi();
-      cols_x = static_cast<int>(std::min(1e7, std::floor((hi.x - lo.x) / p.via_grid_m) + 1));
-      cols_y = static_cast<int>(std::min(1e7, std::floor((hi.y - lo.y) / p.via_grid_m) + 1));
-      if (static_cast<double>(cols_x) * cols_y > 4e6)
-        throw InputError("level_walk", fmt::format("via_grid_m = {} gives {} x {} columns over the mesh (limit 4M): "
-                                                   "raise it", p.via_grid_m, cols_x, cols_y));
-      columns.resize(static_cast<std::size_t>(cols_x) * static_cast<std::size_t>(cols_y));
-      for (int iy = 0; iy < cols_y; ++iy)
-        for (int ix = 0; ix < cols_x; ++ix) {
-          const glm::dvec2 q(lo.x + (ix + 0.5) * p.via_grid_m, lo.y + (iy + 0.5) * p.via_grid_m);
-          double top = hi.z + 1.0;
-          for (int k = 0; k < 16; ++k) {
-            double t = 0.0, nz = 0.0;
-            if (!grid.hit({q, top}, {0.0, 0.0, -1.0}, top - lo.z + 1.0, t, nz)) break;
-            const double f = top - t;
-            top = f - 0.01;
-            if (nz < p.min_floor_nz || !walker.clear({q, f + 0.05}, {q, f + p.eye_m + 0.1})) continue;
-            columns[static_cast<std::size_t>(iy) * static_cast<std::size_t>(cols_x) + static_cast<std::size_t>(ix)]
-                .push_back(nxy.size());
-            nxy.push_back(q);
-            nfloor.push_back(f);
-          }
+      for (std::size_t k = i + 1; k <= j; ++k)
+        if (chain[k] < n && !visited[chain[k]]) {
+          visited[chain[k]] = 1;
+          order.push_back(chain[k]);
         }
+      i = j;
     }
-    const std::size_t nn = nxy.size();
-    st.via_points = nn - n;
-    // Edges: waypoint pairs within max_leg_m; via points to those of the 8 neighbouring columns;
-    // waypoints to the via points of the columns within 2 cells. Each a walkable straight leg;
-    // weight: its 3-D length.
-    std::vector<std::vector<std::pair<std::size_t, double>>> adj(nn);
-    const auto try_edge = [&](std::size_t i, std::size_t j) {
-      if (glm::length(nxy[j] - nxy[i]) > p.max_leg_m) return;
-      const LwLeg leg = walker.leg(nxy[i], nfloor[i], nxy[j], nfloor[j], nullptr, i < n && j < n ? st.refused : nullptr);
-      if (leg.floor.empty()) return;
-      adj[i].push_back({j, leg.length_m});
-      adj[j].push_back({i, leg.length_m});
-      ++st.legs;
-    };
-    for (std::size_t i = 0; i < n; ++i)
-      for (std::size_t j = i + 1; j < n; ++j)
-        if (has_floor[i] && has_floor[j]) try_edge(i, j);
-    const auto column = [&](int ix, int iy) -> const std::vector<std::size_t>* {
-      if (ix < 0 || iy < 0 || ix >= cols_x || iy >= cols_y) return nullptr;
-      return &columns[static_cast<std::size_t>(iy) * static_cast<std::size_t>(cols_x) + static_cast<std::size_t>(ix)];
-    };
-    for (int iy = 0; iy < cols_y; ++iy)
-      for (int ix = 0; ix < cols_x; ++ix)
-        for (const std::size_t u : *column(ix, iy))
-          for (const auto& [dx, dy] : {std::pair{1, 0}, std::pair{0, 1}, std::pair{1, 1}, std::pair{1, -1}})
-            if (const auto* c = column(ix + dx, iy + dy))
-              for (const std::size_t v : *c) try_edge(u, v);
-    if (p.via_grid_m > 0.0)
-      for (std::size_t i = 0; i < n; ++i) {
-        if (!has_floor[i]) continue;
-        const glm::dvec3 lo = grid.lo();
-        const int cx = static_cast<int>(std::floor((nxy[i].x - lo.x) / p.via_grid_m));
-        const int cy = static_cast<int>(std::floor((nxy[i].y - lo.y) / p.via_grid_m));
-        for (int dy = -2; dy <= 2; ++dy)
-          for (int dx = -2; dx <= 2; ++dx)
-            if (const auto* c = column(cx + dx, cy + dy))
-              for (const std::size_t v : *c) try_edge(i, v);
-      }
-    // Start in the part of the graph holding the most waypoints (ties: the one holding the lowest
-    // index), at its lowest waypoint: with spawn points listed first, the first spawn point there.
-    std::vector<std::size_t> part(nn, nn), part_wp;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (part[i] != nn || adj[i].empty()) continue;
-      part[i] = part_wp.size();
-      std::size_t count = 0;
-      std::vector<std::size_t> stack = {i};
-      while (!stack.empty()) {
-        const std::size_t u = stack.back();
-        stack.pop_back();
-        count += u < n ? 1 : 0;
-        for (const auto& [v, w] : adj[u])
-          if (part[v] == nn) {
-            part[v] = part[i];
-            stack.push_back(v);
-          }
-      }
-      part_wp.push_back(count);
-    }
-    std::size_t start = n;
-    for (std::size_t i = 0; i < n; ++i)
-      if (part[i] != nn && part_wp[part[i]] >= 2 && (start == n || part_wp[part[i]] > part_wp[part[start]])) start = i;
-    if (start == n)
-      throw InputError("level_walk", fmt::format("no two of the {} waypoints ({} with a floor) are joined by walkable "
-                                                 "straight legs (line of sight at eye height {} m, floor steps <= {} m, "
-                                                 "at most {} m apart{})",
-                                                 n, n - st.no_floor, p.eye_m, p.max_step_m, p.max_leg_m,
-                                                 p.via_grid_m > 0 ? ", or through via points" : ""));
-    std::vector<char> visited(n, 0);
-    visited[start] = 1;
-    order.push_back(start);
-    path.add(xy(start), floor[start]);
-    std::size_t cur = start;
-    for (;;) {
-      // Dijkstra from cur with a binary heap, O(E log V); ties broken by node index (deterministic).
-      std::vector<double> dist(nn, std::numeric_limits<double>::infinity());
-      std::vector<std::size_t> prev(nn, nn);
-      std::priority_queue<std::pair<double, std::size_t>, std::vector<std::pair<double, std::size_t>>, std::greater<>> heap;
-      dist[cur] = 0.0;
-      heap.push({0.0, cur});
-      while (!heap.empty()) {
-        const auto [d, u] = heap.top();
-        heap.pop();
-        if (d > dist[u]) continue;
-        for (const auto& [v, w] : adj[u])
-          if (d + w < dist[v]) {
-            dist[v] = d + w;
-            prev[v] = u;
-            heap.push({dist[v], v});
-          }
-      }
-      std::size_t target = n;
-      for (std::size_t i = 0; i < n; ++i)
-        if (!visited[i] && std::isfinite(dist[i]) && (target == n || dist[i] < dist[target])) target = i;
-      if (target == n) break;
-      std::vector<std::size_t> chain;
-      for (std::size_t v = target; v != cur; v = prev[v]) chain.push_back(v);
-      chain.push_back(cur);
-      std::reverse(chain.begin(), chain.end());
-      // String pulling: from each node, the furthest node of the chain (at most 16 ahead) that a
-      // straight leg reaches, so that a path through via points does not zig-zag along the grid.
-      for (std::size_t i = 0; i + 1 < chain.size();) {
-        std::size_t j = std::min(chain.size() - 1, i + 16);
-        LwLeg leg;
-        for (;; --j) {
-          const std::size_t u = chain[i], v = chain[j];
-          leg = walker.leg(nxy[u], nfloor[u], nxy[v], nfloor[v], nullptr);
-          if (!leg.floor.empty() || j == i + 1) break;
-        }
-        if (leg.floor.empty()) {  // cannot happen: chain[i] - chain[i+1] is an edge; stay safe
-          const std::size_t u = chain[i], v = chain[i + 1];
-          leg = walker.leg(nxy[u], nfloor[u], nxy[v], nfloor[v], nullptr);
-        }
-        const std::size_t m = leg.floor.size() - 1;
-        for (std::size_t k = 1; k <= m; ++k)
-          path.add(leg.a + (leg.b - leg.a) * (static_cast<double>(k) / static_cast<double>(m)), leg.floor[k]);
-        st.path_length_m += leg.length_m;
-        for (std::size_t k = i + 1; k <= j; ++k)
-          if (chain[k] < n && !visited[chain[k]]) {
-            visited[chain[k]] = 1;
-            order.push_back(chain[k]);
-          }
-        i = j;
-      }
-      cur = target;
-    }
-    for (std::size_t i = 0; i < n; ++i)
-      if (has_floor[i] && !visited[i]) st.unreachable_list.push_back(i);
-    st.unreachable = st.unreachable_list.size();
+    cur = target;
   }
+  for (std::size_t i = 0; i < n; ++i)
+    if (has_floor[i] && !visited[i]) st.unreachable_list.push_back(i);
+  st.unreachable = st.unreachable_list.size();
+}
+
+// The walk's poses: back and forth along the path at speed_mps, the view turning towards the path
+// ahead at most max_turn_dps.
+Trace lw_poses(const LwPath& path, const std::vector<std::size_t>& order, const LevelWalkParams& p, std::size_t n,
+               LevelWalkStats& st) {
   st.visited = order.size();
   st.order = order;
   const double length = path.length();
@@ -595,6 +629,36 @@ Trace level_walk(const Mesh& mesh, const std::vector<glm::dvec3>& wp, const Leve
     pose.q = yaw_pitch_quat(yaw, p.pitch_deg);
     trace.poses.push_back(pose);
   }
+  return trace;
+}
+
+}  // namespace
+
+Trace level_walk(const Mesh& mesh, const std::vector<glm::dvec3>& wp, const LevelWalkParams& p, LevelWalkStats* stats) {
+  lw_validate(p);
+  if (wp.size() < 2)
+    throw InputError("level_walk", fmt::format("{} waypoint(s): a walk needs at least 2", wp.size()));
+  for (std::size_t i = 0; i < wp.size(); ++i)
+    if (!std::isfinite(wp[i].x) || !std::isfinite(wp[i].y) || !std::isfinite(wp[i].z))
+      throw InputError("level_walk", fmt::format("waypoint {} is not finite", i + 1));
+  const LwGrid grid(mesh);
+  const LwWalker walker{grid, p};
+  LevelWalkStats st;
+  st.waypoints = wp.size();
+  st.grid_cells = grid.cells();
+  const std::size_t n = wp.size();
+  LwInput in{grid, walker, p, wp, std::vector<double>(n, 0.0), std::vector<char>(n, 0)};
+  for (std::size_t i = 0; i < n; ++i) {
+    in.has_floor[i] = walker.floor_below({wp[i].x, wp[i].y}, wp[i].z + 0.1, p.probe_m + 0.1, in.floor[i]);
+    if (!in.has_floor[i]) st.no_floor_list.push_back(i);
+  }
+  st.no_floor = st.no_floor_list.size();
+
+  LwPath path;
+  std::vector<std::size_t> order;
+  if (p.in_order) lw_walk_in_order(in, st, path, order);
+  else lw_tour(in, lw_graph(in, st), st, path, order);
+  Trace trace = lw_poses(path, order, p, n, st);
   st.rays = grid.rays();
   validate_trace(trace, "level_walk");
   if (stats) *stats = std::move(st);

@@ -187,22 +187,8 @@ void import_check_collada(const std::string& path) {
   }
 }
 
-}  // namespace
-
-std::string mesh_up_axis(const MeshImportOptions& opt, const std::string& path) {
-  if (opt.up == "y" || opt.up == "z") return opt.up;
-  if (opt.up != "auto") throw InputError("mesh_up", "must be \"auto\", \"y\" or \"z\", not \"" + opt.up + "\"");
-  const std::string e = import_lower_ext(path);
-  return (e == "gltf" || e == "glb" || e == "fbx" || e == "dae") ? "y" : "z";
-}
-
-glm::dvec3 mesh_file_to_world(const MeshImportOptions& opt, const std::string& path, glm::dvec3 p) {
-  if (mesh_up_axis(opt, path) == "y") p = glm::dvec3(p.x, -p.z, p.y);
-  return p * opt.unit_m;
-}
-
-Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int64_t extent_w, std::int64_t extent_h,
-                 MeshImportStats* stats_out) {
+// import_mesh's options and extent, checked before the file is opened.
+void import_check_options(const MeshImportOptions& opt, std::int64_t extent_w, std::int64_t extent_h) {
   if (!(opt.unit_m > 0.0) || !std::isfinite(opt.unit_m) || opt.unit_m > 1e6)
     throw InputError("mesh_unit_m", "must be finite, > 0 and <= 1e6");
   if (!(opt.planar_m > 0.0) || !std::isfinite(opt.planar_m)) throw InputError("mesh_planar_m", "must be finite and > 0");
@@ -213,41 +199,30 @@ Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int
   if (opt.uv_set >= AI_MAX_NUMBER_OF_TEXTURECOORDS)
     throw InputError("mesh_uv_set", "must be below " + std::to_string(AI_MAX_NUMBER_OF_TEXTURECOORDS));
   if (extent_w < 1 || extent_h < 1) throw InputError("texture", "extent must be at least 1×1");
-  const bool y_up = mesh_up_axis(opt, path) == "y";
-  const bool q3 = import_lower_ext(path) == "pk3" || import_lower_ext(path) == "bsp";
-  const bool no_uv_skip = opt.no_uv == "skip", no_uv_untextured = opt.no_uv == "untextured";
-  {
-    const RegularFile f = open_regular_file(path);
-    if (f.size() > opt.max_bytes)
-      throw InputError(path, std::to_string(f.size()) + " bytes, larger than " + std::to_string(opt.max_bytes) +
-                                 ": more than the limit for a scene file");
-  }
+}
 
-  // Collada, or any extension no kept reader claims (assimp then picks a reader by content).
-  if (const std::string e = import_lower_ext(path);
-      e != "gltf" && e != "glb" && e != "fbx" && e != "obj" && e != "pk3" && e != "bsp")
-    import_check_collada(path);
-  Assimp::Importer importer;
-  import_keep_scene_readers(importer);
-  // No post-processing: assimp 5.2.5's Triangulate / JoinIdenticalVertices segfault on its own
-  // Quake 3 output (faces with indices out of range) and ValidateDataStructure refuses the whole
-  // map for 3 faces of 7,532. Fans, index checks and coordinate checks are done below instead.
-  const aiScene* sc = importer.ReadFile(path, 0u);
-  if (!sc) throw InputError(path, std::string("assimp: ") + importer.GetErrorString());
-  if (!sc->mRootNode) throw InputError(path, "assimp: the scene has no node tree");
-
-  MeshImportStats st;
-  Mesh out;
-  // World = up rotation · unit scale · node transforms (mesh_file_to_world after the nodes).
-  glm::dmat4 world(opt.unit_m);
-  world[3][3] = 1.0;
-  if (y_up) world = world * glm::dmat4(1, 0, 0, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 0, 0, 1);
-
-  // Pass 1: instances of meshes in the node tree (explicit stack: a file's depth is untrusted).
+// Pass 1 of import_mesh: the meshes the node tree instances (explicit stack: a file's depth is
+// untrusted), their vertices in world space in `out`, and their polygons as fans of triangles,
+// pending their UVs; each material's world and UV areas for its region.
+struct ImportFound {
   std::vector<ImportInst> insts;
   std::vector<ImportPending> pend;
-  const std::uint32_t n_mat = std::max(1u, sc->mNumMaterials);
-  std::vector<double> area_w(n_mat, 0.0), area_uv(n_mat, 0.0);  // m², UV periods²
+  std::uint32_t n_mat = 1;
+  std::vector<double> area_w, area_uv;  // per material: m², UV periods²
+};
+
+ImportFound import_instances(const aiScene* sc, const glm::dmat4& world, const std::string& path, const MeshImportOptions& opt,
+                             Mesh& out, MeshImportStats& st) {
+  const bool q3 = import_lower_ext(path) == "pk3" || import_lower_ext(path) == "bsp";
+  const bool no_uv_skip = opt.no_uv == "skip", no_uv_untextured = opt.no_uv == "untextured";
+  ImportFound r;
+  std::vector<ImportInst>& insts = r.insts;
+  std::vector<ImportPending>& pend = r.pend;
+  const std::uint32_t n_mat = r.n_mat = std::max(1u, sc->mNumMaterials);
+  r.area_w.assign(n_mat, 0.0);
+  r.area_uv.assign(n_mat, 0.0);
+  std::vector<double>& area_w = r.area_w;
+  std::vector<double>& area_uv = r.area_uv;
   std::vector<std::pair<const aiNode*, glm::dmat4>> stack{{sc->mRootNode, world}};
   std::uint64_t instanced = 0;  // faces instanced by the node tree: a bound against instancing bombs
   struct Found {
@@ -371,12 +346,19 @@ Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int
     throw InputError(path, "no triangles to draw (" + std::to_string(st.meshes) + " meshes instanced; " +
                                std::to_string(st.bad_index + st.non_finite + st.degenerate + st.no_uv_skipped) +
                                " triangles dropped, " + std::to_string(st.not_polygons) + " points/lines ignored)");
+  return r;
+}
 
-  // Regions: one power-of-two square per textured material in the largest power-of-two square S
-  // of the texture. Side ≈ texels_per_m · sqrt(world area / UV area): one UV period then spans
-  // about texels_per_m texels per metre, the same density on every material. All sides are
-  // halved together until they fit S²; packed largest first along the Morton curve, where equal
-  // or shrinking power-of-two squares always land aligned and disjoint (quadtree packing).
+// The regions of import_mesh: one power-of-two square per textured material in the largest
+// power-of-two square S of the texture. Side ≈ texels_per_m · sqrt(world area / UV area): one UV
+// period then spans about texels_per_m texels per metre, the same density on every material. All
+// sides are halved together until they fit S²; packed largest first along the Morton curve, where
+// equal or shrinking power-of-two squares always land aligned and disjoint (quadtree packing).
+std::vector<ImportRegion> import_regions(const ImportFound& found, const std::string& path, const MeshImportOptions& opt,
+                                         std::int64_t extent_w, std::int64_t extent_h, MeshImportStats& st) {
+  const std::uint32_t n_mat = found.n_mat;
+  const std::vector<double>& area_w = found.area_w;
+  const std::vector<double>& area_uv = found.area_uv;
   const std::int64_t min_side = std::min(extent_w, extent_h);
   int s_log = 0;
   // At most 2^31 a side, so that Morton offsets fit 64 bits (a 2^31 region is 2^24 tiles wide).
@@ -419,8 +401,17 @@ Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int
     }
     st.region_scale = std::ldexp(1.0, -shrink);
   }
+  return region;
+}
 
-  // Pass 2: triangles with UVs wrapped into their material's region.
+// Pass 2 of import_mesh: the pending triangles with their UVs wrapped into their material's
+// region, a triangle that spans several UV periods cut at the period lines.
+void import_wrap(const ImportFound& found, const std::vector<ImportRegion>& region, const std::string& path,
+                 const MeshImportOptions& opt, std::int64_t extent_w, std::int64_t extent_h, Mesh& out, MeshImportStats& st) {
+  const bool no_uv_untextured = opt.no_uv == "untextured";
+  const std::uint32_t n_mat = found.n_mat;
+  const std::vector<ImportInst>& insts = found.insts;
+  const std::vector<ImportPending>& pend = found.pend;
   const double W = static_cast<double>(extent_w), H = static_cast<double>(extent_h);
   out.tris.reserve(pend.size());
   out.uvs.reserve(out.positions.size());
@@ -518,6 +509,56 @@ Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int
       }
     }
   }
+}
+
+}  // namespace
+
+std::string mesh_up_axis(const MeshImportOptions& opt, const std::string& path) {
+  if (opt.up == "y" || opt.up == "z") return opt.up;
+  if (opt.up != "auto") throw InputError("mesh_up", "must be \"auto\", \"y\" or \"z\", not \"" + opt.up + "\"");
+  const std::string e = import_lower_ext(path);
+  return (e == "gltf" || e == "glb" || e == "fbx" || e == "dae") ? "y" : "z";
+}
+
+glm::dvec3 mesh_file_to_world(const MeshImportOptions& opt, const std::string& path, glm::dvec3 p) {
+  if (mesh_up_axis(opt, path) == "y") p = glm::dvec3(p.x, -p.z, p.y);
+  return p * opt.unit_m;
+}
+
+Mesh import_mesh(const std::string& path, const MeshImportOptions& opt, std::int64_t extent_w, std::int64_t extent_h,
+                 MeshImportStats* stats_out) {
+  import_check_options(opt, extent_w, extent_h);
+  const bool y_up = mesh_up_axis(opt, path) == "y";
+  {
+    const RegularFile f = open_regular_file(path);
+    if (f.size() > opt.max_bytes)
+      throw InputError(path, std::to_string(f.size()) + " bytes, larger than " + std::to_string(opt.max_bytes) +
+                                 ": more than the limit for a scene file");
+  }
+
+  // Collada, or any extension no kept reader claims (assimp then picks a reader by content).
+  if (const std::string e = import_lower_ext(path);
+      e != "gltf" && e != "glb" && e != "fbx" && e != "obj" && e != "pk3" && e != "bsp")
+    import_check_collada(path);
+  Assimp::Importer importer;
+  import_keep_scene_readers(importer);
+  // No post-processing: assimp 5.2.5's Triangulate / JoinIdenticalVertices segfault on its own
+  // Quake 3 output (faces with indices out of range) and ValidateDataStructure refuses the whole
+  // map for 3 faces of 7,532. Fans, index checks and coordinate checks are done below instead.
+  const aiScene* sc = importer.ReadFile(path, 0u);
+  if (!sc) throw InputError(path, std::string("assimp: ") + importer.GetErrorString());
+  if (!sc->mRootNode) throw InputError(path, "assimp: the scene has no node tree");
+
+  MeshImportStats st;
+  Mesh out;
+  // World = up rotation · unit scale · node transforms (mesh_file_to_world after the nodes).
+  glm::dmat4 world(opt.unit_m);
+  world[3][3] = 1.0;
+  if (y_up) world = world * glm::dmat4(1, 0, 0, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 0, 0, 1);
+
+  const ImportFound found = import_instances(sc, world, path, opt, out, st);
+  const std::vector<ImportRegion> region = import_regions(found, path, opt, extent_w, extent_h, st);
+  import_wrap(found, region, path, opt, extent_w, extent_h, out, st);
   st.triangles = out.tris.size();
   if (out.tris.empty()) throw InputError(path, "no triangles to draw");
   if (stats_out) *stats_out = st;

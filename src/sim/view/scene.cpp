@@ -5,6 +5,7 @@
 
 #include "core/error.h"
 #include "core/tile_key.h"
+#include "sim/view/scene_town.h"
 
 namespace vtsim {
 
@@ -27,19 +28,20 @@ std::unique_ptr<IScene> make_plane_scene(const SceneConfig& cfg, TextureExtent e
 std::unique_ptr<IScene> make_heightfield_scene(const SceneConfig& cfg, TextureExtent extent);
 std::unique_ptr<IScene> make_file_mesh_scene(const SceneConfig& cfg, TextureExtent extent);
 std::unique_ptr<IScene> make_town_scene(const SceneConfig& cfg, TextureExtent extent);
+std::string town_where(double origin_x_m, double origin_y_m);
 
 const Registry<SceneInfo>& scenes() {
   static const Registry<SceneInfo> table(
       "scene",
       {
           {"plane", "flat ground under the whole texture: the closed-form cases (clipmap bandwidth, LOD)", "", false,
-           make_plane_scene},
+           make_plane_scene, SceneFile::none, nullptr},
           {"heightfield", "terrain from a height image, or generated hills that occlude each other", "a height image (optional: noise without)",
-           false, make_heightfield_scene},
-          {"town", "a generated town: streets, buildings and walls, unique UVs, heavy occlusion (the VT case)", "", false,
-           make_town_scene},
+           false, make_heightfield_scene, SceneFile::height_image, nullptr},
+          {kTownScene, "a generated town: streets, buildings and walls, unique UVs, heavy occlusion (the VT case)", "", false,
+           make_town_scene, SceneFile::none, town_where},
           {"mesh", "a scene file: OBJ whose UVs span the virtual texture (unique texturing, Yao 2011), or glTF/GLB, FBX, Collada, Quake 3 .pk3 ... through assimp, one region of the texture per material", "a mesh file (OBJ, glTF, FBX, Collada, .pk3, ...)", true,
-           make_file_mesh_scene},
+           make_file_mesh_scene, SceneFile::mesh, nullptr},
       });
   return table;
 }

@@ -6,6 +6,7 @@
 // pixel whose nearest surface within [near, far] faces the camera and lies inside the texture.
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -52,6 +53,10 @@ class IScene : public ISampleSource {
   // count ("town.obj: 3 of 1200 triangles skipped: zero area"), for the CLI to print as warnings;
   // empty for a scene that read everything (and for every generated scene).
   virtual std::vector<std::string> load_warnings() const { return {}; }
+
+  // The ground's height under world (x, y), to place a camera above it (`vtsim view --agl`): NaN
+  // where the scene has ground but not there; nullopt for a scene without one ground surface.
+  virtual std::optional<double> ground_z(double /*x_m*/, double /*y_m*/) const { return std::nullopt; }
 };
 
 // Parameters of make_scene. Every scene maps into one virtual texture of
@@ -74,7 +79,7 @@ struct SceneConfig {
   // heightfield: posts on a regular grid from the terrain origin; z = z0 + scale·value.
   //   `file`: any image OpenImageIO reads (first channel); empty: noise
   double spacing_m = 8.0;          // between posts; 8 m × 1024 cells spans the default terrain
-  double height_scale_m = 1.0;     // metres per image value (OIIO maps integer pixels to [0, 1])
+  double height_scale_m = 200.0;   // metres per image value (OIIO maps integer pixels to [0, 1]): a full-range sample
   double z0_m = 0.0;               // height of value 0
   int noise_posts = 1025;          // generated grid is noise_posts² (2^10 cells + 1: one post per 8 m)
   double noise_amplitude_m = 150.0;  // generated relief, peak to mean: hills that occlude each other
@@ -98,6 +103,8 @@ struct SceneConfig {
   int town_walls_per_block = 2;    // free-standing walls (3 m high) per block: near occluders
 };
 
+enum class SceneFile { none, height_image, mesh };
+
 // A kind of scene in the table (scene.cpp): adding a scene is its file (a class implementing
 // IScene and its make function) and one line in the table.
 struct SceneInfo {
@@ -109,6 +116,11 @@ struct SceneInfo {
   bool file_required = false;
   // Builds the scene (extent: scene_texture(cfg)); throws InputError naming the field or file.
   std::unique_ptr<IScene> (*make)(const SceneConfig& cfg, TextureExtent extent);
+  // What kind of file `file` is, for commands whose flags predate scene.file (view's --obj, --heightmap).
+  SceneFile file_kind;
+  // Where a scene laid out at a fixed size from the texture's origin lies (the town), and a trace
+  // that walks in it, for the hint when no frame saw a surface; nullptr: it covers the texture.
+  std::string (*where)(double origin_x_m, double origin_y_m);
 };
 const Registry<SceneInfo>& scenes();
 // The scene of that name; throws InputError("scene", "unknown scene ... did you mean ...").

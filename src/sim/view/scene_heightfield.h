@@ -52,6 +52,7 @@ class HeightfieldScene final : public IScene {
 
   // Surface height at world (x, y) (on the same triangles the renderer draws); NaN outside.
   double height_at(double x_m, double y_m) const;
+  std::optional<double> ground_z(double x_m, double y_m) const override { return height_at(x_m, y_m); }
   const Heightfield& heightfield() const { return hf_; }
   std::vector<std::string> load_warnings() const override { return hf_.warnings; }
 

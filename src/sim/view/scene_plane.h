@@ -27,6 +27,7 @@ class PlaneScene final : public IScene {
   void render_spans(const Camera& cam, const ViewParams& params, SpanBuffer& out) const override;
   void render_pixels(const SpanBuffer& sb, std::uint32_t pixel, std::uint32_t count,
                      std::vector<ViewSample>& out) const override;
+  std::optional<double> ground_z(double, double) const override { return z_; }
 
  private:
   GroundTexture tex_;

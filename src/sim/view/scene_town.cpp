@@ -173,6 +173,14 @@ std::unique_ptr<IScene> make_town_scene(const SceneConfig& cfg, TextureExtent ex
   return std::make_unique<MeshScene>(generate_town(cfg), extent);
 }
 
+// The table's "town": its layout is fixed (SceneConfig's defaults) from the texture's origin.
+std::string town_where(double origin_x_m, double origin_y_m) {
+  const double S = town_size_m(SceneConfig{});
+  return fmt::format("the town covers x {:.1f}..{:.1f} m, y {:.1f}..{:.1f} m (a walk in it: `vtsim trace gen walk "
+                     "--start 30,8`)",
+                     origin_x_m, origin_x_m + S, origin_y_m, origin_y_m + S);
+}
+
 Mesh tile_town(const Mesh& town, double period_m, int tiles) {
   Mesh m;
   m.uvs = town.uvs;

@@ -15,6 +15,9 @@ namespace vtsim {
 // fit into the texture. Same config, same mesh, bit for bit.
 Mesh generate_town(const SceneConfig& cfg);
 
+// The town's name in the scene table (scene.cpp).
+inline constexpr char kTownScene[] = "town";
+
 // Side length S of the town square, metres.
 double town_size_m(const SceneConfig& cfg);
 

@@ -149,6 +149,29 @@ constexpr std::uint64_t kRemoveTag = ~std::uint64_t{0} - 1;
 constexpr std::uint64_t kWarmTag = ~std::uint64_t{0} - 2;
 constexpr std::uint64_t kTimeoutTag = std::uint64_t{1} << 62;
 
+// A ring's read slot: free, waiting out an injected delay (a timeout in the ring), or reading.
+enum class RingPhase : std::uint8_t { free, delay, read };
+struct RingSlot {
+  ReadRequest q;
+  FaultPlan plan;
+  ReadResult r;
+  Ticks start = 0;
+  std::uint64_t offset = 0;
+  std::size_t ask = 0, done = 0;
+  RingPhase phase = RingPhase::free;
+  __kernel_timespec ts{};
+};
+
+// A submission entry, after a submit to make room if the ring is full; null if there is still none.
+io_uring_sqe* ring_sqe(io_uring* ring) {
+  io_uring_sqe* e = io_uring_get_sqe(ring);
+  if (!e) {
+    io_uring_submit(ring);
+    e = io_uring_get_sqe(ring);
+  }
+  return e;
+}
+
 }  // namespace
 
 std::string io_uring_unavailable(int fail_errno) {
@@ -422,33 +445,44 @@ void IoPool::worker() {
 // bytes than asked is read on from where it stopped (as pread_full does); 0 bytes is the end of
 // the file; a negative result is the errno of a failed read. Everything the psync worker does to
 // a read (fault plan, prepare_read, finish_read) is done here in the same order.
+// A ring worker's first read (warm_read's, through the ring): the coarsest tile of layer 0.
+void IoPool::ring_warm(Ring& g, int fd) {
+  io_uring* ring = &g.ring;
+  auto get_sqe = [ring] { return ring_sqe(ring); };
+  int ok = 0;
+  try {
+    ReadResult r;
+    const TileKey k(0, store_.geometry().levels - 1, 0, 0);
+    const Prepared p = prepare_read(store_, file_, *buffers_, k, FaultPlan{}, clock_, r, g.arena->acquire());
+    io_uring_sqe* e = p.ask ? get_sqe() : nullptr;
+    if (e) {
+      if (g.buffers_registered && r.record.in_arena()) io_uring_prep_read_fixed(e, fd, r.record.data(), static_cast<unsigned>(p.ask), p.offset, 0);
+      else io_uring_prep_read(e, fd, r.record.data(), static_cast<unsigned>(p.ask), p.offset);
+      if (g.file_registered) io_uring_sqe_set_flags(e, IOSQE_FIXED_FILE);
+      io_uring_sqe_set_data64(e, kWarmTag);
+      io_uring_cqe* cqe = nullptr;
+      if (io_uring_submit_and_wait(ring, 1) >= 0 && io_uring_wait_cqe(ring, &cqe) == 0) {
+        ok = cqe->res == static_cast<int>(p.ask);
+        io_uring_cqe_seen(ring, cqe);
+      }
+    }
+  } catch (...) {  // no memory for the error text: the real request will say
+  }
+  if (ok) warm_done_.fetch_add(1, std::memory_order_release);
+  warmed_.count_down();
+}
+
 void IoPool::ring_worker(Ring& g) {
   io_uring* ring = &g.ring;
   const int fd = g.file_registered ? 0 : file_.fd();
-  enum class Phase : std::uint8_t { free, delay, read };
-  struct Slot {
-    ReadRequest q;
-    FaultPlan plan;
-    ReadResult r;
-    Ticks start = 0;
-    std::uint64_t offset = 0;
-    std::size_t ask = 0, done = 0;
-    Phase phase = Phase::free;
-    __kernel_timespec ts{};
-  };
+  using Phase = RingPhase;
+  using Slot = RingSlot;
   std::vector<Slot> slots(static_cast<std::size_t>(depth_));
   std::vector<std::size_t> free_slots;
   for (std::size_t i = slots.size(); i-- > 0;) free_slots.push_back(i);
   int in_flight = 0;
 
-  auto get_sqe = [&] {
-    io_uring_sqe* e = io_uring_get_sqe(ring);
-    if (!e) {
-      io_uring_submit(ring);
-      e = io_uring_get_sqe(ring);
-    }
-    return e;
-  };
+  auto get_sqe = [ring] { return ring_sqe(ring); };
   auto deliver = [&](std::size_t i) {
     Slot& s = slots[i];
     s.r.read_start = s.start;
@@ -544,29 +578,7 @@ void IoPool::ring_worker(Ring& g) {
     deliver(i);
   };
 
-  if (warm_) {  // one read through the ring, before the pool's constructor returns
-    int ok = 0;
-    try {
-      ReadResult r;
-      const TileKey k(0, store_.geometry().levels - 1, 0, 0);
-      const Prepared p = prepare_read(store_, file_, *buffers_, k, FaultPlan{}, clock_, r, g.arena->acquire());
-      io_uring_sqe* e = p.ask ? get_sqe() : nullptr;
-      if (e) {
-        if (g.buffers_registered && r.record.in_arena()) io_uring_prep_read_fixed(e, fd, r.record.data(), static_cast<unsigned>(p.ask), p.offset, 0);
-        else io_uring_prep_read(e, fd, r.record.data(), static_cast<unsigned>(p.ask), p.offset);
-        if (g.file_registered) io_uring_sqe_set_flags(e, IOSQE_FIXED_FILE);
-        io_uring_sqe_set_data64(e, kWarmTag);
-        io_uring_cqe* cqe = nullptr;
-        if (io_uring_submit_and_wait(ring, 1) >= 0 && io_uring_wait_cqe(ring, &cqe) == 0) {
-          ok = cqe->res == static_cast<int>(p.ask);
-          io_uring_cqe_seen(ring, cqe);
-        }
-      }
-    } catch (...) {  // no memory for the error text: the real request will say
-    }
-    if (ok) warm_done_.fetch_add(1, std::memory_order_release);
-    warmed_.count_down();
-  }
+  if (warm_) ring_warm(g, fd);  // one read through the ring, before the pool's constructor returns
 
   post_wake();
   std::vector<std::pair<std::uint64_t, int>> batch;  // a wake-up's completions (tag, res)

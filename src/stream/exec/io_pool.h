@@ -216,6 +216,7 @@ class IoPool {
   };
   void worker();
   void ring_worker(Ring& ring);
+  void ring_warm(Ring& ring, int fd);  // the ring worker's warm_read
   void wake_one();   // io_uring: wakes a worker sleeping with room for a read
   void wake_all();
   // A worker's first read pays once for what later reads do not (the thread's first touches of its

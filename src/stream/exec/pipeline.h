@@ -19,7 +19,7 @@
 // stage"): needed -> queued -> submitted (producing, inside the executor) -> waiting_upload. At
 // most PipelineConfig::produce_tiles_per_frame of them are submitted per frame, in priority order;
 // the rest stay queued (counted: produce_deferred). They bypass the RAM cache both ways (no lookup,
-// no insertion): seed 002 renders them into the clipmap on the GPU, so a tile evicted from VRAM
+// no insertion): VT Terrain Design renders them into the clipmap on the GPU, so a tile evicted from VRAM
 // and needed again is produced again. Prefetch needs of produced tiles are ignored (prefetch fills
 // RAM only).
 //

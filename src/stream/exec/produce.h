@@ -1,8 +1,8 @@
 #pragma once
 // The produce stage (procedural virtual texturing): a tile that comes from a producer instead of
-// the store. Seed 002 (after Ka Chen, "Adaptive Virtual Texture Rendering in Far Cry 4", GDC
-// 2015): the terrain's clipmap levels are rendered from tiling brush textures blended through masks,
-// plus decals, so nothing of the ~364 TiB of texels is stored. docs/produced.md.
+// the store. VT Terrain Design (after Chen 2015, Far Cry 4): the terrain's clipmap levels are
+// rendered from tiling brush textures blended through masks, plus decals, so nothing of the
+// ~364 TiB of texels is stored. docs/produced.md.
 //
 // A streaming system says which of its tiles are produced (IStreamingSystem::produced) and how much
 // work each one is; the pipeline then skips the disk and the decode for it and runs the work on a

@@ -1,9 +1,9 @@
 #pragma once
-// Texture atlases for procedural virtual texturing (seed 004, crazii 2017): K square brushes of one
+// Texture atlases for procedural virtual texturing (crazii 2017): K square brushes of one
 // power-of-two side S packed into a cols x rows grid, each cell bordered by N texels of the brush
 // itself *wrapped*, built mip by mip: atlas level m holds each brush's own level m (box-filtered
 // from its level m-1, never a downsample of the atlas across cells) with a border of that level
-// wrapped (texel -1 = texel S_m - 1). docs/produced.md, "Atlases (seed 004)".
+// wrapped (texel -1 = texel S_m - 1). docs/produced.md, "Atlases (crazii 2017)".
 //
 // Border and mips. As one GPU texture with a standard chain, level m of the atlas is the level-0
 // layout halved m times, so the border is N_m = N / 2^m texels and the chain stays cell-aligned only
@@ -12,9 +12,9 @@
 // those (Atlas::levels). constant_border instead keeps N texels at every level (each level its own
 // texture or array slice, not a standard chain) and covers every level down to 1 x 1. N = 0 (no
 // border) leaves the half-texel inset as the only guard: no bleeding, but no filtering across the
-// wrap either (seed 004 §6).
+// wrap either (crazii 2017 item 6).
 //
-// Transition (seed 004 §7): `transition` texels at each edge of level 0 cross-faded with the
+// Transition (crazii 2017 item 7): `transition` texels at each edge of level 0 cross-faded with the
 // mirrored texels across the wrap, so a brush that does not tile shows no hard seam; 4 texels =
 // one BC block. Applied before the mips, which inherit it.
 //
@@ -34,8 +34,8 @@ struct Rgba8 {
 struct AtlasParams {
   int cols = 4;                // cells per row
   int rows = 0;                // cell rows; 0 = ceil(brushes / cols)
-  int border = 4;              // N, texels around each cell at level 0 (4 = one BC block, seed 004 §7)
-  int transition = 0;          // texels cross-faded at each brush edge (seed 004 §7); 0 = none
+  int border = 4;              // N, texels around each cell at level 0 (4 = one BC block, crazii 2017 item 7)
+  int transition = 0;          // texels cross-faded at each brush edge (crazii 2017 item 7); 0 = none
   bool constant_border = false;  // N texels at every level (not a standard chain), covering all levels
   int max_side = 16384;        // largest atlas side, texels (D3D11/12 and Vulkan's common 2D limit)
 };
@@ -72,7 +72,7 @@ struct Atlas {
 // blended in the same space they are stored in).
 std::vector<Rgba8> brush_mips(const Rgba8& brush);
 
-// Cross-fades `t` texels at each edge with the texels mirrored across the wrap (seed 004 §7).
+// Cross-fades `t` texels at each edge with the texels mirrored across the wrap (crazii 2017 item 7).
 void apply_transition(Rgba8& brush, int t);
 
 // Builds the atlas. names[i] names brush i in errors (a file path); throws InputError naming the

@@ -233,7 +233,7 @@ void sample_bilinear(const Atlas& atlas, int m, int b, double u, double v, bool 
   const int s = lv.brush_side;
   const auto axis = [&](double w) {
     if (inset || lv.border > 0) return tap_of(fixed_pos(w, s), s, inset ? lv.border : 1);
-    // No inset, no border: the taps run past the cell into its neighbour (the bleeding of seed 004 §6).
+    // No inset, no border: the taps run past the cell into its neighbour (the bleeding of crazii 2017 item 6).
     const std::int64_t p = fixed_pos(w, s);
     return Tap{static_cast<int>(p >> 32), static_cast<int>(p >> 32) + 1, static_cast<int>((p >> 24) & 255)};
   };
@@ -249,6 +249,30 @@ void sample_bilinear(const Atlas& atlas, int m, int b, double u, double v, bool 
     out[k] = static_cast<std::uint8_t>((top * (256 - ty.f) + bot * ty.f + 32768) >> 16);
   }
 }
+
+namespace {
+
+// The mask columns each output column reads (the byte offsets of mask texels x0 and x1, and the
+// fraction between them), once per tile and mask: they depend on neither the row nor the layer.
+void mask_columns(const CompositeJob& job, int n, std::vector<int>& mx_out, std::vector<float>& mfx_out) {
+  const std::size_t un = static_cast<std::size_t>(n);
+  const std::size_t nm = job.masks.size();
+  mx_out.resize(nm * un * 2);
+  mfx_out.resize(nm * un);
+  for (std::size_t mi = 0; mi < nm; ++mi) {
+    const WeightMask& m = job.masks[mi];
+    for (int i = 0; i < n; ++i) {
+      const double wx = job.origin_x_m + (i - job.border + 0.5) * job.m_per_texel;
+      const double mx = std::clamp((wx - m.origin_x_m) / m.m_per_texel - 0.5, 0.0, m.width - 1.0);
+      const int x0 = static_cast<int>(mx);
+      mx_out[(mi * un + static_cast<std::size_t>(i)) * 2] = x0 * 4;
+      mx_out[(mi * un + static_cast<std::size_t>(i)) * 2 + 1] = std::min(x0 + 1, m.width - 1) * 4;
+      mfx_out[mi * un + static_cast<std::size_t>(i)] = static_cast<float>(mx - x0);
+    }
+  }
+}
+
+}  // namespace
 
 // The per-texel loop before the row kernels (docs/produced.md, "The compositor"): kept as the
 // bit-exact reference of compose's every path.
@@ -285,22 +309,8 @@ void compose_reference(const CompositeJob& job, std::uint8_t* out) {
     lp[k] = &samp_[static_cast<std::size_t>(k) * un * 4];
     wp[k] = &w_[static_cast<std::size_t>(k) * un];
   }
-  // The mask columns each output column reads (x0, x1, fraction), once per tile and mask: they do
-  // not depend on the row or the layer.
   const std::size_t nm = job.masks.size();
-  mx_.resize(nm * un * 2);
-  mfx_.resize(nm * un);
-  for (std::size_t mi = 0; mi < nm; ++mi) {
-    const WeightMask& m = job.masks[mi];
-    for (int i = 0; i < n; ++i) {
-      const double wx = job.origin_x_m + (i - job.border + 0.5) * job.m_per_texel;
-      const double mx = std::clamp((wx - m.origin_x_m) / m.m_per_texel - 0.5, 0.0, m.width - 1.0);
-      const int x0 = static_cast<int>(mx);
-      mx_[(mi * un + static_cast<std::size_t>(i)) * 2] = x0 * 4;
-      mx_[(mi * un + static_cast<std::size_t>(i)) * 2 + 1] = std::min(x0 + 1, m.width - 1) * 4;
-      mfx_[mi * un + static_cast<std::size_t>(i)] = static_cast<float>(mx - x0);
-    }
-  }
+  mask_columns(job, n, mx_, mfx_);
   for (int j = 0; j < n; ++j) {
     const double wy = job.origin_y_m + (j - job.border + 0.5) * job.m_per_texel;
     // Raw weights: bilinear in the masks, clamped at their edges.
@@ -579,21 +589,8 @@ void Compositor::compose(const CompositeJob& job, std::uint8_t* out, ComposePath
   t.m_per_texel = job.m_per_texel;
   t.masks = job.masks.data();
   t.nm = static_cast<int>(job.masks.size());
-  // The mask columns each output column reads (x0, x1, fraction), once per tile and mask.
   const std::size_t nm = job.masks.size();
-  mx_.resize(nm * un * 2);
-  mfx_.resize(nm * un);
-  for (std::size_t mi = 0; mi < nm; ++mi) {
-    const WeightMask& m = job.masks[mi];
-    for (int i = 0; i < n; ++i) {
-      const double wx = job.origin_x_m + (i - job.border + 0.5) * job.m_per_texel;
-      const double mx = std::clamp((wx - m.origin_x_m) / m.m_per_texel - 0.5, 0.0, m.width - 1.0);
-      const int x0 = static_cast<int>(mx);
-      mx_[(mi * un + static_cast<std::size_t>(i)) * 2] = x0 * 4;
-      mx_[(mi * un + static_cast<std::size_t>(i)) * 2 + 1] = std::min(x0 + 1, m.width - 1) * 4;
-      mfx_[mi * un + static_cast<std::size_t>(i)] = static_cast<float>(mx - x0);
-    }
-  }
+  mask_columns(job, n, mx_, mfx_);
   t.mx = mx_.data();
   t.mfx = mfx_.data();
   hrow_.resize(nm * 2 * 4 * un);

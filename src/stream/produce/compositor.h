@@ -1,10 +1,10 @@
 #pragma once
-// The CPU compositor of procedural virtual texturing (seed 002's produced tiles): one output tile
+// The CPU compositor of procedural virtual texturing (VT Terrain Design's produced tiles): one output tile
 // of a clipmap level, T x T RGBA8 plus a border, blended from up to 16 brush layers of an Atlas
 // (atlas.h) through per-texel weights from RGBA8 masks (4 layers a mask, bilinear).
 // docs/produced.md, "The compositor".
 //
-// Sampling follows seed 004: the level comes from the *unwrapped* uv derivative (footprint =
+// Sampling follows crazii 2017: the level comes from the *unwrapped* uv derivative (footprint =
 // m_per_texel / period_m * S texels, lod = log2, rounded, clamped to the levels the border covers);
 // then frac() wraps into the cell, the half-texel inset keeps the taps inside it, bilinear with 8
 // bits of sub-texel position (D3D's required subtexel precision). Weights are normalised per texel
@@ -41,7 +41,7 @@ struct WeightMask {
   double m_per_texel = 1;                  // m
 };
 
-// A decal (seed 002: footprints, damage) rendered over the blended brushes: a world rectangle of
+// A decal (VT Terrain Design: footprints, damage) rendered over the blended brushes: a world rectangle of
 // one colour, drawn with its exact area coverage of each output texel (anti-aliased edges, and a
 // coarser level's texel is the mean of the finer ones it covers). A decal narrower than one output
 // texel on either side is neither rendered nor counted at that level (TerrainSystem counts alike).
@@ -98,7 +98,7 @@ void blend_rgba8(const std::uint8_t* const* layers, const std::uint16_t* const* 
                  std::uint8_t* out);
 
 // Bilinear sample of brush b at level m at uv (brush repeats, unwrapped), RGBA out. inset: the
-// half-texel inset (seed 004 §6); without it a tap at the cell edge reads the neighbouring cell.
+// half-texel inset (crazii 2017 item 6); without it a tap at the cell edge reads the neighbouring cell.
 void sample_bilinear(const Atlas& atlas, int m, int b, double u, double v, bool inset, std::uint8_t out[4]);
 
 // The same tile in double precision with no fixed point: mask weights bilinear (clamped) and

@@ -1,5 +1,5 @@
 #pragma once
-// The terrain's decals (seed 002: "decals such as footprints and damage are rendered into the
+// The terrain's decals (VT Terrain Design: "decals such as footprints and damage are rendered into the
 // levels too"), shared by the streaming system and the real clock's producer threads:
 //  - seeded static decals, immutable after the constructor, bucketed by the sector holding their
 //    centre (TerrainConfig::decals_static, decal_size_m, decal_seed);

@@ -1,5 +1,5 @@
 #pragma once
-// Procedural weight masks from a heightfield (seed 002: "if the mask can be computed from the
+// Procedural weight masks from a heightfield (VT Terrain Design: "if the mask can be computed from the
 // terrain mesh's procedural parameters, no mask texture is needed"): per layer a rule of height
 // and slope ranges with soft edges, evaluated at each mask texel's centre, written as the RGBA8
 // WeightMask channels the compositor reads (layer l in channel l % 4 of mask l / 4).

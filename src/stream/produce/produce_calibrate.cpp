@@ -263,7 +263,7 @@ std::vector<ProduceSample> measure_compositor(const ProduceMeasureOptions& o, co
     most = std::max(most, l);
   }
   if (progress) progress("building the brush atlas");
-  const double mask_m = 512.0;  // a seed-002 sector; tiles below sit inside it
+  const double mask_m = 512.0;  // a terrain sector (VT Terrain Design's 512 m); tiles below sit inside it
   const ProduceScene scene(std::min(most, kMaxLayers), o.brush_side, most, 512, mask_m, o.seed);
   Compositor comp;
   std::vector<std::uint8_t> out;

@@ -122,7 +122,7 @@ struct ProduceMeasureOptions {
   std::vector<int> decals = {0, 16};            // decals overlapping each tile (counted by count_work)
   int repeats = 7;                              // timed compose() calls per point (median)
   int brush_side = 1024;                        // the terrain's brush mip 0 (terrain.brush_size)
-  double m_per_texel = 1.0 / 1024;              // output texel, m (level 0 of the seed-002 terrain)
+  double m_per_texel = 1.0 / 1024;              // output texel, m (level 0 of the default terrain)
   std::uint64_t seed = 1;
   // Time the calling thread's CPU (CLOCK_THREAD_CPUTIME_ID) instead of the wall clock: the same on
   // an idle core, and not inflated by other tenants of a shared machine taking the core away.

@@ -1,5 +1,5 @@
 #pragma once
-// The real clock's producer for the seed-002 terrain (run.system = "terrain"; docs/produced.md,
+// The real clock's producer for the produced terrain (run.system = "terrain"; docs/produced.md,
 // "The real clock"): composes each produced tile with the CPU compositor (compositor.h) on the
 // executor's production threads, and serves the terrain's brush mips (TerrainSystem::kBrushLayer
 // keys) from memory.

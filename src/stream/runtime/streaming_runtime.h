@@ -1,6 +1,6 @@
 #pragma once
 // The streaming runtime an engine calls each frame (docs/embedding.md, "Streaming from an
-// engine"): one streaming system (clipmap or virtual texture) with its request pipeline, throttle
+// engine"): one streaming system (clipmap, virtual texture or terrain) with its request pipeline, throttle
 // policy and upload budget, stepped by the caller's frames. Both clocks' replays are clients of it
 // (sim/run/frame_loop.h's SystemRun drives one per run), so an engine streams through the same path
 // the simulator measures.

@@ -10,7 +10,7 @@
 
 namespace vtsim {
 
-ClipmapSystem::ClipmapSystem(const SystemSetup& s, const ClipmapConfig& c) : s_(s), cm_(params(s, c)) {}
+ClipmapSystem::ClipmapSystem(const SystemSetup& s, const ClipmapConfig& c) : ClipmapBacked(params(s, c)), s_(s) {}
 
 ClipmapParams ClipmapSystem::params(const SystemSetup& s, const ClipmapConfig& c) {
   ClipmapParams p;
@@ -104,14 +104,6 @@ void ClipmapSystem::emit_needs(std::vector<Need>& out) {
   }
   (void)before;
   if (prefetch_) cm_.emit_prefetch(fu_, fv_, finest_active_, out);
-}
-
-void ClipmapSystem::clip_windows(std::vector<ClipWindow>& out) const {
-  out.clear();
-  for (int l = 0; l < cm_.num_levels(); ++l) {
-    const Clipmap::Window w = cm_.window(l);
-    out.push_back({w.x0, w.y0, w.w, w.h});
-  }
 }
 
 bool ClipmapSystem::commit(TileKey key, int frame) {

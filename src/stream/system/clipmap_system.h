@@ -8,12 +8,14 @@
 
 #include "cache/clipmap.h"
 #include "cache/vram_arena.h"
+#include "stream/system/clipmap_backed.h"
 #include "stream/system/feedback.h"
 #include "stream/system/i_system.h"
+#include "stream/system/system_caps.h"
 
 namespace vtsim {
 
-class ClipmapSystem final : public IStreamingSystem {
+class ClipmapSystem final : public ClipmapBacked {
  public:
   ClipmapSystem(const SystemSetup& s, const ClipmapConfig& c);
   // What the systems' table (sim/run/systems.cpp) reads.
@@ -29,37 +31,20 @@ class ClipmapSystem final : public IStreamingSystem {
   static VramArena vram_arena(const SystemSetup& s, const ClipmapConfig& c, std::vector<std::uint32_t> layer_bytes,
                               std::uint64_t host_limit);
   static constexpr std::string_view kVramField = "clipmap.clipsize";
+  // Its name in the table (run.system) and what it can do.
+  static constexpr char kName[] = "clipmap";
+  static constexpr SystemCaps kCaps{.clip_window = true};
 
-  int num_levels() const override { return cm_.num_levels(); }
-  int resident_level(std::int64_t u, std::int64_t v, int desired_level) const override {
-    return cm_.resident_level(u, v, desired_level);
-  }
-  void resident_levels(const ViewSample* s, std::size_t n, std::int8_t* out) const override {
-    cm_.resident_levels(s, n, out);
-  }
-  void span_resident_levels(const ViewSpan* s, std::size_t n, std::int8_t* out) const override {
-    cm_.span_resident_levels(s, n, out);
-  }
-  bool uses_spans() const override { return true; }
   void begin_frame(const SystemFrame& f) override;
   void missing_bytes_by_level(std::vector<std::uint64_t>& out) const override;
-  int coarsest_clamp() const override { return cm_.first_pyramid_level(); }
-  void apply_throttle(const ThrottleDecision& d) override { cm_.set_clamp(d.clamp); }
   void emit_needs(std::vector<Need>& out) override;
   std::uint32_t throttled_needs() const override { return throttled_; }
   bool commit(TileKey key, int frame) override;
   bool accepts(TileKey key) const override { return cm_.accepts(key); }
-  void clip_windows(std::vector<ClipWindow>& out) const override;
-  void set_mark_sampled(bool on) override { cm_.set_mark_sampled(on); }
-  bool fingerprint(ResidencyFingerprint& out) const override { return cm_.fingerprint(out); }
-  void record_marks(std::vector<std::uint64_t>* out) const override { cm_.record_marks(out); }
-  void apply_marks(const std::vector<std::uint64_t>& marks) const override { cm_.apply_marks(marks); }
   nlohmann::json stats_json() const override;
-  std::uint64_t vram_evictions() const override { return cm_.stats().vram_evictions; }
   std::uint64_t vram_thrash() const override { return thrash_; }
   std::uint64_t evicted_unsampled_bytes() const override;
 
-  const Clipmap& clipmap() const { return cm_; }
   // Level-0 ground texel under a world position (floor; exact for positions relative to the origin).
   std::int64_t ground_u(double x_m) const;
   std::int64_t ground_v(double y_m) const;
@@ -68,7 +53,6 @@ class ClipmapSystem final : public IStreamingSystem {
   std::uint64_t importance(int level, std::int64_t x, std::int64_t y);
 
   SystemSetup s_;
-  Clipmap cm_;
   std::int64_t gu_ = 0, gv_ = 0, fu_ = 0, fv_ = 0;
   bool prefetch_ = false;
   int finest_active_ = 0;

@@ -1,7 +1,42 @@
 #pragma once
 // A streaming system decides what must be resident (clipmap windows, VT feedback pages) and holds
-// VRAM residency; the pipeline moves tiles; the frame loop (sim/run/replay.h) joins them. Clipmap and
-// virtual texturing implement this interface and share everything else.
+// VRAM residency; the pipeline moves tiles; the streaming runtime (stream/runtime/streaming_runtime.h)
+// steps one system per frame, and the frame loop (sim/run/frame_loop.h) drives a runtime per run.
+// Three systems implement this interface, one per file in stream/system/ and one line each in the
+// systems' table (sim/run/systems.cpp): the clipmap (clipmap_system.h), sparse virtual texturing
+// (vt_system.h) and the produced terrain (terrain_system.h); they share everything else.
+//
+// Call order, each frame (StreamingRuntime::plan_uploads, then commit_uploads):
+//   begin_frame(f)                 the frame's pose and feedback; the system derives what it wants
+//                                  (VT: the wanted pages; clipmap: the ground point it follows).
+//   missing_bytes_by_level, coarsest_clamp, pool_occupancy, pool_pressure, pool_demand
+//                                  what the throttle policy reads (const).
+//   apply_throttle(d)              the policy's clamp and biases for this frame.
+//   emit_needs(out)                appends this frame's needs: demand and prefetch, none resident.
+//   per uploaded tile: accepts(key), vram_slot(key), then commit(key, frame) once the engine has
+//                                  copied it (a refused tile is committed anyway: counted stale).
+//   clip_windows(out)              the windows after the commits (the engine's window updates).
+// The frame loop (SystemRun::step) measures pop-in through IResidency between the two halves:
+// set_mark_sampled(false) and the lookups (resident_levels, span_resident_levels, fingerprint)
+// before the commits, set_mark_sampled(true) and the lookups again after them; then it reads
+// throttled_needs and frame_counters. stats_json, vram_evictions, vram_thrash and
+// evicted_unsampled_bytes are read once, at the summary; the record_* opt-ins are set before the
+// first frame or between frames.
+//
+// Threads: none of a system's members is thread-safe; one thread (the frame loop's, or the
+// engine's render thread through the runtime) calls every member. The executor's IO, decode and
+// production threads never call a system: they get tile keys and ProduceWork values, and the
+// terrain's producer reads only its DecalLayer (decal_layer(): one writer, the system, and any
+// number of readers; decal_layer.h). Render-ahead's workers render the view, never a system. A
+// lockstep sweep's threads each step their own systems (sim/sweep/lockstep.h): a system is never
+// touched by two threads, and the pop-in share they read together is the sweep's, not a system's.
+//
+// Complexity per frame (each system's header gives its own): VT O(S + W log W) for S feedback
+// samples and W wanted pages; clipmap O(tiles of each moved or incomplete window level) plus
+// O(S + T log T) to aggregate the feedback into T touched tiles when a need asks its importance;
+// terrain as the clipmap plus O(missing window tiles × sectors per tile × brushes). commit and
+// accepts O(1) expected; resident_level O(levels tried), O(1) amortised for VT. Nothing a system
+// does per frame grows with the resident tiles beyond the windows or the wanted set.
 #include <array>
 #include <cstdint>
 #include <glm/vec3.hpp>

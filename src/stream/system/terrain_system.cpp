@@ -91,7 +91,7 @@ VramArena TerrainSystem::vram_arena(const SystemSetup& s, const ClipmapConfig& c
 }
 
 TerrainSystem::TerrainSystem(const SystemSetup& s, const ClipmapConfig& cc, const TerrainConfig& t)
-    : s_(s), t_(t), cm_(ClipmapSystem::params(s, cc)) {
+    : ClipmapBacked(ClipmapSystem::params(s, cc)), s_(s), t_(t) {
   sector_texels_ = std::max<std::int64_t>(1, sector_texels_of(t, s.texels_per_m));
   sectors_ = t.sectors_x * t.sectors_y;
   mip_offset_ = std::max(0, mip_offset_of(t, s.texels_per_m));
@@ -256,14 +256,6 @@ bool TerrainSystem::accepts(TileKey key) const {
     return needed_[idx(m, static_cast<int>(key.x()), static_cast<int>(key.y()))] != 0;
   }
   return cm_.accepts(key);
-}
-
-void TerrainSystem::clip_windows(std::vector<ClipWindow>& out) const {
-  out.clear();
-  for (int l = 0; l < cm_.num_levels(); ++l) {
-    const Clipmap::Window w = cm_.window(l);
-    out.push_back({w.x0, w.y0, w.w, w.h});
-  }
 }
 
 bool TerrainSystem::commit(TileKey key, int) {

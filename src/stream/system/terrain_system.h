@@ -1,8 +1,8 @@
 #pragma once
-// Seed 002's terrain (after Ka Chen, "Adaptive Virtual Texture Rendering in Far Cry 4", GDC 2015):
+// VT Terrain Design's terrain (after Chen 2015, "Adaptive Virtual Texture Rendering in Far Cry 4"):
 // a clipmap whose levels are *produced* — rendered from tiling brush textures blended through
-// per-sector masks, plus decals — instead of read from the store. docs/produced.md, "The seed-002
-// terrain (produced clipmap)".
+// per-sector masks, plus decals — instead of read from the store. docs/produced.md, "The terrain
+// (produced clipmap)".
 //
 // World: sectors_x × sectors_y sectors of sector_m metres, each blending brushes_per_sector brushes
 // (brush_size² at mip 0, one brush tile per brush_period_m). Brush mips stream from disk through the
@@ -27,14 +27,16 @@
 #include "cache/clipmap.h"
 #include "cache/vram_arena.h"
 #include "stream/produce/decal_layer.h"
+#include "stream/system/clipmap_backed.h"
 #include "stream/system/feedback.h"
 #include "stream/system/i_system.h"
+#include "stream/system/system_caps.h"
 
 namespace vtsim {
 
-// The config's [terrain] section (seed 002's figures are the defaults).
+// The config's [terrain] section (VT Terrain Design's figures are the defaults).
 struct TerrainConfig {
-  int sectors_x = 16;               // sectors along x (seed: 16 × 512 m = 8192 m)
+  int sectors_x = 16;               // sectors along x (VT Terrain Design: 16 × 512 m = 8192 m)
   int sectors_y = 16;               // sectors along y
   double sector_m = 512.0;          // sector side, m
   int brushes_per_sector = 12;      // brushes a sector blends (<= 16: four RGBA masks, a 4×4 atlas)
@@ -52,7 +54,7 @@ struct TerrainConfig {
   int footprint_levels = 4;         // finest levels a footprint re-renders (its resident tiles there are invalidated)
 };
 
-// `vtsim capacity --system terrain`: seed 002's figures recomputed (docs/produced.md, "Capacity").
+// `vtsim capacity --system terrain`: VT Terrain Design's figures recomputed (docs/produced.md, "Capacity").
 struct TerrainCapacity {
   std::int64_t texels_side_x = 0, texels_side_y = 0;  // level-0 texture extent
   double stored_equiv_bytes = 0;        // level-0 texels × 4 B: what storing the texels would take
@@ -62,7 +64,7 @@ struct TerrainCapacity {
   std::uint64_t masks = 0;              // sectors × ceil(brushes / 4)
   std::uint64_t mask_bytes = 0;         // masks × mask_size² × 4 B
   int full_levels = 0;                  // levels kept at clipsize² (stack + the first pyramid level)
-  std::uint64_t clipmap_full_levels_bytes = 0;  // full_levels × clipsize² × 4 B (the seed's 208 MiB)
+  std::uint64_t clipmap_full_levels_bytes = 0;  // full_levels × clipsize² × 4 B (VT Terrain Design's 208 MiB)
   std::vector<int> level_mip;           // per stack level: the brush mip it renders from
   std::vector<int> level_sectors;       // per stack level: sectors under its window (camera at cx, cy)
   std::uint64_t brush_resident_bytes = 0;  // union over stack levels: sectors × brushes × mip bytes
@@ -70,7 +72,7 @@ struct TerrainCapacity {
 };
 TerrainCapacity terrain_capacity(const TerrainConfig& t, double texels_per_m, int clipsize, double cam_x_m, double cam_y_m);
 
-class TerrainSystem final : public IStreamingSystem {
+class TerrainSystem final : public ClipmapBacked {
  public:
   static constexpr std::uint32_t kBrushLayer = TileKey::kMaxLayers - 1;
   static constexpr int kMaxBrushes = 16;
@@ -83,38 +85,25 @@ class TerrainSystem final : public IStreamingSystem {
   static VramArena vram_arena(const SystemSetup& s, const ClipmapConfig& c, std::vector<std::uint32_t> layer_bytes,
                               std::uint64_t host_limit);
   static constexpr std::string_view kVramField = "clipmap.clipsize";
+  // Its name in the table (run.system) and what it can do.
+  static constexpr char kName[] = "terrain";
+  static constexpr SystemCaps kCaps{.produces_tiles = true, .clip_window = true, .capacity = CapacityReport::produced};
 
-  int num_levels() const override { return cm_.num_levels(); }
-  int resident_level(std::int64_t u, std::int64_t v, int d) const override { return cm_.resident_level(u, v, d); }
-  void resident_levels(const ViewSample* s, std::size_t n, std::int8_t* out) const override { cm_.resident_levels(s, n, out); }
-  void span_resident_levels(const ViewSpan* s, std::size_t n, std::int8_t* out) const override {
-    cm_.span_resident_levels(s, n, out);
-  }
-  bool uses_spans() const override { return true; }
   void begin_frame(const SystemFrame& f) override;
   void missing_bytes_by_level(std::vector<std::uint64_t>& out) const override;
-  int coarsest_clamp() const override { return cm_.first_pyramid_level(); }
-  void apply_throttle(const ThrottleDecision& d) override { cm_.set_clamp(d.clamp); }
   void emit_needs(std::vector<Need>& out) override;
   std::uint32_t throttled_needs() const override { return 0; }
   bool commit(TileKey key, int frame) override;
   bool accepts(TileKey key) const override;
-  void clip_windows(std::vector<ClipWindow>& out) const override;
   bool produced(TileKey key, ProduceWork& work) const override;
   bool full_tile_work(ProduceWork& work) const override;
   bool tile_sizes(TileKey key, std::uint64_t& disk_bytes, std::uint64_t& decoded_bytes) const override;
-  void set_mark_sampled(bool on) override { cm_.set_mark_sampled(on); }
-  bool fingerprint(ResidencyFingerprint& out) const override { return cm_.fingerprint(out); }
-  void record_marks(std::vector<std::uint64_t>* out) const override { cm_.record_marks(out); }
-  void apply_marks(const std::vector<std::uint64_t>& marks) const override { cm_.apply_marks(marks); }
   std::vector<std::string> frame_counter_names() const override;
   void frame_counters(SystemCounters& out) const override;
   nlohmann::json stats_json() const override;
-  std::uint64_t vram_evictions() const override { return cm_.stats().vram_evictions; }
   std::uint64_t vram_thrash() const override { return 0; }
   std::uint64_t evicted_unsampled_bytes() const override;
 
-  const Clipmap& clipmap() const { return cm_; }
   int brush_mip(int level) const;           // m(l)
   bool brush_resident(int mip, int sector, int brush) const { return resident_[idx(mip, sector, brush)] != 0; }
   int sector_texels() const { return static_cast<int>(sector_texels_); }
@@ -144,7 +133,6 @@ class TerrainSystem final : public IStreamingSystem {
 
   SystemSetup s_;
   TerrainConfig t_;
-  Clipmap cm_;
   std::int64_t sector_texels_ = 0;
   int sectors_ = 0;
   int mip_offset_ = 0;

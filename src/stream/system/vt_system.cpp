@@ -18,12 +18,12 @@ namespace {
 int lock_from(const VtGeometry& g, int locked_levels) { return g.levels() - std::max(0, locked_levels); }
 
 // The pool's replacement policy: null for "lru" (the pool's own list, the fast path); its
-// capacity is the slots the locked pages leave.
+// capacity is the slots the locked pages leave (at least one: a policy holds something).
 std::unique_ptr<IReplacementPolicy> vt_pool_policy(const VtGeometry& g, const VtConfig& c) {
   if (c.pool_policy == "lru") return nullptr;
   std::uint64_t locked = 0;
   if (c.locked_levels >= 0 && c.locked_levels <= g.levels()) locked = g.coarsest_pages(c.locked_levels);
-  const std::uint64_t capacity = c.pool_pages > locked ? c.pool_pages - locked : 1;
+  const std::uint64_t capacity = std::max<std::uint64_t>(VtSystem::unlocked_slots(c.pool_pages, locked), 1);
   return make_replacement_policy(c.pool_policy, capacity);
 }
 

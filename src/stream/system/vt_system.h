@@ -33,6 +33,7 @@
 #include "cache/page_table.h"
 #include "cache/vram_arena.h"
 #include "stream/system/i_system.h"
+#include "stream/system/system_caps.h"
 
 namespace vtsim {
 
@@ -62,6 +63,14 @@ class VtSystem final : public IStreamingSystem {
   static VramArena vram_arena(const SystemSetup& s, const VtConfig& c, std::vector<std::uint32_t> layer_bytes,
                               std::uint64_t host_limit);
   static constexpr std::string_view kVramField = "vt.pool_pages";
+  // Its name in the table (run.system) and what it can do.
+  static constexpr char kName[] = "vt";
+  static constexpr SystemCaps kCaps{.page_pool = true, .capacity = CapacityReport::page_pool, .mrc_level = "pool"};
+  // The pool slots its replacement policy manages: the pool less the pages the locked levels
+  // hold (those always hit); 0 when they fill it (validate refuses a pool smaller than them).
+  static std::uint64_t unlocked_slots(std::uint64_t pool_pages, std::uint64_t locked_pages) {
+    return pool_pages > locked_pages ? pool_pages - locked_pages : 0;
+  }
 
   int num_levels() const override { return geo_.levels(); }
   int resident_level(std::int64_t u, std::int64_t v, int desired_level) const override;

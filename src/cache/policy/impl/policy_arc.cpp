@@ -35,6 +35,7 @@
 
 #include "cache/page_map.h"
 #include "cache/policy/i_replacement.h"
+#include "cache/policy/node_lists.h"
 
 namespace vtsim {
 namespace {
@@ -51,21 +52,23 @@ class PolicyArc final : public IReplacementPolicy {
       const std::uint8_t list = nodes_[n].list;
       if (list == kT1 || list == kT2) return;  // already cached: the owner's error, ignored
       const double s = static_cast<double>(size);
-      const double b1 = static_cast<double>(w_[kB1]), b2 = static_cast<double>(w_[kB2]);
+      const double b1 = static_cast<double>(nodes_.weight(kB1)), b2 = static_cast<double>(nodes_.weight(kB2));
       if (list == kB1) {  // case II: T1 was too small
         p_ = std::min(static_cast<double>(c_), p_ + s * (b1 >= b2 || b1 == 0 ? 1.0 : b2 / b1));
       } else {  // case III: T2 was too small
         p_ = std::max(0.0, p_ - s * (b2 >= b1 || b2 == 0 ? 1.0 : b1 / b2));
         from_b2_ = true;
       }
-      unlink(n);
-      push_mru(n, kT2, size);
+      nodes_.unlink(n);
+      nodes_.push_front(n, kT2, size);
     } else {  // case IV
-      while (w_[kT1] + w_[kB1] + size > c_ && count_[kB1] > 0) drop_lru(kB1);
-      if (w_[kT1] + w_[kB1] + size <= c_)
-        while (w_[kT1] + w_[kT2] + w_[kB1] + w_[kB2] + size > 2 * c_ && count_[kB2] > 0) drop_lru(kB2);
+      while (nodes_.weight(kT1) + nodes_.weight(kB1) + size > c_ && nodes_.count(kB1) > 0) drop_lru(kB1);
+      if (nodes_.weight(kT1) + nodes_.weight(kB1) + size <= c_)
+        while (nodes_.weight(kT1) + nodes_.weight(kT2) + nodes_.weight(kB1) + nodes_.weight(kB2) + size > 2 * c_ &&
+               nodes_.count(kB2) > 0)
+          drop_lru(kB2);
       n = alloc(key);
-      push_mru(n, kT1, size);
+      nodes_.push_front(n, kT1, size);
     }
     incoming_ = n;
   }
@@ -74,30 +77,30 @@ class PolicyArc final : public IReplacementPolicy {
       const std::uint32_t i = *n;
       if (nodes_[i].list != kT1 && nodes_[i].list != kT2) return;
       const std::uint64_t size = nodes_[i].size;
-      unlink(i);
-      push_mru(i, kT2, size);
+      nodes_.unlink(i);
+      nodes_.push_front(i, kT2, size);
     }
   }
   void remove(std::uint64_t key) override {
     if (const std::uint32_t* n = index_.find(key)) {
       const std::uint32_t i = *n;
       if (nodes_[i].list != kT1 && nodes_[i].list != kT2) return;
-      unlink(i);
+      nodes_.unlink(i);
       release(i);
     }
   }
   std::uint64_t evict(Pinned pinned) override {
     // Over capacity: the owner is making room for the key it admitted last (see the header).
     std::uint32_t inc = kNil;
-    if (incoming_ != kNil && w_[kT1] + w_[kT2] > c_) inc = incoming_;
+    if (incoming_ != kNil && nodes_.weight(kT1) + nodes_.weight(kT2) > c_) inc = incoming_;
     const bool inc_in_t1 = inc != kNil && nodes_[inc].list == kT1;
-    const std::uint64_t t1 = w_[kT1] - (inc_in_t1 ? nodes_[inc].size : 0);
-    const std::uint64_t t1_keys = count_[kT1] - (inc_in_t1 ? 1 : 0);
+    const std::uint64_t t1 = nodes_.weight(kT1) - (inc_in_t1 ? nodes_[inc].size : 0);
+    const std::uint64_t t1_keys = nodes_.count(kT1) - (inc_in_t1 ? 1 : 0);
     // Case IV.A with T1 full: its LRU key leaves without a ghost.
-    if (inc_in_t1 && count_[kB1] == 0 && t1 + nodes_[inc].size > c_)
+    if (inc_in_t1 && nodes_.count(kB1) == 0 && t1 + nodes_[inc].size > c_)
       if (const std::uint32_t v = lru_candidate(kT1, pinned, inc); v != kNil) {
         const std::uint64_t key = nodes_[v].key;
-        unlink(v);
+        nodes_.unlink(v);
         release(v);
         return key;
       }
@@ -114,15 +117,15 @@ class PolicyArc final : public IReplacementPolicy {
     if (v == kNil) return kNoKey;
     const std::uint64_t key = nodes_[v].key;
     const std::uint64_t size = nodes_[v].size;
-    unlink(v);
+    nodes_.unlink(v);
     const std::uint8_t ghost = list == kT1 ? kB1 : kB2;
     if (size > c_) {
       release(v);
       return key;
     }
     // Ghosts stay within c (never with unit sizes: there the paper's bounds imply it).
-    while (w_[kB1] + w_[kB2] + size > c_) drop_lru(count_[kB2] > 0 ? kB2 : kB1);
-    push_mru(v, ghost, size);
+    while (nodes_.weight(kB1) + nodes_.weight(kB2) + size > c_) drop_lru(nodes_.count(kB2) > 0 ? kB2 : kB1);
+    nodes_.push_front(v, ghost, size);
     return key;
   }
   void restore(std::uint64_t key, std::uint64_t size) override {
@@ -132,21 +135,22 @@ class PolicyArc final : public IReplacementPolicy {
       n = *g;
       if (nodes_[n].list == kT1 || nodes_[n].list == kT2) return;
       list = nodes_[n].list == kB1 ? kT1 : kT2;
-      unlink(n);
+      nodes_.unlink(n);
     } else {
       n = alloc(key);
     }
-    push_lru(n, list, size);
+    nodes_.push_back(n, list, size);
   }
   void set_capacity(std::uint64_t capacity) override {
     c_ = capacity;
     p_ = std::min(p_, static_cast<double>(c_));
-    while (w_[kT1] + w_[kB1] > c_ && count_[kB1] > 0) drop_lru(kB1);
-    while (w_[kT1] + w_[kT2] + w_[kB1] + w_[kB2] > 2 * c_ && count_[kB2] > 0) drop_lru(kB2);
-    while (w_[kB1] + w_[kB2] > c_) drop_lru(count_[kB2] > 0 ? kB2 : kB1);
+    while (nodes_.weight(kT1) + nodes_.weight(kB1) > c_ && nodes_.count(kB1) > 0) drop_lru(kB1);
+    while (nodes_.weight(kT1) + nodes_.weight(kT2) + nodes_.weight(kB1) + nodes_.weight(kB2) > 2 * c_ && nodes_.count(kB2) > 0)
+      drop_lru(kB2);
+    while (nodes_.weight(kB1) + nodes_.weight(kB2) > c_) drop_lru(nodes_.count(kB2) > 0 ? kB2 : kB1);
     incoming_ = kNil;
   }
-  std::uint64_t size() const override { return count_[kT1] + count_[kT2]; }
+  std::uint64_t size() const override { return nodes_.count(kT1) + nodes_.count(kT2); }
 
  private:
   static constexpr std::uint32_t kNil = ~std::uint32_t{0};
@@ -160,26 +164,18 @@ class PolicyArc final : public IReplacementPolicy {
 
   // The least recently used key of `list` that is neither pinned nor `skip`; kNil if none.
   std::uint32_t lru_candidate(std::uint8_t list, Pinned pinned, std::uint32_t skip) const {
-    for (std::uint32_t n = nodes_[list].prev; n != list; n = nodes_[n].prev)
+    for (std::uint32_t n = nodes_.back(list); n != list; n = nodes_[n].prev)
       if (n != skip && !pinned(nodes_[n].key)) return n;
     return kNil;
   }
   void drop_lru(std::uint8_t list) {
-    const std::uint32_t n = nodes_[list].prev;
-    unlink(n);
+    const std::uint32_t n = nodes_.back(list);
+    nodes_.unlink(n);
     release(n);
   }
 
   std::uint32_t alloc(std::uint64_t key) {
-    std::uint32_t n;
-    if (!free_.empty()) {
-      n = free_.back();
-      free_.pop_back();
-    } else {
-      n = static_cast<std::uint32_t>(nodes_.size());
-      nodes_.emplace_back();
-    }
-    nodes_[n].key = key;
+    const std::uint32_t n = nodes_.alloc(key);
     index_.put(key, n);
     return n;
   }
@@ -187,46 +183,12 @@ class PolicyArc final : public IReplacementPolicy {
   void release(std::uint32_t n) {
     if (n == incoming_) incoming_ = kNil;
     index_.erase(nodes_[n].key);
-    nodes_[n].key = kNoKey;
-    free_.push_back(n);
-  }
-  void unlink(std::uint32_t n) {
-    Node& node = nodes_[n];
-    nodes_[node.prev].next = node.next;
-    nodes_[node.next].prev = node.prev;
-    w_[node.list] -= node.size;
-    --count_[node.list];
-  }
-  void push_mru(std::uint32_t n, std::uint8_t list, std::uint64_t size) {
-    Node& node = nodes_[n];
-    node.list = list;
-    node.size = size;
-    node.prev = list;
-    node.next = nodes_[list].next;
-    nodes_[node.next].prev = n;
-    nodes_[list].next = n;
-    w_[list] += size;
-    ++count_[list];
-  }
-  void push_lru(std::uint32_t n, std::uint8_t list, std::uint64_t size) {
-    Node& node = nodes_[n];
-    node.list = list;
-    node.size = size;
-    node.next = list;
-    node.prev = nodes_[list].prev;
-    nodes_[node.prev].next = n;
-    nodes_[list].prev = n;
-    w_[list] += size;
-    ++count_[list];
+    nodes_.release(n);
   }
 
   // Nodes 0-3: the sentinels of T1, T2, B1, B2 (next: MRU end; prev: LRU end).
-  std::vector<Node> nodes_ = std::vector<Node>{Node{kNoKey, 0, 0, 0, 0}, Node{kNoKey, 0, 1, 1, 1},
-                                               Node{kNoKey, 0, 2, 2, 2}, Node{kNoKey, 0, 3, 3, 3}};
-  std::vector<std::uint32_t> free_;
+  WeightedLists<Node, 4> nodes_;  // node_lists.h: each list's weight (in the owner's unit) and key count
   PageMap<std::uint32_t> index_;  // cached and ghost keys
-  std::uint64_t w_[4] = {0, 0, 0, 0};      // weight of each list, in the owner's unit
-  std::uint64_t count_[4] = {0, 0, 0, 0};  // keys in each list
   std::uint64_t c_;                        // capacity, in the owner's unit
   double p_ = 0;                           // target weight of T1, in [0, c]
   std::uint32_t incoming_ = kNil;          // the node admitted last (see evict)

@@ -6,7 +6,7 @@
 // re-reference since admission. (Setting it at admission would let a scan clear every bit in one
 // sweep and degenerate to FIFO.)
 //
-// The ring is a circular doubly linked list over a node slab indexed through a PageMap, so
+// The ring is a circular doubly linked list over a node slab (node_lists.h) indexed through a PageMap, so
 // remove() of any key is O(1). Complexity: admit, hit, remove O(1) expected; evict O(1) amortised
 // (each bit it clears was set by one hit) plus O(pinned keys passed), at most two revolutions.
 // Memory: 16 bytes per node + 2-4 PageMap slots of 16 bytes. Sizes are not read (the owner
@@ -15,6 +15,7 @@
 
 #include "cache/page_map.h"
 #include "cache/policy/i_replacement.h"
+#include "cache/policy/node_lists.h"
 
 namespace vtsim {
 namespace {
@@ -71,27 +72,15 @@ class PolicyClock final : public IReplacementPolicy {
   };
 
   std::uint32_t insert_behind_hand(std::uint64_t key) {
-    std::uint32_t n;
-    if (!free_.empty()) {
-      n = free_.back();
-      free_.pop_back();
-    } else {
-      n = static_cast<std::uint32_t>(nodes_.size());
-      nodes_.emplace_back();
-    }
+    const std::uint32_t n = nodes_.alloc(key);
     index_.put(key, n);
     Node& node = nodes_[n];
-    node.key = key;
     node.ref = 0;
     if (hand_ == kNil) {
       node.prev = node.next = n;
       hand_ = n;
     } else {
-      const std::uint32_t p = nodes_[hand_].prev;
-      node.prev = p;
-      node.next = hand_;
-      nodes_[p].next = n;
-      nodes_[hand_].prev = n;
+      nodes_.insert_before(hand_, n);
     }
     return n;
   }
@@ -101,16 +90,13 @@ class PolicyClock final : public IReplacementPolicy {
     if (node.next == n) {
       hand_ = kNil;
     } else {
-      nodes_[node.prev].next = node.next;
-      nodes_[node.next].prev = node.prev;
+      nodes_.unlink(n);
       if (hand_ == n) hand_ = node.next;
     }
-    node.key = kNoKey;
-    free_.push_back(n);
+    nodes_.release(n);
   }
 
-  std::vector<Node> nodes_;
-  std::vector<std::uint32_t> free_;
+  NodeSlab<Node> nodes_;
   PageMap<std::uint32_t> index_;
   std::uint32_t hand_ = kNil;
 };

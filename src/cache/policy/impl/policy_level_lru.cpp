@@ -21,6 +21,7 @@
 
 #include "cache/page_map.h"
 #include "cache/policy/i_replacement.h"
+#include "cache/policy/node_lists.h"
 #include "core/tile_key.h"
 
 namespace vtsim {
@@ -38,22 +39,24 @@ class PolicyLevelLru final : public IReplacementPolicy {
  public:
   void admit(std::uint64_t key, std::uint64_t) override {
     if (index_.contains(key)) return hit(key);  // a contract breach by the owner: keep the lists whole
-    const std::uint32_t n = alloc(key);
+    const std::uint32_t n = nodes_.alloc(key);
+    nodes_[n].last = frame_;
+    nodes_[n].list = list_of(key);
     index_.put(key, n);
-    push_front(n);
+    nodes_.insert_after(nodes_[n].list, n);
   }
   void hit(std::uint64_t key) override {
     if (const std::uint32_t* n = index_.find(key)) {
-      unlink(*n);
+      nodes_.unlink(*n);
       nodes_[*n].last = frame_;
-      push_front(*n);
+      nodes_.insert_after(nodes_[*n].list, *n);
     }
   }
   void remove(std::uint64_t key) override {
     if (const std::uint32_t* n = index_.find(key)) {
       const std::uint32_t i = *n;
-      unlink(i);
-      release(i);
+      nodes_.unlink(i);
+      nodes_.release(i);
       index_.erase(key);
     }
   }
@@ -70,8 +73,8 @@ class PolicyLevelLru final : public IReplacementPolicy {
     }
     if (best == 0) return kNoKey;
     const std::uint64_t key = nodes_[best].key;
-    unlink(best);
-    release(best);
+    nodes_.unlink(best);
+    nodes_.release(best);
     index_.erase(key);
     return key;
   }
@@ -95,44 +98,13 @@ class PolicyLevelLru final : public IReplacementPolicy {
     const auto l = static_cast<std::size_t>(k.level());
     return sentinel(l < kLevelLruLists ? l : kLevelLruLists - 1);
   }
-
-  std::uint32_t alloc(std::uint64_t key) {
-    std::uint32_t n;
-    if (!free_.empty()) {
-      n = free_.back();
-      free_.pop_back();
-    } else {
-      n = static_cast<std::uint32_t>(nodes_.size());
-      nodes_.emplace_back();
-    }
-    nodes_[n].key = key;
-    nodes_[n].last = frame_;
-    nodes_[n].list = list_of(key);
-    return n;
-  }
-  void release(std::uint32_t n) {
-    nodes_[n].key = kNoKey;
-    free_.push_back(n);
-  }
-  void unlink(std::uint32_t n) {
-    nodes_[nodes_[n].prev].next = nodes_[n].next;
-    nodes_[nodes_[n].next].prev = nodes_[n].prev;
-  }
-  void push_front(std::uint32_t n) {
-    const std::uint32_t s = nodes_[n].list;
-    nodes_[n].prev = s;
-    nodes_[n].next = nodes_[s].next;
-    nodes_[nodes_[s].next].prev = n;
-    nodes_[s].next = n;
-  }
-  static std::vector<Node> make_sentinels() {
-    std::vector<Node> v(kLevelLruLists);
-    for (std::uint32_t i = 0; i < kLevelLruLists; ++i) v[i].prev = v[i].next = v[i].list = i;
-    return v;
+  static NodeSlab<Node> make_sentinels() {
+    NodeSlab<Node> s(kLevelLruLists);
+    for (std::uint32_t i = 0; i < kLevelLruLists; ++i) s[i].list = i;
+    return s;
   }
 
-  std::vector<Node> nodes_ = make_sentinels();
-  std::vector<std::uint32_t> free_;
+  NodeSlab<Node> nodes_ = make_sentinels();
   PageMap<std::uint32_t> index_;
   std::int64_t frame_ = 0;
 };

@@ -30,6 +30,7 @@
 
 #include "cache/page_map.h"
 #include "cache/policy/i_replacement.h"
+#include "cache/policy/node_lists.h"
 
 namespace vtsim {
 namespace {
@@ -42,12 +43,12 @@ class PolicyS3Fifo final : public IReplacementPolicy {
     std::uint32_t n;
     if (const std::uint32_t* g = index_.find(key)) {
       n = *g;
-      if (nodes_[n].queue != kGhost) return;  // already cached: the owner's error, ignored
-      unlink(n);
-      push_head(n, kMain, size);
+      if (nodes_[n].list != kGhost) return;  // already cached: the owner's error, ignored
+      nodes_.unlink(n);
+      nodes_.push_front(n, kMain, size);
     } else {
       n = alloc(key);
-      push_head(n, kSmall, size);
+      nodes_.push_front(n, kSmall, size);
     }
     nodes_[n].freq = 0;
     incoming_ = n;
@@ -56,14 +57,14 @@ class PolicyS3Fifo final : public IReplacementPolicy {
     if (const std::uint32_t* n = index_.find(key)) {
       Node& node = nodes_[*n];
       // The paper's 2-bit counter: three hits are as good as more.
-      if (node.queue != kGhost && node.freq < 3) ++node.freq;
+      if (node.list != kGhost && node.freq < 3) ++node.freq;
     }
   }
   void remove(std::uint64_t key) override {
     if (const std::uint32_t* n = index_.find(key)) {
       const std::uint32_t i = *n;
-      if (nodes_[i].queue == kGhost) return;
-      unlink(i);
+      if (nodes_[i].list == kGhost) return;
+      nodes_.unlink(i);
       release(i);
       index_.erase(key);
     }
@@ -72,13 +73,13 @@ class PolicyS3Fifo final : public IReplacementPolicy {
     // While the keys held weigh more than the capacity the owner is making room for the key it
     // admitted last: leave it out of the weights and the candidates.
     std::uint32_t inc = kNil;
-    if (incoming_ != kNil && nodes_[incoming_].queue != kGhost && weight_[kSmall] + weight_[kMain] > capacity_)
+    if (incoming_ != kNil && nodes_[incoming_].list != kGhost && nodes_.weight(kSmall) + nodes_.weight(kMain) > capacity_)
       inc = incoming_;
-    std::uint64_t w_small = weight_[kSmall], w_main = weight_[kMain];
-    std::uint64_t n_small = count_[kSmall];
+    std::uint64_t w_small = nodes_.weight(kSmall), w_main = nodes_.weight(kMain);
+    std::uint64_t n_small = nodes_.count(kSmall);
     if (inc != kNil) {
-      (nodes_[inc].queue == kSmall ? w_small : w_main) -= nodes_[inc].size;
-      if (nodes_[inc].queue == kSmall) --n_small;
+      (nodes_[inc].list == kSmall ? w_small : w_main) -= nodes_[inc].size;
+      if (nodes_[inc].list == kSmall) --n_small;
     }
     std::uint64_t key = kNoKey;
     if (w_main > main_share_ || n_small == 0) {
@@ -95,14 +96,14 @@ class PolicyS3Fifo final : public IReplacementPolicy {
     std::uint8_t queue = kMain;
     if (const std::uint32_t* g = index_.find(key)) {
       n = *g;
-      if (nodes_[n].queue != kGhost) return;
-      unlink(n);
+      if (nodes_[n].list != kGhost) return;
+      nodes_.unlink(n);
       queue = kSmall;  // only S's victims leave a ghost; it keeps the frequency it left with
     } else {
       n = alloc(key);
       nodes_[n].freq = 0;
     }
-    push_tail(n, queue, size);
+    nodes_.push_back(n, queue, size);
   }
   void set_capacity(std::uint64_t capacity) override {
     capacity_ = capacity;
@@ -112,7 +113,7 @@ class PolicyS3Fifo final : public IReplacementPolicy {
     trim_ghosts();
     incoming_ = kNil;
   }
-  std::uint64_t size() const override { return count_[kSmall] + count_[kMain]; }
+  std::uint64_t size() const override { return nodes_.count(kSmall) + nodes_.count(kMain); }
 
  private:
   static constexpr std::uint32_t kNil = ~std::uint32_t{0};
@@ -122,27 +123,27 @@ class PolicyS3Fifo final : public IReplacementPolicy {
     std::uint64_t size = 0;
     std::uint32_t prev = 0, next = 0;  // towards the head (newest) / the tail (oldest)
     std::uint8_t freq = 0;
-    std::uint8_t queue = 0;
+    std::uint8_t list = 0;  // its queue
   };
 
   // S's oldest keys: frequency > 1 moves to M (no victim yet), otherwise the key leaves into G.
   std::uint64_t evict_small(Pinned pinned, std::uint32_t inc) {
-    for (std::uint32_t n = nodes_[kSmall].prev; n != kSmall;) {
+    for (std::uint32_t n = nodes_.back(kSmall); n != kSmall;) {
       const std::uint32_t towards_head = nodes_[n].prev;
       if (n == inc || pinned(nodes_[n].key)) {
         n = towards_head;
         continue;
       }
       const std::uint64_t size = nodes_[n].size;
-      unlink(n);
+      nodes_.unlink(n);
       if (nodes_[n].freq > 1) {
-        push_head(n, kMain, size);
+        nodes_.push_front(n, kMain, size);
         n = towards_head;
         continue;
       }
       const std::uint64_t key = nodes_[n].key;
       if (size <= main_share_) {
-        push_head(n, kGhost, size);
+        nodes_.push_front(n, kGhost, size);
         trim_ghosts();
       } else {
         release(n);
@@ -156,11 +157,11 @@ class PolicyS3Fifo final : public IReplacementPolicy {
   // head are met again at the end of the walk; a walk that met no unpinned key ends it.
   std::uint64_t evict_main(Pinned pinned, std::uint32_t inc) {
     bool unpinned_seen = false;
-    for (std::uint32_t n = nodes_[kMain].prev;;) {
+    for (std::uint32_t n = nodes_.back(kMain);;) {
       if (n == kMain) {
         if (!unpinned_seen) return kNoKey;
         unpinned_seen = false;
-        n = nodes_[kMain].prev;
+        n = nodes_.back(kMain);
         continue;
       }
       const std::uint32_t towards_head = nodes_[n].prev;
@@ -171,10 +172,10 @@ class PolicyS3Fifo final : public IReplacementPolicy {
       unpinned_seen = true;
       Node& node = nodes_[n];
       const std::uint64_t size = node.size;
-      unlink(n);
+      nodes_.unlink(n);
       if (node.freq > 0) {
         --node.freq;
-        push_head(n, kMain, size);
+        nodes_.push_front(n, kMain, size);
         n = towards_head;
         continue;
       }
@@ -187,70 +188,28 @@ class PolicyS3Fifo final : public IReplacementPolicy {
 
   // G keeps the newest keys that weigh at most M's share.
   void trim_ghosts() {
-    while (weight_[kGhost] > main_share_) {
-      const std::uint32_t n = nodes_[kGhost].prev;
+    while (nodes_.weight(kGhost) > main_share_) {
+      const std::uint32_t n = nodes_.back(kGhost);
       const std::uint64_t key = nodes_[n].key;
-      unlink(n);
+      nodes_.unlink(n);
       release(n);
       index_.erase(key);
     }
   }
 
   std::uint32_t alloc(std::uint64_t key) {
-    std::uint32_t n;
-    if (!free_.empty()) {
-      n = free_.back();
-      free_.pop_back();
-    } else {
-      n = static_cast<std::uint32_t>(nodes_.size());
-      nodes_.emplace_back();
-    }
-    nodes_[n].key = key;
+    const std::uint32_t n = nodes_.alloc(key);
     index_.put(key, n);
     return n;
   }
   void release(std::uint32_t n) {
     if (n == incoming_) incoming_ = kNil;
-    nodes_[n].key = kNoKey;
-    free_.push_back(n);
-  }
-  void unlink(std::uint32_t n) {
-    Node& node = nodes_[n];
-    nodes_[node.prev].next = node.next;
-    nodes_[node.next].prev = node.prev;
-    weight_[node.queue] -= node.size;
-    --count_[node.queue];
-  }
-  void push_head(std::uint32_t n, std::uint8_t queue, std::uint64_t size) {
-    Node& node = nodes_[n];
-    node.queue = queue;
-    node.size = size;
-    node.prev = queue;
-    node.next = nodes_[queue].next;
-    nodes_[node.next].prev = n;
-    nodes_[queue].next = n;
-    weight_[queue] += size;
-    ++count_[queue];
-  }
-  void push_tail(std::uint32_t n, std::uint8_t queue, std::uint64_t size) {
-    Node& node = nodes_[n];
-    node.queue = queue;
-    node.size = size;
-    node.next = queue;
-    node.prev = nodes_[queue].prev;
-    nodes_[node.prev].next = n;
-    nodes_[queue].prev = n;
-    weight_[queue] += size;
-    ++count_[queue];
+    nodes_.release(n);
   }
 
   // Nodes 0-2: the sentinels of S, M and G (next: head, newest; prev: tail, oldest).
-  std::vector<Node> nodes_ = std::vector<Node>{Node{kNoKey, 0, 0, 0, 0, 0}, Node{kNoKey, 0, 1, 1, 0, 1},
-                                               Node{kNoKey, 0, 2, 2, 0, 2}};
-  std::vector<std::uint32_t> free_;
+  WeightedLists<Node, 3> nodes_;  // node_lists.h: each queue's weight (in the owner's unit) and key count
   PageMap<std::uint32_t> index_;  // cached and ghost keys
-  std::uint64_t weight_[3] = {0, 0, 0};
-  std::uint64_t count_[3] = {0, 0, 0};
   std::uint64_t capacity_ = 0, small_share_ = 0, main_share_ = 0;
   std::uint32_t incoming_ = kNil;  // the node admitted last (see evict)
 };

@@ -1,9 +1,10 @@
-#include "sim/run/report_html.h"
-#include "sim/run/report_identity.h"
+#include "sim/report/report_html.h"
+#include "sim/report/report_identity.h"
 
 #include "cache/policy/mrc.h"
-#include "sim/run/mrc_chart.h"
-#include "sim/run/svg_chart.h"
+#include "sim/report/html_escape.h"
+#include "sim/report/mrc_chart.h"
+#include "sim/report/svg_chart.h"
 
 #include <fmt/format.h>
 
@@ -77,22 +78,6 @@ void rh_flatten(const nlohmann::json& j, const std::string& prefix, ReportConfig
 
 }  // namespace
 
-std::string html_escape(std::string_view s) {
-  std::string o;
-  o.reserve(s.size());
-  for (char c : s) {
-    switch (c) {
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '&': o += "&amp;"; break;
-      case '"': o += "&quot;"; break;
-      case '\'': o += "&#39;"; break;
-      default: o += c;
-    }
-  }
-  return o;
-}
-
 ReportConfig report_config_of(const nlohmann::json& summary) {
   ReportConfig out;
   if (summary.is_object() && summary.contains("config") && summary["config"].is_object()) rh_flatten(summary["config"], "", out);
@@ -156,48 +141,11 @@ std::string report_page_head(const std::string& title) {
          "</style></head><body>\n";
 }
 
-std::string html_report(const nlohmann::json& s, const MetricsCollector& m, const ReportConfig& config_in) {
-  const ReportConfig config = config_in.empty() ? report_config_of(s) : config_in;
-  const auto& frames = m.frames();
-  std::vector<double> t, blurry, clamp, finest, disk, upload, live, needs, ram, up_tiles, up_bytes;
-  std::vector<double> events;
-  const double fps = num(s, "trace", "fps") > 0 ? num(s, "trace", "fps") : 60.0;
-  const auto window = static_cast<std::size_t>(std::max(1.0, std::round(fps / 4)));  // 0.25 s moving sum
-  double dsum = 0, usum = 0;
-  for (std::size_t i = 0; i < frames.size(); ++i) {
-    const FrameRow& r = frames[i];
-    t.push_back(r.t_s);
-    blurry.push_back(r.samples ? 100.0 * r.blurry / r.samples : 0.0);
-    clamp.push_back(r.clamp);
-    finest.push_back(r.finest_needed);
-    dsum += static_cast<double>(r.disk_bytes);
-    usum += static_cast<double>(r.upload_bytes);
-    if (i >= window) {
-      dsum -= static_cast<double>(frames[i - window].disk_bytes);
-      usum -= static_cast<double>(frames[i - window].upload_bytes);
-    }
-    const double span = static_cast<double>(std::min(i + 1, window)) / fps;
-    disk.push_back(dsum / span / 1e6);
-    upload.push_back(usum / span / 1e6);
-    live.push_back(r.live_requests);
-    needs.push_back(r.needs);
-    ram.push_back(static_cast<double>(r.ram_bytes) / (1024.0 * 1024.0));
-    up_tiles.push_back(r.uploads);
-    up_bytes.push_back(static_cast<double>(r.upload_bytes) / 1024.0);
-    if (r.event) events.push_back(r.t_s);
-  }
-  // A system column by name (FrameRow::system), empty when the system has none.
-  const auto column = [&](std::string_view name) {
-    std::vector<double> v;
-    const auto& names = m.system_columns();
-    const auto it = std::find(names.begin(), names.end(), name);
-    if (it == names.end()) return v;
-    const auto k = static_cast<std::size_t>(it - names.begin());
-    for (const FrameRow& r : frames) v.push_back(r.system[k]);
-    return v;
-  };
-  const std::string system = s.value("system", "");
+namespace {
 
+// The page's heading and its table of key figures.
+std::string rh_key_figures(const nlohmann::json& s, const ReportConfig& config, double fps) {
+  const std::string system = s.value("system", "");
   std::string h = report_page_head("vtsim replay report");
   h += fmt::format("<h1>vtsim replay: {} ({} clock)</h1>\n", escape(system), escape(s.value("clock", "")));
   const nlohmann::json trace = s.contains("trace") && s["trace"].is_object() ? s["trace"] : nlohmann::json::object();
@@ -237,7 +185,50 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m, cons
   }
   h += row("run", fmt::format("{:.2f} s wall, {:.0f}× real time", num(s, "run", "wall_s"), num(s, "run", "x_realtime")));
   h += "</table></div>\n";
+  return h;
+}
 
+// The charts over time: the frames' series (disk and upload as 0.25 s moving averages), with cuts
+// and fast turns marked; the VT pool's when the system has one.
+std::string rh_over_time(const MetricsCollector& m, const ReportConfig& config, double fps) {
+  const auto& frames = m.frames();
+  std::vector<double> t, blurry, clamp, finest, disk, upload, live, needs, ram, up_tiles, up_bytes;
+  std::vector<double> events;
+  const auto window = static_cast<std::size_t>(std::max(1.0, std::round(fps / 4)));  // 0.25 s moving sum
+  double dsum = 0, usum = 0;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    const FrameRow& r = frames[i];
+    t.push_back(r.t_s);
+    blurry.push_back(r.samples ? 100.0 * r.blurry / r.samples : 0.0);
+    clamp.push_back(r.clamp);
+    finest.push_back(r.finest_needed);
+    dsum += static_cast<double>(r.disk_bytes);
+    usum += static_cast<double>(r.upload_bytes);
+    if (i >= window) {
+      dsum -= static_cast<double>(frames[i - window].disk_bytes);
+      usum -= static_cast<double>(frames[i - window].upload_bytes);
+    }
+    const double span = static_cast<double>(std::min(i + 1, window)) / fps;
+    disk.push_back(dsum / span / 1e6);
+    upload.push_back(usum / span / 1e6);
+    live.push_back(r.live_requests);
+    needs.push_back(r.needs);
+    ram.push_back(static_cast<double>(r.ram_bytes) / (1024.0 * 1024.0));
+    up_tiles.push_back(r.uploads);
+    up_bytes.push_back(static_cast<double>(r.upload_bytes) / 1024.0);
+    if (r.event) events.push_back(r.t_s);
+  }
+  // A system column by name (FrameRow::system), empty when the system has none.
+  const auto column = [&](std::string_view name) {
+    std::vector<double> v;
+    const auto& names = m.system_columns();
+    const auto it = std::find(names.begin(), names.end(), name);
+    if (it == names.end()) return v;
+    const auto k = static_cast<std::size_t>(it - names.begin());
+    for (const FrameRow& r : frames) v.push_back(r.system[k]);
+    return v;
+  };
+  std::string h;
   h += "<h2>Over time</h2>\n<div class=\"charts\">\n";
   const std::string cuts = "cut / fast turn";
   // A share: its full range, never clipped (a clipped 100 % would read as an error).
@@ -286,7 +277,12 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m, cons
     h += time_chart_svg({"VT feedback LOD bias", "levels added to every desired level by the residency policy", "levels", "s", t,
                          {{"bias", chart_colour(4), bias, true}}, events, cuts, false});
   }
-  h += "</div>\n<h2>Latency and bandwidth</h2>\n<div class=\"charts\">\n";
+  return h;
+}
+
+// The latency distribution, latency by stage and bandwidth per level.
+std::string rh_latency_charts(const nlohmann::json& s, const MetricsCollector& m) {
+  std::string h;
   // Latency distribution: the share of tiles resident within x ms (a CDF). The x axis ends at the
   // robust scale of the latencies; a tail beyond it is stated in the subtitle.
   std::vector<double> lat;
@@ -329,9 +325,13 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m, cons
     }
     h += bar_chart_svg("Bandwidth per level", "MB/s averaged over the run, by mip level (0 = finest)", groups, series);
   }
-  h += "</div>\n";
-  // metrics.opt: each level's LRU miss-ratio curve from the summary with its knee, and above it the
-  // offline figures at the run's capacity and the live miss ratio.
+  return h;
+}
+
+// metrics.opt: each level's LRU miss-ratio curve from the summary with its knee, and above it the
+// offline figures at the run's capacity and the live miss ratio.
+std::string rh_cache_curves(const nlohmann::json& s) {
+  std::string h;
   const auto mrc_section = [&](const nlohmann::json& b, const char* title, double live_ratio) {
     const auto& mj = b["mrc"];
     MissRatioCurve c;
@@ -370,6 +370,20 @@ std::string html_report(const nlohmann::json& s, const MetricsCollector& m, cons
     mrc_section(pool["bounds"], "VT page pool: LRU miss-ratio curve of the recorded accesses",
                 acc > 0 ? pool["misses"].get<double>() / acc : 0.0);
   }
+  return h;
+}
+
+}  // namespace
+
+std::string html_report(const nlohmann::json& s, const MetricsCollector& m, const ReportConfig& config_in) {
+  const ReportConfig config = config_in.empty() ? report_config_of(s) : config_in;
+  const double fps = num(s, "trace", "fps") > 0 ? num(s, "trace", "fps") : 60.0;
+  std::string h = rh_key_figures(s, config, fps);
+  h += rh_over_time(m, config, fps);
+  h += "</div>\n<h2>Latency and bandwidth</h2>\n<div class=\"charts\">\n";
+  h += rh_latency_charts(s, m);
+  h += "</div>\n";
+  h += rh_cache_curves(s);
   if (!config.empty() && !(s.is_object() && s.contains("config"))) {  // else html_run_identity shows it
     h += "<h2>Config</h2>\n<p>Every key of the run's effective config, defaults included (docs/config.md).</p>\n<div class=\"cfg\">\n";
     for (const auto& [k, v] : config) h += "<div>" + escape(k) + " = " + escape(v) + "</div>\n";

@@ -1,8 +1,7 @@
-#include "sim/sweep/sweep_report.h"
+#include "sim/report/sweep_report.h"
 
 #include "cache/policy/mrc.h"
-#include "sim/run/mrc_chart.h"
-#include "sim/sweep/sweep_spec.h"
+#include "sim/report/mrc_chart.h"
 
 #include <fmt/format.h>
 
@@ -18,9 +17,9 @@
 
 #include "core/text.h"
 #include "sim/run/metric_direction.h"
-#include "sim/run/report_html.h"
-#include "sim/run/svg_chart.h"
-#include "sim/sweep/sweep_spec.h"
+#include "sim/run/metric_path.h"
+#include "sim/report/html_escape.h"
+#include "sim/report/svg_chart.h"
 
 // Helpers live in a named namespace: unity builds put this file in one translation unit with
 // others whose anonymous namespaces already hold `escape`, `chart`, `Series`.
@@ -31,27 +30,8 @@ using Opt = std::optional<double>;
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr std::size_t kMaxLines = 6;  // more combinations than this: mean and min–max band
-const char* const kPalette[kMaxLines] = {"#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b"};
-// Every SVG text uses these sizes (the CSS below); widths are estimated from them.
-constexpr double kTitlePx = 13, kSmallPx = 11;
 
 // ---- text ----------------------------------------------------------------------------------
-
-std::string esc(std::string_view s) { return html_escape(s); }
-
-// The replay report's width estimate (svg_chart.h: on the wide side, so layout leaves room).
-double text_w(std::string_view s, double px) { return chart_text_width(s, px); }
-
-// The text cut to fit max_w at px, ending in an ellipsis.
-std::string cut_to(std::string_view s, double px, double max_w) {
-  std::string t(s);
-  while (!t.empty() && text_w(t + "…", px) > max_w) {
-    t.pop_back();
-    while (!t.empty() && (static_cast<unsigned char>(t.back()) & 0xC0) == 0x80) t.pop_back();
-    if (!t.empty() && static_cast<unsigned char>(t.back()) >= 0xC0) t.pop_back();  // a code point's lead byte
-  }
-  return t + "…";
-}
 
 // 3 significant figures, k/M/G from 10^4, exponent below 10^-3: compact, locale-free.
 std::string fmt3(double v) {
@@ -358,25 +338,6 @@ Scale make_scale(std::vector<double> vals, bool from_zero = false) {
 
 // ---- SVG pieces ------------------------------------------------------------------------------
 
-// Text estimated wider than max_w gets a smaller font (down to 3/4 of px); beyond that it is cut
-// with an ellipsis and the whole goes in a tooltip.
-std::string svg_text(double x, double y, std::string_view s, const char* cls, const char* anchor, double px, double max_w) {
-  const double w = text_w(s, px) * (std::string_view(cls) == "title" ? 1.1 : 1.0);  // titles are bold
-  if (w <= max_w)
-    return fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"{}\" text-anchor=\"{}\">{}</text>\n", x, y, cls, anchor, esc(s));
-  const double small = std::max(px * max_w / w, px * 0.75);
-  const bool cut = small * w / px > max_w;
-  return fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"{}\" text-anchor=\"{}\" style=\"font-size:{:.1f}px\">{}{}</text>\n",
-                     x, y, cls, anchor, std::floor(small * 10) / 10, cut ? "<title>" + esc(s) + "</title>" : "",
-                     esc(cut ? cut_to(s, small * w / text_w(s, px), max_w) : std::string(s)));
-}
-
-std::string svg_open(double w, double h, const std::string& label) {
-  return fmt::format("<svg xmlns=\"http://www.w3.org/2000/svg\" class=\"chart\" width=\"{:.0f}\" height=\"{:.0f}\" "
-                     "viewBox=\"0 0 {:.0f} {:.0f}\" role=\"img\" aria-label=\"{}\">\n",
-                     w, h, w, h, esc(label));
-}
-
 struct Tick {
   double x;
   std::string label;
@@ -391,12 +352,12 @@ std::string x_tick_labels(const std::vector<Tick>& ticks, double y, double chart
   for (const bool must : {true, false})
     for (const Tick& t : ticks) {
       if (t.must != must) continue;
-      const double w = std::min(text_w(t.label, kSmallPx), max_w);
+      const double w = std::min(chart_text_width(t.label, kChartSmallPx), max_w);
       const double cx = std::clamp(t.x, w / 2 + 2, chart_w - w / 2 - 2);
       const double l = cx - w / 2, r = cx + w / 2;
       if (std::any_of(placed.begin(), placed.end(), [&](const auto& p) { return l < p.second + 6 && p.first < r + 6; })) continue;
       placed.emplace_back(l, r);
-      o += svg_text(cx, y, t.label, "tick", "middle", kSmallPx, max_w);
+      o += chart_text_svg(cx, y, t.label, "tick", "middle", kChartSmallPx, max_w, ChartTextFit::shrink);
     }
   return o;
 }
@@ -406,7 +367,7 @@ std::string y_axis(const Scale& sc, double left, double right, const auto& Y) {
   std::string o;
   for (double v : sc.ticks) {
     o += fmt::format("<line x1=\"{:.1f}\" x2=\"{:.1f}\" y1=\"{:.1f}\" y2=\"{:.1f}\" class=\"grid\"/>\n", left, right, Y(v), Y(v));
-    o += svg_text(left - 5, Y(v) + 4, fmt3(v), "tick", "end", kSmallPx, left - 8);
+    o += chart_text_svg(left - 5, Y(v) + 4, fmt3(v), "tick", "end", kChartSmallPx, left - 8, ChartTextFit::shrink);
   }
   return o;
 }
@@ -424,12 +385,12 @@ std::pair<std::string, double> legend_below(const std::string& heading, const st
   double y = y0;
   if (!heading.empty()) {
     y += 12;
-    o += svg_text(x0, y, heading, "lgd", "start", kSmallPx, width);
+    o += chart_text_svg(x0, y, heading, "lgd", "start", kChartSmallPx, width, ChartTextFit::shrink);
   }
   double x = x0;
   if (!items.empty()) y += 15;
   for (const Swatch& it : items) {
-    const double tw = std::min(text_w(it.label, kSmallPx), width - 16);
+    const double tw = std::min(chart_text_width(it.label, kChartSmallPx), width - 16);
     if (x > x0 && x + 16 + tw > x0 + width) {
       x = x0;
       y += 15;
@@ -441,7 +402,7 @@ std::pair<std::string, double> legend_below(const std::string& heading, const st
       o += fmt::format("<line x1=\"{:.1f}\" x2=\"{:.1f}\" y1=\"{:.1f}\" y2=\"{:.1f}\" stroke=\"{}\" stroke-width=\"2\"/>"
                        "<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"2.5\" fill=\"{}\"/>\n",
                        x, x + 12, y - 4, y - 4, it.colour, x + 6, y - 4, it.colour);
-    o += svg_text(x + 16, y, it.label, "lgd", "start", kSmallPx, width - 16);
+    o += chart_text_svg(x + 16, y, it.label, "lgd", "start", kChartSmallPx, width - 16, ChartTextFit::shrink);
     x += 16 + tw + 14;
   }
   return {o, y - y0 + (items.empty() && heading.empty() ? 0 : 6)};
@@ -496,8 +457,8 @@ std::string clip_mark(double x, double top, const char* colour) {
 }
 
 std::string clip_note(const Scale& sc, double x, double y, double width, const char* mark = "▲") {
-  return svg_text(x, y, fmt::format("{} off the scale: max {} (scale fits the bulk of the data)", mark, fmt3(sc.max)), "lgd",
-                  "start", kSmallPx, width);
+  return chart_text_svg(x, y, fmt::format("{} off the scale: max {} (scale fits the bulk of the data)", mark, fmt3(sc.max)),
+                        "lgd", "start", kChartSmallPx, width, ChartTextFit::shrink);
 }
 
 // A band, when given, is drawn instead of the lines (which then only set the scale).
@@ -523,7 +484,7 @@ std::string line_chart(const std::string& title, const std::string& subtitle, co
   for (std::size_t i : order) ticks.push_back({X(i), xs.labels[i]});
   const double slot_w = xs.pos.size() > 1 ? PW / static_cast<double>(xs.pos.size()) : PW;
   body += x_tick_labels(ticks, T + PH + 15, W, std::max(slot_w - 6, 36.0));
-  body += svg_text(L + PW / 2, T + PH + 31, xs.title, "lgd", "middle", kSmallPx, W - 16);
+  body += chart_text_svg(L + PW / 2, T + PH + 31, xs.title, "lgd", "middle", kChartSmallPx, W - 16, ChartTextFit::shrink);
   if (band) {
     // The band's outline: the maxima left to right, then the minima back, over slots with both.
     std::string pts;
@@ -531,7 +492,7 @@ std::string line_chart(const std::string& title, const std::string& subtitle, co
       if (band->hi[i]) pts += fmt::format("{:.1f},{:.1f} ", X(i), Y(*band->hi[i]));
     for (auto it = order.rbegin(); it != order.rend(); ++it)
       if (band->lo[*it]) pts += fmt::format("{:.1f},{:.1f} ", X(*it), Y(*band->lo[*it]));
-    body += fmt::format("<polygon points=\"{}\" fill=\"{}\" fill-opacity=\"0.2\" stroke=\"none\"/>\n", pts, kPalette[0]);
+    body += fmt::format("<polygon points=\"{}\" fill=\"{}\" fill-opacity=\"0.2\" stroke=\"none\"/>\n", pts, chart_colour(0));
   }
   bool any_clipped = false;
   auto draw = [&](const std::vector<Opt>& y, const char* colour) {
@@ -548,7 +509,7 @@ std::string line_chart(const std::string& title, const std::string& subtitle, co
       }
       pts += fmt::format("{:.1f},{:.1f} ", X(i), Y(*y[i]));
       body += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"2.8\" fill=\"{}\"><title>{}: {}</title></circle>\n", X(i),
-                          Y(*y[i]), colour, esc(xs.labels[i]), fmt3(*y[i]));
+                          Y(*y[i]), colour, html_escape(xs.labels[i]), fmt3(*y[i]));
       if (sc.above(*y[i])) {
         body += clip_mark(X(i), T - 9, colour);
         any_clipped = true;
@@ -558,12 +519,12 @@ std::string line_chart(const std::string& title, const std::string& subtitle, co
   };
   std::vector<Swatch> items;
   if (band) {
-    draw(band->mid, kPalette[0]);
-    items = {{fmt::format("mean of {} combinations", band->members), kPalette[0], false}, {"min–max", kPalette[0], true}};
+    draw(band->mid, chart_colour(0));
+    items = {{fmt::format("mean of {} combinations", band->members), chart_colour(0), false}, {"min–max", chart_colour(0), true}};
   } else {
     for (std::size_t k = 0; k < lines.size(); ++k) {
-      draw(lines[k].y, kPalette[k % kMaxLines]);
-      if (lines.size() > 1) items.push_back({lines[k].label, kPalette[k % kMaxLines], false});
+      draw(lines[k].y, chart_colour(k % kMaxLines));
+      if (lines.size() > 1) items.push_back({lines[k].label, chart_colour(k % kMaxLines), false});
     }
   }
   auto [legend, legend_h] = legend_below(items.empty() ? "" : legend_heading, items, 8, T + PH + 38, W - 16);
@@ -572,9 +533,9 @@ std::string line_chart(const std::string& title, const std::string& subtitle, co
     legend += clip_note(sc, 8, h + 12, W - 16);
     h += 18;
   }
-  std::string o = svg_open(W, h + 6, title);
-  o += svg_text(8, 18, title, "title", "start", kTitlePx, W - 16);
-  o += svg_text(8, 34, subtitle, "sub", "start", kSmallPx, W - 16);
+  std::string o = chart_svg_open(W, h + 6, title);
+  o += chart_text_svg(8, 18, title, "title", "start", kChartTitlePx, W - 16, ChartTextFit::shrink);
+  o += chart_text_svg(8, 34, subtitle, "sub", "start", kChartSmallPx, W - 16, ChartTextFit::shrink);
   return o + body + legend + "</svg>\n";
 }
 
@@ -583,7 +544,7 @@ std::string line_chart(const std::string& title, const std::string& subtitle, co
 std::string bar_chart(const std::string& title, const std::string& subtitle, const std::vector<std::pair<std::string, Opt>>& bars) {
   constexpr double W = 600, T = 46, RowH = 18, ValueW = 52;
   double label_w = 0;
-  for (const auto& b : bars) label_w = std::max(label_w, text_w(b.first, kSmallPx));
+  for (const auto& b : bars) label_w = std::max(label_w, chart_text_width(b.first, kChartSmallPx));
   label_w = std::min(label_w, 240.0);
   const double L = 8 + label_w + 6, PW = W - L - ValueW - 8;
   std::vector<double> vals;
@@ -601,26 +562,27 @@ std::string bar_chart(const std::string& title, const std::string& subtitle, con
   bool any_clipped = false;
   for (std::size_t i = 0; i < bars.size(); ++i) {
     const double y = T + RowH * static_cast<double>(i);
-    body += svg_text(L - 6, y + 13, bars[i].first, "tick", "end", kSmallPx, label_w);
+    body += chart_text_svg(L - 6, y + 13, bars[i].first, "tick", "end", kChartSmallPx, label_w, ChartTextFit::shrink);
     if (!bars[i].second) {
-      body += svg_text(L + 4, y + 13, "n/a", "tick", "start", kSmallPx, 40);
+      body += chart_text_svg(L + 4, y + 13, "n/a", "tick", "start", kChartSmallPx, 40, ChartTextFit::shrink);
       continue;
     }
     const double v = *bars[i].second, x0 = X(std::clamp(0.0, sc.lo, sc.hi)), x1 = X(v);
     body += fmt::format("<rect x=\"{:.1f}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"{:.0f}\" fill=\"{}\"/>\n", std::min(x0, x1),
-                        y + 3, std::fabs(x1 - x0), RowH - 6, kPalette[0]);
+                        y + 3, std::fabs(x1 - x0), RowH - 6, chart_colour(0));
     const bool clipped = sc.above(v);
     any_clipped = any_clipped || clipped;
-    body += svg_text(std::max(x0, x1) + 4, y + 13, fmt3(v) + (clipped ? " ▶" : ""), "tick", "start", kSmallPx, ValueW);
+    body += chart_text_svg(std::max(x0, x1) + 4, y + 13, fmt3(v) + (clipped ? " ▶" : ""), "tick", "start", kChartSmallPx, ValueW,
+                           ChartTextFit::shrink);
   }
   double h = T + PH + 20;
   if (any_clipped) {
     body += clip_note(sc, 8, h + 12, W - 16, "▶");
     h += 18;
   }
-  std::string o = svg_open(W, h + 6, title);
-  o += svg_text(8, 18, title, "title", "start", kTitlePx, W - 16);
-  o += svg_text(8, 34, subtitle, "sub", "start", kSmallPx, W - 16);
+  std::string o = chart_svg_open(W, h + 6, title);
+  o += chart_text_svg(8, 18, title, "title", "start", kChartTitlePx, W - 16, ChartTextFit::shrink);
+  o += chart_text_svg(8, 34, subtitle, "sub", "start", kChartSmallPx, W - 16, ChartTextFit::shrink);
   return o + body + "</svg>\n";
 }
 
@@ -660,7 +622,7 @@ std::string pareto_chart(const std::string& title, const std::string& subtitle, 
                         T + PH);
   }
   body += x_tick_labels(ticks, T + PH + 15, W, 64);
-  body += svg_text(L + PW / 2, T + PH + 31, x_title, "lgd", "middle", kSmallPx, W - 16);
+  body += chart_text_svg(L + PW / 2, T + PH + 31, x_title, "lgd", "middle", kChartSmallPx, W - 16, ChartTextFit::shrink);
   bool clipped = false;
   auto plot_y = [&](double v) {
     clipped = clipped || ys.above(v);
@@ -686,14 +648,14 @@ std::string pareto_chart(const std::string& title, const std::string& subtitle, 
     body += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"4.5\" class=\"front\"><title>#{}: {} × {}</title></circle>\n",
                         X(p.x), Y(p.y), p.config, fmt3(p.x), fmt3(p.y));
     const std::string label = fmt::format("#{}", p.config);
-    const double w = text_w(label, kSmallPx);
+    const double w = chart_text_width(label, kChartSmallPx);
     const std::pair<double, double> spots[] = {{6, -6}, {6, 14}, {-6 - w, -6}, {-6 - w, 14}};
     for (const auto& [dx, dy] : spots) {
       const Box b{X(p.x) + dx, Y(p.y) + dy - 10, X(p.x) + dx + w, Y(p.y) + dy + 2};
       if (b.x0 < L || b.x1 > W - 2 || b.y0 < T - 4 || b.y1 > T + PH) continue;
       if (std::any_of(taken.begin(), taken.end(), [&](const Box& o) { return o.hits(b); })) continue;
       taken.push_back(b);
-      body += svg_text(b.x0, b.y1 - 2, label, "flabel", "start", kSmallPx, w + 1);
+      body += chart_text_svg(b.x0, b.y1 - 2, label, "flabel", "start", kChartSmallPx, w + 1, ChartTextFit::shrink);
       break;
     }
   }
@@ -701,14 +663,14 @@ std::string pareto_chart(const std::string& title, const std::string& subtitle, 
                                          8, T + PH + 38, W - 16);
   double h = T + PH + 38 + legend_h;
   if (clipped) {
-    legend += svg_text(8, h + 12, fmt::format("points off the scale sit on its edge (max cost {}, max pop-in {})", fmt3(xs.max),
-                                              fmt3(ys.max)),
-                       "lgd", "start", kSmallPx, W - 16);
+    legend += chart_text_svg(8, h + 12,
+                             fmt::format("points off the scale sit on its edge (max cost {}, max pop-in {})", fmt3(xs.max), fmt3(ys.max)),
+                             "lgd", "start", kChartSmallPx, W - 16, ChartTextFit::shrink);
     h += 18;
   }
-  std::string o = svg_open(W, h + 6, title);
-  o += svg_text(8, 18, title, "title", "start", kTitlePx, W - 16);
-  o += svg_text(8, 34, subtitle, "sub", "start", kSmallPx, W - 16);
+  std::string o = chart_svg_open(W, h + 6, title);
+  o += chart_text_svg(8, 18, title, "title", "start", kChartTitlePx, W - 16, ChartTextFit::shrink);
+  o += chart_text_svg(8, 34, subtitle, "sub", "start", kChartSmallPx, W - 16, ChartTextFit::shrink);
   return o + body + legend + "</svg>\n";
 }
 
@@ -730,8 +692,8 @@ const char* const kStyle =
     "td.best{font-weight:700}code{font-size:12px}";
 
 std::string header_section(const Sweep& s) {
-  std::string h = fmt::format("<h1>vtsim sweep: {}</h1>\n", esc(s.name.empty() ? "(unnamed)" : s.name));
-  h += fmt::format("<p>spec hash <code>{}</code> · {} × {} = {} · <b>{}</b> failed</p>\n", esc(s.hash),
+  std::string h = fmt::format("<h1>vtsim sweep: {}</h1>\n", html_escape(s.name.empty() ? "(unnamed)" : s.name));
+  h += fmt::format("<p>spec hash <code>{}</code> · {} × {} = {} · <b>{}</b> failed</p>\n", html_escape(s.hash),
                    count_of(s.configs.size(), "config"), count_of(s.traces.size(), "trace"),
                    count_of(s.configs.size() * s.traces.size(), "row"), count_of(s.failed.size(), "row"));
   if (!s.failed.empty()) {
@@ -741,33 +703,33 @@ std::string header_section(const Sweep& s) {
     for (const json* row : s.failed) {
       const auto c = index_of(field(*row, "config")), t = index_of(field(*row, "trace"));
       h += fmt::format("<tr><td>{}</td><td class=\"k\">{}</td><td class=\"k\">{}</td><td class=\"k err\">{}</td></tr>\n",
-                       esc(text_of(field(*row, "row"))), c ? fmt::format("#{} {}", *c, esc(config_values_text(s, *c))) : "?",
-                       t ? esc(trace_short(s, *t)) : "?", esc(row_error(*row)));
+                       html_escape(text_of(field(*row, "row"))), c ? fmt::format("#{} {}", *c, html_escape(config_values_text(s, *c))) : "?",
+                       t ? html_escape(trace_short(s, *t)) : "?", html_escape(row_error(*row)));
     }
     h += "</table>\n";
   }
   h += "<h2>Configs and traces</h2>\n<div class=\"wide\"><table class=\"configs\"><tr><th>config</th>";
-  for (const std::string& k : s.keys) h += fmt::format("<th class=\"k\">{}</th>", esc(k));
+  for (const std::string& k : s.keys) h += fmt::format("<th class=\"k\">{}</th>", html_escape(k));
   std::vector<std::string> cost_keys;
   for (const Config& c : s.configs)
     if (c.cost.is_object())
       for (const auto& kv : c.cost.items())
         if (std::find(cost_keys.begin(), cost_keys.end(), kv.key()) == cost_keys.end()) cost_keys.push_back(kv.key());
-  for (const std::string& k : cost_keys) h += fmt::format("<th>cost: {}</th>", esc(k));
+  for (const std::string& k : cost_keys) h += fmt::format("<th>cost: {}</th>", html_escape(k));
   h += "</tr>\n";
   for (std::size_t c = 0; c < s.configs.size(); ++c) {
     h += fmt::format("<tr><td>#{}</td>", c);
-    for (const std::string& k : s.keys) h += fmt::format("<td class=\"k\">{}</td>", esc(config_value(s, c, k)));
+    for (const std::string& k : s.keys) h += fmt::format("<td class=\"k\">{}</td>", html_escape(config_value(s, c, k)));
     for (const std::string& k : cost_keys) {
       const Opt v = metric_at(s.configs[c].cost, k);
-      h += fmt::format("<td>{}</td>", v && *v == 0 && k.rfind("upload_", 0) == 0 ? "no limit" : esc(fmt3(v)));
+      h += fmt::format("<td>{}</td>", v && *v == 0 && k.rfind("upload_", 0) == 0 ? "no limit" : html_escape(fmt3(v)));
     }
     h += "</tr>\n";
   }
   h += "</table></div>\n<table class=\"traces\"><tr><th>trace</th><th class=\"k\">name</th><th class=\"k\">source</th></tr>\n";
   for (std::size_t t = 0; t < s.traces.size(); ++t)
-    h += fmt::format("<tr><td>{}</td><td class=\"k\">{}</td><td class=\"k\">{}</td></tr>\n", t, esc(s.traces[t].name),
-                     esc(s.traces[t].source));
+    h += fmt::format("<tr><td>{}</td><td class=\"k\">{}</td><td class=\"k\">{}</td></tr>\n", t, html_escape(s.traces[t].name),
+                     html_escape(s.traces[t].source));
   return h + "</table>\n";
 }
 
@@ -865,7 +827,7 @@ std::string axes_section(const Sweep& s, const std::vector<MetricData>& data) {
          "the other keys' values (more than six: their mean with a min–max band). A config failing on any trace is left out.</p>\n";
   }
   for (const MetricData& m : data) {
-    h += fmt::format("<h3 id=\"axes-{0}\">{0}</h3>\n<div class=\"charts\">\n", esc(m.path));
+    h += fmt::format("<h3 id=\"axes-{0}\">{0}</h3>\n<div class=\"charts\">\n", html_escape(m.path));
     if (std::none_of(m.mean.begin(), m.mean.end(), [](const Opt& v) { return v.has_value(); })) {
       h += "<p class=\"note\">n/a for every config.</p></div>\n";
       continue;
@@ -898,11 +860,11 @@ std::string breakdown_table(const Sweep& s, const MetricData& m) {
   const int dir = direction(m.path);
   std::string h = fmt::format("<h3 id=\"trace-{0}\">{0}</h3>\n<p class=\"note\">{1}{2}; each column coloured on its own "
                               "(configs compared on one trace){3}.</p>\n<div class=\"wide\"><table class=\"breakdown\" data-metric=\"{0}\"><tr><th>config</th>",
-                              esc(m.path), direction_text(dir), unit_of(m.path).empty() ? "" : ", " + unit_of(m.path),
+                              html_escape(m.path), direction_text(dir), unit_of(m.path).empty() ? "" : ", " + unit_of(m.path),
                               dir ? ": green best, red worst, bold the best" : ": not coloured");
-  for (const std::string& k : s.keys) h += fmt::format("<th class=\"k\">{}</th>", esc(k));
+  for (const std::string& k : s.keys) h += fmt::format("<th class=\"k\">{}</th>", html_escape(k));
   for (std::size_t t = 0; t < s.traces.size(); ++t)
-    h += fmt::format("<th title=\"{}\">{}</th>", esc(s.traces[t].name), esc(trace_short(s, t)));
+    h += fmt::format("<th title=\"{}\">{}</th>", html_escape(s.traces[t].name), html_escape(trace_short(s, t)));
   h += "<th>mean</th></tr>\n";
   // Columns: the traces, then the mean.
   const std::size_t cols = s.traces.size() + 1;
@@ -913,11 +875,11 @@ std::string breakdown_table(const Sweep& s, const MetricData& m) {
       if (const Opt v = value(c, col)) lo[col] = std::min(lo[col], *v), hi[col] = std::max(hi[col], *v);
   for (std::size_t c = 0; c < s.configs.size(); ++c) {
     h += fmt::format("<tr><td>#{}</td>", c);
-    for (const std::string& k : s.keys) h += fmt::format("<td class=\"k\">{}</td>", esc(config_value(s, c, k)));
+    for (const std::string& k : s.keys) h += fmt::format("<td class=\"k\">{}</td>", html_escape(config_value(s, c, k)));
     for (std::size_t col = 0; col < cols; ++col) {
       const json* row = col < s.traces.size() ? s.row_at[c][col] : nullptr;
       if (row && !row_ok(row)) {
-        h += fmt::format("<td class=\"err\" title=\"{}\">error</td>", esc(row_error(*row)));
+        h += fmt::format("<td class=\"err\" title=\"{}\">error</td>", html_escape(row_error(*row)));
         continue;
       }
       const Opt v = value(c, col);
@@ -964,12 +926,12 @@ std::vector<Opt> cost_values(const Sweep& s, const CostDef& cd) {
 std::string front_table(const Sweep& s, const std::vector<Point>& pts, const std::vector<std::size_t>& front, const char* popin,
                         const CostDef& cd) {
   std::string h = fmt::format("<table class=\"front\" data-popin=\"{}\" data-cost=\"{}\"><tr><th>front</th>", popin, cd.key);
-  for (const std::string& k : s.keys) h += fmt::format("<th class=\"k\">{}</th>", esc(k));
+  for (const std::string& k : s.keys) h += fmt::format("<th class=\"k\">{}</th>", html_escape(k));
   h += fmt::format("<th>{}</th><th>{}</th></tr>\n", cd.key, popin);
   for (std::size_t k : front) {
     const Point& p = pts[k];
     h += fmt::format("<tr data-config=\"{0}\"><td>#{0}</td>", p.config);
-    for (const std::string& key : s.keys) h += fmt::format("<td class=\"k\">{}</td>", esc(config_value(s, p.config, key)));
+    for (const std::string& key : s.keys) h += fmt::format("<td class=\"k\">{}</td>", html_escape(config_value(s, p.config, key)));
     h += fmt::format("<td>{}</td><td>{}</td></tr>\n", std::isinf(p.x) ? "no limit" : fmt3(p.x), fmt3(p.y));
   }
   return h + "</table>\n";
@@ -1119,7 +1081,7 @@ std::string sweep_report_html(const nlohmann::json& meta, const std::vector<nloh
   for (const std::string& m : s.metrics) data.push_back(gather(s, m));
   std::string h = fmt::format("<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
                               "<title>vtsim sweep: {}</title>\n<style>{}</style></head><body>\n",
-                              esc(s.name), kStyle);
+                              html_escape(s.name), kStyle);
   h += header_section(s);
   h += axes_section(s, data);
   h += "<h2>Per trace</h2>\n";

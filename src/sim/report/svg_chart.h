@@ -76,4 +76,24 @@ std::string bar_chart_svg(const std::string& title, const std::string& subtitle,
 // The palette every chart uses (6 colours, colour-blind distinguishable pairs).
 const char* chart_colour(std::size_t i);
 
+// The pieces every chart of the report room (replay, runs, sweep, miss-ratio curves) draws with.
+// Every SVG text uses these sizes (the reports' CSS sets the same); widths are estimated from them.
+inline constexpr double kChartTitlePx = 13, kChartSmallPx = 11;
+
+// s cut to fit max_w at px (chart_text_width), ending in an ellipsis; whole UTF-8 characters only.
+std::string chart_text_cut(std::string_view s, double px, double max_w);
+
+// The opening <svg> tag of a chart w × h px, labelled for screen readers.
+std::string chart_svg_open(double w, double h, const std::string& label);
+
+// How a text estimated wider than its room fits: `cut` with an ellipsis at its own size; or
+// `shrink` to a smaller font (down to 3/4 of px, set in a style attribute) and only then cut.
+// Either way a cut text carries the whole in a tooltip.
+enum class ChartTextFit { cut, shrink };
+
+// A <text> element at (x, y) of class cls ("title" is bold: 10 % wider) and anchor, at most max_w
+// px wide at font size px.
+std::string chart_text_svg(double x, double y, std::string_view s, const char* cls, const char* anchor, double px,
+                           double max_w, ChartTextFit fit = ChartTextFit::cut);
+
 }  // namespace vtsim

@@ -119,21 +119,21 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
                 c.texture.layers = std::move(l);
               },
               [](const C& c) { return "\"" + c.texture.layers.text + "\""; }})
-        .add(cfg::choice<C>("scene.kind", at(&C::scene, &SceneSettings::kind), scenes(), "scene"))
-        .add(cfg::text<C>("scene.file", at(&C::scene, &SceneSettings::file), nullptr, "heightfield image or mesh file (heightfield, mesh)"))
-        .add(cfg::real<C>("scene.height_scale_m", at(&C::scene, &SceneSettings::height_scale_m), 0.0, 1e5, "heightfield: metres for full-range heights"))
-        .add(cfg::text<C>("scene.mesh_loader", at(&C::scene, &SceneSettings::mesh_loader), one_of_mesh({"auto", "assimp", "obj"}),
+        .add(cfg::choice<C>("scene.kind", at(&C::scene, &SceneConfig::kind), scenes(), "scene"))
+        .add(cfg::text<C>("scene.file", at(&C::scene, &SceneConfig::file), nullptr, "heightfield image or mesh file (heightfield, mesh)"))
+        .add(cfg::real<C>("scene.height_scale_m", at(&C::scene, &SceneConfig::height_scale_m), 0.0, 1e5, "heightfield: metres for full-range heights"))
+        .add(cfg::text<C>("scene.mesh_loader", at(&C::scene, &SceneConfig::mesh_loader), one_of_mesh({"auto", "assimp", "obj"}),
                           "mesh: reader of scene.file: auto = the OBJ reader for .obj (vt spans the texture), assimp otherwise"))
-        .add(cfg::real<C>("scene.mesh_unit_m", at(&C::scene, &SceneSettings::mesh_unit_m), 1e-9, 1e6,
+        .add(cfg::real<C>("scene.mesh_unit_m", at(&C::scene, &SceneConfig::mesh_unit_m), 1e-9, 1e6,
                           "mesh (assimp): metres per file unit (Quake 3: 0.0254)"))
-        .add(cfg::text<C>("scene.mesh_up", at(&C::scene, &SceneSettings::mesh_up), one_of_mesh({"auto", "y", "z"}),
+        .add(cfg::text<C>("scene.mesh_up", at(&C::scene, &SceneConfig::mesh_up), one_of_mesh({"auto", "y", "z"}),
                           "mesh (assimp): the file's up axis; auto = y for glTF/FBX/Collada, z otherwise"))
-        .add(cfg::integer<C>("scene.mesh_uv_set", at(&C::scene, &SceneSettings::mesh_uv_set), 0, 7,
+        .add(cfg::integer<C>("scene.mesh_uv_set", at(&C::scene, &SceneConfig::mesh_uv_set), 0, 7,
                              "mesh (assimp): UV channel mapped into the texture (Quake 3: 0 texture, 1 lightmap)"))
-        .add(cfg::text<C>("scene.mesh_no_uv", at(&C::scene, &SceneSettings::mesh_no_uv),
+        .add(cfg::text<C>("scene.mesh_no_uv", at(&C::scene, &SceneConfig::mesh_no_uv),
                           one_of_mesh({"untextured", "skip", "planar", "error"}),
                           "mesh (assimp): parts without that UV set: untextured occluders, skip, planar projection, or error"))
-        .add(cfg::real<C>("scene.mesh_planar_m", at(&C::scene, &SceneSettings::mesh_planar_m), 1e-6, 1e6,
+        .add(cfg::real<C>("scene.mesh_planar_m", at(&C::scene, &SceneConfig::mesh_planar_m), 1e-6, 1e6,
                           "mesh (assimp), mesh_no_uv = planar: metres of world per UV period"))
         .add(cfg::integer<C>("view.divisor", at(&C::view, &ViewConfig::divisor), 1, 256, "feedback buffer = screen / divisor per axis (speed/error knob)"))
         .add(cfg::real<C>("view.lod_bias", at(&C::view, &ViewConfig::lod_bias), -16.0, 16.0, "added to every desired LOD, levels"))
@@ -156,7 +156,7 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
                              "window edge tiles excluded from sampling (Yao 2007 §4-6)"))
         .add(cfg::integer<C>("clipmap.filter_margin_texels", at(&C::clipmap, &ClipmapConfig::filter_margin_texels), 0, 64,
                              "footprint half-width that must be valid (bilinear: 1)"))
-        .add(cfg::integer<C>("terrain.sectors_x", at(&C::terrain, &TerrainConfig::sectors_x), 1, 4096, "terrain: sectors along x (seed 002: 16 × 512 m = 8192 m)"))
+        .add(cfg::integer<C>("terrain.sectors_x", at(&C::terrain, &TerrainConfig::sectors_x), 1, 4096, "terrain: sectors along x (VT Terrain Design: 16 × 512 m = 8192 m)"))
         .add(cfg::integer<C>("terrain.sectors_y", at(&C::terrain, &TerrainConfig::sectors_y), 1, 4096, "terrain: sectors along y"))
         .add(cfg::real<C>("terrain.sector_m", at(&C::terrain, &TerrainConfig::sector_m), 1e-3, 1e7, "terrain: sector side, m"))
         .add(cfg::integer<C>("terrain.brushes_per_sector", at(&C::terrain, &TerrainConfig::brushes_per_sector), 0, 1 << 20,
@@ -236,7 +236,7 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
         .add(cfg::real<C>("produce.per_texel_ns", at(&C::produce, &ProduceModel::per_texel_ns), 0.0, 1e6,
                           "produced tile: cost per output texel whatever its layers (store, pack), ns"))
         .add(cfg::real<C>("produce.per_layer_texel_ns", at(&C::produce, &ProduceModel::per_layer_texel_ns), 0.0, 1e6,
-                          "produced tile: cost per output texel per blended brush layer (seed 002), ns"))
+                          "produced tile: cost per output texel per blended brush layer (VT Terrain Design), ns"))
         .add(cfg::real<C>("produce.per_decal_us", at(&C::produce, &ProduceModel::per_decal_us), 0.0, 1e9,
                           "produced tile: cost per decal rendered over it, us"))
         .add(cfg::real<C>("produce.per_decal_texel_ns", at(&C::produce, &ProduceModel::per_decal_texel_ns), 0.0, 1e9,
@@ -270,15 +270,6 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
     return t;
   }();
   return table;
-}
-
-std::uint64_t tile_decoded_bytes(const ReplayConfig& c, const LayerSpec& layer) {
-  const double side = static_cast<double>(c.texture.tile_size + 2 * c.texture.border);
-  return static_cast<std::uint64_t>(std::ceil(side * side * layer.bytes_per_texel));
-}
-
-std::uint64_t tile_disk_bytes(const ReplayConfig& c, const LayerSpec& layer) {
-  return static_cast<std::uint64_t>(std::ceil(static_cast<double>(tile_decoded_bytes(c, layer)) / layer.compression_ratio));
 }
 
 [[noreturn]] static void bad(const std::string& key, const std::string& what) {
@@ -338,17 +329,6 @@ std::string config_reference_markdown() {
   section("`io.engine`: IO engines (real clock)", io_engines().markdown("engine"));
   section("`vtsim store build --codec`: tile codecs", codecs().markdown("codec"));
   return md;
-}
-
-ViewParams view_params(const ViewConfig& v) {
-  ViewParams p;
-  p.divisor = v.divisor;
-  p.lod_bias = static_cast<float>(v.lod_bias);
-  p.anisotropic = v.anisotropic;
-  p.max_aniso = static_cast<float>(v.max_aniso);
-  p.near_m = v.near_m;
-  p.far_m = v.far_m;
-  return p;
 }
 
 }  // namespace vtsim

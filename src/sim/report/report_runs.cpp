@@ -1,4 +1,4 @@
-#include "sim/run/report_runs.h"
+#include "sim/report/report_runs.h"
 
 #include "sim/run/metric_direction.h"
 
@@ -14,8 +14,9 @@
 
 #include "core/error.h"
 #include "core/text.h"
-#include "sim/run/report_html.h"
-#include "sim/run/svg_chart.h"
+#include "sim/report/html_escape.h"
+#include "sim/report/report_html.h"
+#include "sim/report/svg_chart.h"
 
 namespace vtsim {
 

@@ -1,4 +1,4 @@
-#include "sim/run/mrc_chart.h"
+#include "sim/report/mrc_chart.h"
 
 #include <fmt/format.h>
 
@@ -10,13 +10,14 @@
 #include <string>
 #include <vector>
 
-#include "sim/run/report_html.h"
+#include "sim/report/html_escape.h"
+#include "sim/report/svg_chart.h"
 
 namespace vtsim {
 
 namespace {
 
-// The sweep report's palette (sim/sweep/sweep_report.cpp): Tableau 10, distinguishable in print.
+// The sweep report's palette (sim/report/sweep_report.cpp): Tableau 10, distinguishable in print.
 const char* const kMrcPalette[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd",
                                    "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"};
 constexpr double kMrcW = 640, kMrcL = 56, kMrcR = 16, kMrcT = 44, kMrcPH = 260;
@@ -52,10 +53,7 @@ std::string mrc_chart_svg(const std::vector<MrcChartSeries>& series, const std::
   const double legend_y = kMrcT + kMrcPH + 44;
   const double h = legend_y + 16.0 * static_cast<double>(std::max<std::size_t>(series.size(), 1)) + 4;
 
-  std::string o = fmt::format(
-      "<svg xmlns=\"http://www.w3.org/2000/svg\" class=\"chart\" width=\"{:.0f}\" height=\"{:.0f}\" viewBox=\"0 0 {:.0f} "
-      "{:.0f}\" role=\"img\" aria-label=\"{}\">\n<rect width=\"100%\" height=\"100%\" fill=\"#fcfcfc\" stroke=\"#e5e5e5\"/>\n",
-      kMrcW, h, kMrcW, h, html_escape(title));
+  std::string o = chart_svg_open(kMrcW, h, title) + "<rect width=\"100%\" height=\"100%\" fill=\"#fcfcfc\" stroke=\"#e5e5e5\"/>\n";
   o += fmt::format("<text x=\"8\" y=\"18\" font-family=\"system-ui,sans-serif\" font-size=\"13\" font-weight=\"600\" "
                    "fill=\"#222\">{}</text>\n",
                    html_escape(title));

@@ -1,4 +1,4 @@
-#include "sim/run/compare.h"
+#include "sim/compare/compare.h"
 
 #include <fmt/format.h>
 
@@ -191,27 +191,6 @@ std::vector<ToleranceRule> load_tolerances(const std::string& path) {
     }
   }
   return rules;
-}
-
-bool glob_match(const std::string& p, const std::string& s) {
-  // Iterative wildcard matching with one backtrack point: O(|p|·|s|) worst case.
-  std::size_t i = 0, j = 0, star = std::string::npos, mark = 0;
-  while (j < s.size()) {
-    if (i < p.size() && p[i] != '*' && p[i] == s[j]) {
-      ++i;
-      ++j;
-    } else if (i < p.size() && p[i] == '*') {
-      star = i++;
-      mark = j;
-    } else if (star != std::string::npos) {
-      i = star + 1;
-      j = ++mark;
-    } else {
-      return false;
-    }
-  }
-  while (i < p.size() && p[i] == '*') ++i;
-  return i == p.size();
 }
 
 namespace {

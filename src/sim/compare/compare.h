@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "sim/run/metric_path.h"
+
 namespace vtsim {
 
 // Which way a metric is better. lower/higher: a change beyond tolerance the wrong way is a
@@ -70,9 +72,6 @@ inline constexpr double kFloatAbs = 1e-12;
 // (string) and ignore (bool):   ["latency_ms.*"]  rel = 0.05  better = "lower"
 // Throws InputError("file:line", ...) naming the bad field.
 std::vector<ToleranceRule> load_tolerances(const std::string& path);
-
-// Whether `pattern` ('*' wildcards) matches the whole of `key`.
-bool glob_match(const std::string& pattern, const std::string& key);
 
 // The tolerance of a key: for each field, the most specific matching rule of `user` that sets it
 // (a pattern without '*' first, then the one with more literal characters, then the earlier one),

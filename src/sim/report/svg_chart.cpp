@@ -1,4 +1,4 @@
-#include "sim/run/svg_chart.h"
+#include "sim/report/svg_chart.h"
 
 #include <fmt/format.h>
 
@@ -8,40 +8,15 @@
 #include <limits>
 #include <utility>
 
-#include "sim/run/report_html.h"
+#include "sim/report/html_escape.h"
 
 namespace vtsim {
 
 namespace {
 
-// Every SVG text uses these sizes (the report's CSS sets the same); widths are estimated from them.
-constexpr double kSvgTitlePx = 13, kSvgSmallPx = 11;
-
-std::string svgc_cut(std::string_view s, double px, double max_w) {
-  std::string t(s);
-  while (!t.empty() && chart_text_width(t + "…", px) > max_w) {
-    t.pop_back();
-    while (!t.empty() && (static_cast<unsigned char>(t.back()) & 0xC0) == 0x80) t.pop_back();  // whole UTF-8 characters
-    if (!t.empty() && static_cast<unsigned char>(t.back()) >= 0xC0) t.pop_back();
-  }
-  return t + "…";
-}
-
 // A text element; text estimated wider than max_w is cut with an ellipsis, the whole in a tooltip.
 std::string svgc_text(double x, double y, std::string_view s, const char* cls, const char* anchor, double max_w) {
-  const double px = std::string_view(cls) == "title" ? kSvgTitlePx : kSvgSmallPx;
-  const double w = chart_text_width(s, px) * (std::string_view(cls) == "title" ? 1.1 : 1.0);  // titles are bold
-  if (w <= max_w)
-    return fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"{}\" text-anchor=\"{}\">{}</text>\n", x, y, cls, anchor,
-                       html_escape(s));
-  return fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"{}\" text-anchor=\"{}\"><title>{}</title>{}</text>\n", x, y, cls,
-                     anchor, html_escape(s), html_escape(svgc_cut(s, px, max_w / (w / chart_text_width(s, px)))));
-}
-
-std::string svgc_open(double w, double h, const std::string& label) {
-  return fmt::format("<svg xmlns=\"http://www.w3.org/2000/svg\" class=\"chart\" width=\"{:.0f}\" height=\"{:.0f}\" "
-                     "viewBox=\"0 0 {:.0f} {:.0f}\" role=\"img\" aria-label=\"{}\">\n",
-                     w, h, w, h, html_escape(label));
+  return chart_text_svg(x, y, s, cls, anchor, std::string_view(cls) == "title" ? kChartTitlePx : kChartSmallPx, max_w);
 }
 
 struct SvgcSwatch {
@@ -56,7 +31,7 @@ std::pair<std::string, double> svgc_legend(const std::vector<SvgcSwatch>& items,
   if (items.empty()) return {o, 0};
   double x = x0, y = y0 + 13;
   for (const SvgcSwatch& it : items) {
-    const double tw = std::min(chart_text_width(it.label, kSvgSmallPx), width - 20);
+    const double tw = std::min(chart_text_width(it.label, kChartSmallPx), width - 20);
     if (x > x0 && x + 20 + tw > x0 + width) {
       x = x0;
       y += 16;
@@ -91,6 +66,38 @@ double svgc_percentile(const std::vector<double>& sorted, double q) {
 }
 
 }  // namespace
+
+std::string chart_text_cut(std::string_view s, double px, double max_w) {
+  std::string t(s);
+  while (!t.empty() && chart_text_width(t + "…", px) > max_w) {
+    t.pop_back();
+    while (!t.empty() && (static_cast<unsigned char>(t.back()) & 0xC0) == 0x80) t.pop_back();  // whole UTF-8 characters
+    if (!t.empty() && static_cast<unsigned char>(t.back()) >= 0xC0) t.pop_back();               // a code point's lead byte
+  }
+  return t + "…";
+}
+
+std::string chart_svg_open(double w, double h, const std::string& label) {
+  return fmt::format("<svg xmlns=\"http://www.w3.org/2000/svg\" class=\"chart\" width=\"{:.0f}\" height=\"{:.0f}\" "
+                     "viewBox=\"0 0 {:.0f} {:.0f}\" role=\"img\" aria-label=\"{}\">\n",
+                     w, h, w, h, html_escape(label));
+}
+
+std::string chart_text_svg(double x, double y, std::string_view s, const char* cls, const char* anchor, double px,
+                           double max_w, ChartTextFit fit) {
+  const double w = chart_text_width(s, px) * (std::string_view(cls) == "title" ? 1.1 : 1.0);  // titles are bold
+  if (w <= max_w)
+    return fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"{}\" text-anchor=\"{}\">{}</text>\n", x, y, cls, anchor,
+                       html_escape(s));
+  if (fit == ChartTextFit::cut)
+    return fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"{}\" text-anchor=\"{}\"><title>{}</title>{}</text>\n", x, y,
+                       cls, anchor, html_escape(s), html_escape(chart_text_cut(s, px, max_w / (w / chart_text_width(s, px)))));
+  const double small = std::max(px * max_w / w, px * 0.75);
+  const bool cut = small * w / px > max_w;
+  return fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"{}\" text-anchor=\"{}\" style=\"font-size:{:.1f}px\">{}{}</text>\n",
+                     x, y, cls, anchor, std::floor(small * 10) / 10, cut ? "<title>" + html_escape(s) + "</title>" : "",
+                     html_escape(cut ? chart_text_cut(s, small * w / chart_text_width(s, px), max_w) : std::string(s)));
+}
 
 const char* chart_colour(std::size_t i) {
   static const char* const kColours[6] = {"#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b"};
@@ -193,7 +200,7 @@ std::string time_chart_svg(const TimeChart& c, double W) {
   for (double v : xs.ticks) {
     if (v < x0 - 1e-9 * (x1 - x0) || v > x1 + 1e-9 * (x1 - x0)) continue;
     const std::string label = format_tick(v, xs.step) + (c.x_unit.empty() ? "" : " " + c.x_unit);
-    const double w = chart_text_width(label, kSvgSmallPx);
+    const double w = chart_text_width(label, kChartSmallPx);
     const double cx = std::clamp(X(v), w / 2 + 2, W - w / 2 - 2);
     if (cx - w / 2 < last_r + 8) continue;
     last_r = cx + w / 2;
@@ -247,7 +254,7 @@ std::string time_chart_svg(const TimeChart& c, double W) {
                     "lgd", "start", W - 16);
     h += 18;
   }
-  std::string o = svgc_open(W, h + 8, c.title);
+  std::string o = chart_svg_open(W, h + 8, c.title);
   o += svgc_text(8, 18, c.title, "title", "start", W - 16);
   o += svgc_text(8, 34, c.subtitle.empty() ? c.y_unit : c.subtitle + (c.y_unit.empty() ? "" : " (" + c.y_unit + ")"), "sub",
                  "start", W - 16);
@@ -258,7 +265,7 @@ std::string bar_chart_svg(const std::string& title, const std::string& subtitle,
                           const std::vector<BarSeries>& series, double W) {
   constexpr double T = 46, BarH = 11, GroupGap = 8, ValueW = 64, R = 8;
   double label_w = 0;
-  for (const std::string& g : groups) label_w = std::max(label_w, chart_text_width(g, kSvgSmallPx));
+  for (const std::string& g : groups) label_w = std::max(label_w, chart_text_width(g, kChartSmallPx));
   label_w = std::min(label_w + 4, W * 0.35);
   const double L = 8 + label_w + 6, PW = W - L - ValueW - R;
   std::vector<double> all;
@@ -276,7 +283,7 @@ std::string bar_chart_svg(const std::string& title, const std::string& subtitle,
   double last_r = -1e9;
   for (double v : sc.ticks) {
     const std::string label = format_tick(v, sc.step);
-    const double w = chart_text_width(label, kSvgSmallPx);
+    const double w = chart_text_width(label, kChartSmallPx);
     if (X(v) - w / 2 < last_r + 8) continue;
     last_r = X(v) + w / 2;
     body += svgc_text(X(v), T + PH + 14, label, "tick", "middle", W);
@@ -302,7 +309,7 @@ std::string bar_chart_svg(const std::string& title, const std::string& subtitle,
     for (const BarSeries& s : series) items.push_back({s.label, s.colour, SvgcSwatch::kBar});
   auto [lg, lg_h] = svgc_legend(items, 8, T + PH + 20, W - 16);
   const double h = T + PH + 20 + lg_h;
-  std::string o = svgc_open(W, h + 8, title);
+  std::string o = chart_svg_open(W, h + 8, title);
   o += svgc_text(8, 18, title, "title", "start", W - 16);
   o += svgc_text(8, 34, subtitle, "sub", "start", W - 16);
   return o + body + lg + "</svg>\n";

@@ -1,8 +1,8 @@
-#include "sim/run/report_identity.h"
+#include "sim/report/report_identity.h"
 
 #include <fmt/format.h>
 
-#include "sim/run/report_html.h"
+#include "sim/report/html_escape.h"
 
 namespace vtsim {
 

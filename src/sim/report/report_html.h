@@ -16,9 +16,6 @@
 
 namespace vtsim {
 
-// Text for HTML content and attribute values: < > & " ' as entities.
-std::string html_escape(std::string_view s);
-
 // "0.1.0 (commit 0b8eebf307ea)" from a summary's provenance (schema vtsim-summary/1), or the
 // top-level vtsim_version of older summaries; "?" when neither is there.
 std::string summary_version(const nlohmann::json& summary);
