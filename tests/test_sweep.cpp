@@ -393,10 +393,11 @@ TEST_CASE("sweep: a killed sweep restarted on the same output redoes only the un
 
 TEST_CASE("sweep CLI: a sweep killed with SIGKILL and started again on its output loses and repeats nothing") {
   test::TempDir d;
-  // Four tasks (two traces × two views) of ~0.6 s each (more under the sanitizers), one at a time:
-  // the poller has the other three's time, ~1.8 s, to see the first part and kill.
+  // Four tasks (two traces × two views) of ~0.3 s of CPU each in Release (~4x that under the
+  // sanitizers), one at a time: the poller (every 10 ms) has the other three's time to see the
+  // first part and kill.
   sweep_write(d.file("spec.toml"), "set = [\"run.system=vt\", \"scene.kind=town\", \"view.render_threads=0\"]\n"
-                                  "generate = [\"walk duration_s=90 start_m=30,8\", \"walk duration_s=90 start_m=40,8\"]\n"
+                                  "generate = [\"walk duration_s=20 start_m=30,8\", \"walk duration_s=20 start_m=40,8\"]\n"
                                   "[grid]\n\"vt.pool_pages\" = [128, 512]\n\"view.divisor\" = [16, 32]\n");
   const std::string spec = d.file("spec.toml"), ref = d.file("ref"), out = d.file("out");
   test::CliRun r = test::run_vtsim_capture("sweep " + spec + " -o " + ref + " -q --jobs 1", d.file("err"));

@@ -62,7 +62,7 @@ struct GlOptions {
   bool json = false;
   // gl replay
   std::vector<std::string> configs, sets;
-  std::string store, summary, frames_csv;
+  std::string store, summary, frames_csv, record_feedback;
   bool no_pace = false;
 };
 
@@ -274,6 +274,7 @@ void run_replay(const GlOptions& o) {
   if (o.trace.empty()) throw InputError("--trace", "a trace is required");
   if (o.store.empty()) throw InputError("--store", "a tile store is required (vtsim store gen)");
   const Trace trace = load_cli_trace(o.trace, o.allow_repairs);
+  check_output("--record-feedback", o.record_feedback);
   if (!o.frames_png.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(o.frames_png, ec);
@@ -287,10 +288,14 @@ void run_replay(const GlOptions& o) {
   go.pace = !o.no_pace;
   go.frames_png = o.frames_png;
   go.png_every = o.png_every;
+  go.record_feedback = o.record_feedback;
   go.warn = warn;
   const gl::GlReplayRun run = gl::run_gl_replay(ctx, cfg, trace, store, go);
   const nlohmann::json& s = run.result.summary;
   if (!o.summary.empty()) write_output(o.summary, s.dump(2) + "\n");
+  if (!o.record_feedback.empty() && !o.json)
+    fmt::print(stderr, "vtsim: feedback trace {}: {} frames, {} bytes (the GPU's feedback; replay it with `vtsim replay --feedback`)\n",
+               o.record_feedback, s["trace"]["frames"].get<int>(), run.feedback_trace_bytes);
   if (!o.frames_csv.empty()) write_output_via(o.frames_csv, [&](const std::string& p) { run.result.metrics.write_frames_csv(p); });
   if (o.json) {
     fmt::print("{}\n", s.dump(2));
@@ -367,6 +372,8 @@ void register_gl_commands(CLI::App& app) {
   rep->add_option("--latency", po->latency, "feedback read back this many frames late")->capture_default_str();
   rep->add_option("--frames-png", po->frames_png, "write the main pass of every --png-every-th frame here");
   rep->add_option("--png-every", po->png_every, "frames between PNGs")->capture_default_str();
+  rep->add_option("--record-feedback", po->record_feedback,
+                  "write the GPU feedback each frame acted on as a feedback trace (docs/feedback.md)");
   rep->add_flag("--no-pace", po->no_pace, "start each frame as soon as the last ends (default: at its trace time)");
   rep->add_flag("--allow-repairs", po->allow_repairs, kAllowRepairsHelp);
   rep->add_flag("--json", po->json, "print the summary JSON");

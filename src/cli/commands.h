@@ -32,6 +32,7 @@ void register_vt_commands(CLI::App& app);
 void register_sweep_commands(CLI::App& app);
 void register_tune_commands(CLI::App& app);
 void register_mrc_commands(CLI::App& app);
+void register_cachesim_commands(CLI::App& app);
 void register_report_commands(CLI::App& app);
 void register_atlas_commands(CLI::App& app);
 void register_gl_commands(CLI::App& app);

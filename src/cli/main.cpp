@@ -55,6 +55,7 @@ int main(int argc, char** argv) {
   vtsim::cli::register_sweep_commands(app);
   vtsim::cli::register_tune_commands(app);
   vtsim::cli::register_mrc_commands(app);
+  vtsim::cli::register_cachesim_commands(app);
   vtsim::cli::register_report_commands(app);
   vtsim::cli::register_atlas_commands(app);
   vtsim::cli::register_gl_commands(app);

@@ -2,10 +2,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
-#include <cstdlib>
-#include <fstream>
 #include <thread>
+#include <tuple>
 
 #include "core/camera.h"
 #include "core/error.h"
@@ -18,6 +18,8 @@
 #include "sim/run/real_replay.h"
 #include "sim/run/replay.h"
 #include "sim/run/resources.h"
+#include "sim/run/run_summary.h"
+#include "sim/trace/feedback_trace.h"
 #include "sim/run/runtime_setup.h"
 
 namespace vtsim::gl {
@@ -62,15 +64,6 @@ class Sink final : public IUploadSink {
   Ticks now_ = 0;
 };
 
-// Peak resident set, MB (Linux /proc/self/status VmHWM; 0 elsewhere).
-double peak_rss_mb() {
-  std::ifstream f("/proc/self/status");
-  std::string line;
-  while (std::getline(f, line))
-    if (line.rfind("VmHWM:", 0) == 0) return std::strtod(line.c_str() + 6, nullptr) / 1024.0;
-  return 0.0;
-}
-
 // Every entry of the GPU's page table names a resident page's (slot, level).
 bool gl_page_table_consistent(const GlReplayRun& run, const StreamedVt& vt, TextureExtent ext, int tile, int levels) {
   std::map<std::int64_t, int> slot_level;
@@ -96,85 +89,65 @@ bool gl_page_table_consistent(const GlReplayRun& run, const StreamedVt& vt, Text
   return ok;
 }
 
-// The summary, in `vtsim replay`'s schema (the sections this client measures).
+// The GPU feedback each frame acted on, as a feedback trace (docs/feedback.md): the read-back
+// texels that sampled the texture, each at its desired level's tile, counted per tile.
+class GpuFeedbackRecorder {
+ public:
+  GpuFeedbackRecorder(const std::string& path, const vtsim::FeedbackHeader& h) : w_(path, h) {}
+  void add(const Pose& pose, bool fresh, const FeedbackFrame& fb, int levels, std::uint32_t tile) {
+    frame_.t_s = pose.t_s;
+    frame_.has_pose = true;
+    frame_.pose = pose;
+    frame_.fresh = fresh;
+    frame_.measured = true;
+    frame_.tiles.clear();
+    if (fresh) {
+      keys_.clear();
+      for (const FeedbackTexel& t : fb.px) {
+        if (t.status != 1) continue;
+        const int l = desired_level(t.lod, levels);
+        keys_.push_back({static_cast<std::uint32_t>(l), 0, static_cast<std::uint64_t>(t.u >> l) / tile,
+                         static_cast<std::uint64_t>(t.v >> l) / tile, 1});
+      }
+      std::sort(keys_.begin(), keys_.end(), [](const vtsim::FeedbackTile& a, const vtsim::FeedbackTile& b) {
+        return std::tie(a.layer, a.level, a.x, a.y) < std::tie(b.layer, b.level, b.x, b.y);
+      });
+      for (const vtsim::FeedbackTile& k : keys_) {
+        if (!frame_.tiles.empty() && frame_.tiles.back().level == k.level && frame_.tiles.back().x == k.x && frame_.tiles.back().y == k.y)
+          ++frame_.tiles.back().samples;
+        else
+          frame_.tiles.push_back(k);
+      }
+    }
+    w_.add(frame_);
+  }
+  std::uint64_t finish() {
+    w_.finish();
+    return w_.bytes();
+  }
+
+ private:
+  vtsim::FeedbackWriter w_;
+  vtsim::FeedbackFrame frame_;
+  std::vector<vtsim::FeedbackTile> keys_;
+};
+
+// The summary, in `vtsim replay`'s schema: the measured sections from the builder every runtime
+// client shares (sim/run/run_summary.h), then this client's cost and its "gl" section.
 void gl_summary(GlReplayRun& run, Context& ctx, const ReplayConfig& bound, const FramePlan& plan, StreamingRuntime& rt,
                 const StreamedVt& vt, const std::vector<std::uint64_t>& level_upload, const FeedbackSettings& fs,
                 const GlReplayOptions& o, std::uint64_t feedback_read) {
-  MetricsCollector& m = run.result.metrics;
-  const int levels = rt.system().num_levels();
-  const PipelineCounters& c = rt.pipeline().counters();
-  for (int l = 0; l < levels; ++l)
-    m.add_level_bytes(l, c.disk_bytes_by_level[static_cast<std::size_t>(l)], level_upload[static_cast<std::size_t>(l)]);
-  const double duration_s = plan.duration_s;
-  const auto MBps = [&](std::uint64_t bytes) { return static_cast<double>(bytes) / duration_s / 1e6; };
   nlohmann::json& s = run.result.summary;
-  s["schema"] = kSummarySchema;
-  s["provenance"] = build_json();
-  s["config"] = config_json(bound);
-  s["system"] = bound.run.system;
-  s["clock"] = "gl";
-  s["trace"] = {{"name", plan.trace.name},
-                {"path", plan.trace.source_path},
-                {"content_hash", trace_hash_json(plan.trace)},
-                {"poses", plan.input_poses},
-                {"poses_duration_s", plan.input_duration_s},
-                {"frames", plan.frames},
-                {"duration_s", duration_s},
-                {"fps", 1.0 / plan.period_s},
-                {"image", {plan.trace.image_width, plan.trace.image_height}}};
-  s["bandwidth"] = {
-      {"disk_read_MBps", MBps(c.disk_bytes)},
-      {"decoded_MBps", MBps(c.decoded_bytes)},
-      {"upload_MBps", MBps(c.upload_bytes)},
-      {"prefetch_read_MBps", MBps(c.prefetch_disk_bytes)},
-      {"disk_read_bytes", c.disk_bytes},
-      {"decoded_bytes", c.decoded_bytes},
-      {"upload_bytes", c.upload_bytes},
-      {"prefetch_read_bytes", c.prefetch_disk_bytes},
-      {"disk_reads", c.disk_reads},
-      {"uploads", c.uploads},
-      {"upload_bytes_per_frame", m.upload_per_frame_json()["bytes"]},
-      {"upload_tiles_per_frame", m.upload_per_frame_json()["tiles"]},
-      {"per_level", m.per_level_json(duration_s)},
-      {"wasted", {{"read_bytes_cancelled_after_io", c.wasted_read_bytes},
-                  {"uploaded_bytes_never_sampled", rt.system().evicted_unsampled_bytes()},
-                  {"cancelled_before_io", c.cancelled_queued},
-                  {"cancelled_after_io", c.cancelled_after_read},
-                  {"dropped_before_upload", c.dropped_before_upload}}}};
-  s["latency_ms"] = m.latency_json();
-  s["popin"] = m.popin_json(bound.metrics.sharp_margin);
-  const double lookups = static_cast<double>(c.ram_hits + c.ram_misses);
-  s["cache"] = {{"ram_hit_ratio", lookups > 0 ? static_cast<double>(c.ram_hits) / lookups : 0.0},
-                {"ram_hits", c.ram_hits},
-                {"ram_misses", c.ram_misses},
-                {"ram_evictions", c.ram_evictions},
-                {"ram_evicted_bytes", c.ram_evicted_bytes},
-                {"ram_thrash", c.ram_thrash},
-                {"ram_policy", bound.ram.policy},
-                {"prefetch_requests", c.prefetch_requests},
-                {"prefetch_hits", c.prefetch_hits},
-                {"vram_evictions", rt.system().vram_evictions()},
-                {"vram_thrash", rt.system().vram_thrash()},
-                {"requests", c.requests},
-                {"needs", c.needs}};
-  s["throttle"] = m.throttle_json();
-  s["throttle"]["policy"] = bound.throttle.policy;
-  s["faults"] = {{"faults", c.faults},
-                 {"retries", c.retries},
-                 {"failed_tiles", c.failed_tiles},
-                 {"io_error", c.fault_by_kind[static_cast<int>(Fault::io_error)]},
-                 {"short_read", c.fault_by_kind[static_cast<int>(Fault::short_read)]},
-                 {"checksum", c.fault_by_kind[static_cast<int>(Fault::checksum)]},
-                 {"decode_error", c.fault_by_kind[static_cast<int>(Fault::decode_error)]},
-                 {"bad_record", c.fault_by_kind[static_cast<int>(Fault::bad_record)]}};
-  s[bound.run.system] = rt.system().stats_json();
-  s["resources"] = resources_json(bound, rt.system(), s[bound.run.system], m);
+  static const std::string kClock = "gl";
+  fill_run_summary(s, {bound, plan, kClock, rt.pipeline(), rt.system(), run.result.metrics, level_upload.data(),
+                       rt.executor().now(), nullptr});
+  const double duration_s = plan.duration_s;
   s["run"] = {{"wall_s", run.seconds},
               {"render_threads", 0},
               {"loop_cpu_s", 0.0},
               {"frames_per_s", run.seconds > 0 ? plan.frames / run.seconds : 0.0},
               {"x_realtime", run.seconds > 0 ? duration_s / run.seconds : 0.0},
-              {"peak_rss_MB", peak_rss_mb()}};
+              {"peak_rss_MB", peak_rss_MB()}};
   s["gl"] = {{"renderer", ctx.renderer()},
              {"gl_version", ctx.version()},
              {"platform", ctx.platform()},
@@ -231,6 +204,19 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
   int clamp = 0;
   std::uint64_t feedback_read = 0;
   FeedbackFrame fb;
+  std::unique_ptr<GpuFeedbackRecorder> rec;
+  if (!o.record_feedback.empty()) {
+    vtsim::FeedbackHeader h;
+    h.texture = {bound.texture.width, bound.texture.height};
+    h.tile_size = static_cast<std::uint32_t>(tile);
+    h.levels = static_cast<std::uint32_t>(levels);
+    h.feedback_width = static_cast<std::uint32_t>(buffer_extent(plan.trace.image_width, fs.divisor));
+    h.feedback_height = static_cast<std::uint32_t>(buffer_extent(plan.trace.image_height, fs.divisor));
+    h.image_width = static_cast<std::uint32_t>(plan.trace.image_width);
+    h.image_height = static_cast<std::uint32_t>(plan.trace.image_height);
+    h.frame_rate = 1.0 / plan.period_s;
+    rec = std::make_unique<GpuFeedbackRecorder>(o.record_feedback, h);
+  }
   const auto t0 = std::chrono::steady_clock::now();
   for (int f = 0; f < plan.frames; ++f) {
     const Pose& pose = plan.trace.poses[static_cast<std::size_t>(f)];
@@ -246,7 +232,8 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
     ffs.lod_bias = fs.lod_bias + static_cast<float>(feedback_bias);
     int ox = 0, oy = 0;
     feedback_tile_offset(o.sampling, f, fs.divisor, ox, oy);
-    if (r.feedback(cam, ffs, ox, oy, f, fb)) {
+    const bool fresh = r.feedback(cam, ffs, ox, oy, f, fb);
+    if (fresh) {
       ++feedback_read;
       for (const FeedbackTexel& t : fb.px) {
         if (t.status != 1) continue;
@@ -255,6 +242,7 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
                             static_cast<std::int64_t>(t.v >> l) / tile));
       }
     }
+    if (rec) rec->add(pose, fresh, fb, levels, static_cast<std::uint32_t>(tile));
     FrameRow row;
     row.frame = f;
     row.t_s = ticks_to_seconds(plan.target(f));
@@ -292,6 +280,7 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
   while (r.drain(fb)) {
   }
   run.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (rec) run.feedback_trace_bytes = rec->finish();
   run.sink_uploads = vt.uploads();
   run.gpu_copies = vt.copies();
   run.page_table = vt.page_table();

@@ -8,6 +8,7 @@ const std::vector<Target>& targets() {
       {"compare", compare},           {"store", store},               {"obj", obj},
       {"store_replay", store_replay}, {"image", image}, {"sweep_spec", sweep_spec},
       {"access_file", access_file}, {"mesh_import", mesh_import}, {"q3_entities", q3_entities}, {"feedback", feedback},
+      {"cachesim_formats", cachesim_formats},
   };
   return all;
 }

@@ -63,5 +63,6 @@ void access_file(const std::uint8_t* data, std::size_t size);
 void mesh_import(const std::uint8_t* data, std::size_t size);
 void q3_entities(const std::uint8_t* data, std::size_t size);
 void feedback(const std::uint8_t* data, std::size_t size);
+void cachesim_formats(const std::uint8_t* data, std::size_t size);  // oracleGeneral and CSV traces (cachesim)
 
 }  // namespace vtsim::fuzz

@@ -12,7 +12,9 @@
 #include "core/error.h"
 #include "gl/gl_replay.h"
 #include "gl_test_util.h"
+#include "sim/run/feedback_replay.h"
 #include "sim/run/replay_config.h"
+#include "sim/trace/feedback_trace.h"
 #include "sim/trace/trace_gen.h"
 #include "stream/store/store_generator.h"
 #include "stream/store/tile_store.h"
@@ -53,6 +55,7 @@ TEST_CASE("gl: streaming a still view through the runtime uploads the runtime's 
   const int errors_before = gs.ctx.errors();
   gl::GlReplayOptions o;
   o.latency = 2;
+  o.record_feedback = path + ".vtfb";  // the GPU's feedback as a feedback trace (docs/feedback.md)
   const gl::GlReplayRun run = gl::run_gl_replay(gs.ctx, cfg, trace, store, o);
   std::filesystem::remove(path);
   const nlohmann::json& s = run.result.summary;
@@ -70,6 +73,40 @@ TEST_CASE("gl: streaming a still view through the runtime uploads the runtime's 
   CHECK(rows.back().samples > 10000u);   // the plane fills most of the view
   CHECK(rows.back().blurry == 0u);       // streamed: every pixel samples the level it wants
   CHECK(rows.back().needs == 0u);
+
+  // The recorded GPU feedback: a frame per frame run, fresh where a readback arrived, and its last
+  // fresh frame's tiles are pages the GPU's page table holds (the view it asked for, streamed).
+  FeedbackReader rd(o.record_feedback);
+  CHECK(rd.header().texture.width == cfg.texture.width);
+  CHECK(rd.header().tile_size == static_cast<std::uint32_t>(cfg.texture.tile_size));
+  FeedbackFrame f, last_fresh;
+  std::uint64_t frames = 0, fresh = 0;
+  while (rd.next(f)) {
+    ++frames;
+    if (f.fresh) {
+      ++fresh;
+      last_fresh = f;
+    }
+  }
+  CHECK(frames == rows.size());
+  CHECK(fresh == s["gl"]["feedback_frames_read"].get<std::uint64_t>());
+  REQUIRE_FALSE(last_fresh.tiles.empty());
+  std::uint64_t samples = 0;
+  for (const FeedbackTile& t : last_fresh.tiles) {
+    CAPTURE(t.level);
+    CAPTURE(t.x);
+    CAPTURE(t.y);
+    CHECK(run.page_table.count(TileKey(0, t.level, static_cast<std::int64_t>(t.x), static_cast<std::int64_t>(t.y))) == 1);
+    samples += t.samples;
+  }
+  CHECK(samples <= static_cast<std::uint64_t>(256 * 144));
+  // The simulator replays the GPU's feedback (vtsim replay --feedback): it streams the same view
+  // to sharp in the simulated clock.
+  const ReplayResult sim = run_feedback_replay(cfg, o.record_feedback);
+  std::filesystem::remove(o.record_feedback);
+  REQUIRE_FALSE(sim.metrics.frames().empty());
+  CHECK(sim.metrics.frames().back().blurry == 0u);
+  CHECK(sim.summary["bandwidth"]["uploads"].get<std::uint64_t>() > 10);
 }
 
 TEST_CASE("gl: gl replay refuses a config the store does not match, before the first frame") {

@@ -17,7 +17,10 @@ __extension__ typedef unsigned __int128 BeladyU128;  // cache-time: capacity * n
 // Furthest-next-use eviction; unit: every access weighs 1 and capacity counts frames.
 // bypass (unit only): a missed key whose next use is no sooner than every cached key's is not
 // admitted (counted in `rejected`), the optimum when admission is optional.
-SimStats belady_run(std::span<const Access> accesses, std::uint64_t capacity, bool unit, bool bypass = false) {
+// skip_never: a missed key never requested again is not admitted (libCacheSim's Belady.c); not
+// counted in `rejected`.
+SimStats belady_run(std::span<const Access> accesses, std::uint64_t capacity, bool unit, bool bypass = false,
+                    bool skip_never = false) {
   if (capacity > kMaxPolicyCapacity)
     throw std::invalid_argument("belady: capacity " + std::to_string(capacity) + " is above 2^62");
   const std::vector<std::uint64_t> next = next_uses(accesses);
@@ -49,6 +52,7 @@ SimStats belady_run(std::span<const Access> accesses, std::uint64_t capacity, bo
       ++st.rejected;
       continue;
     }
+    if (skip_never && next[i] == accesses.size()) continue;
     if (bypass && size > capacity - held_bytes) {
       while (!heap.empty()) {  // drop stale entries so that the top is the furthest cached next use
         const Held* h = held.find(heap.top().second);
@@ -109,6 +113,10 @@ SimStats belady_min_bypass(std::span<const Access> accesses, std::uint64_t frame
 
 SimStats belady_size(std::span<const Access> accesses, std::uint64_t capacity) {
   return belady_run(accesses, capacity, false);
+}
+
+SimStats belady_reused(std::span<const Access> accesses, std::uint64_t capacity) {
+  return belady_run(accesses, capacity, false, false, true);
 }
 
 OptLowerBound pfoo_lower(std::span<const Access> accesses, std::uint64_t capacity) {

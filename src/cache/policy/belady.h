@@ -51,6 +51,14 @@ SimStats belady_min_bypass(std::span<const Access> accesses, std::uint64_t frame
 // Belady-Size at `capacity` in the owner's unit.
 SimStats belady_size(std::span<const Access> accesses, std::uint64_t capacity);
 
+// Belady-Size that admits a missed key only if it is requested again: libCacheSim's Belady
+// (Belady.c: its insert and find treat next_access_vtime INT64_MAX so; docs/cache.md, "Cache
+// simulation on access files"). With unit sizes belady_min_bypass <= belady_reused <= belady_min:
+// MIN admits such a key and, when every cached key is requested again, evicts one of them for it;
+// the bypass also declines keys that are requested again, later than every cached key.
+// Same exceptions as belady_size.
+SimStats belady_reused(std::span<const Access> accesses, std::uint64_t capacity);
+
 struct OptLowerBound {
   std::uint64_t requests = 0;      // accesses replayed
   std::uint64_t misses = 0;        // no policy misses fewer requests at this capacity

@@ -8,6 +8,7 @@ std::unique_ptr<IReplacementPolicy> make_policy_clock(std::uint64_t capacity);
 std::unique_ptr<IReplacementPolicy> make_policy_s3fifo(std::uint64_t capacity);
 std::unique_ptr<IReplacementPolicy> make_policy_arc(std::uint64_t capacity);
 std::unique_ptr<IReplacementPolicy> make_policy_level_lru(std::uint64_t capacity);
+std::unique_ptr<IReplacementPolicy> make_policy_fifo(std::uint64_t capacity);
 
 const Registry<ReplacementPolicyInfo>& replacement_policies() {
   static const Registry<ReplacementPolicyInfo> table(
@@ -18,6 +19,7 @@ const Registry<ReplacementPolicyInfo>& replacement_policies() {
           {"s3fifo", "small, main and ghost FIFOs (Yang et al., SOSP 2023): keys seen once leave early, scans pass through", make_policy_s3fifo},
           {"arc", "recency and frequency lists with ghost-tuned split (Megiddo and Modha, FAST 2003)", make_policy_arc},
           {"level_lru", "LRU with each mip level counted 120 frames more recent: coarse fallback pages outlive fine ones (vtsim)", make_policy_level_lru},
+          {"fifo", "first in, first out: a hit changes nothing (libCacheSim's FIFO); the baseline the others are measured against", make_policy_fifo},
       });
   return table;
 }

@@ -25,7 +25,7 @@ bool simulate_used_this_frame(const void* ctx, std::uint64_t key) {
 }  // namespace
 
 SimStats simulate(std::span<const Access> accesses, IReplacementPolicy& policy, std::uint64_t capacity,
-                  std::vector<std::uint64_t>* evicted) {
+                  std::vector<std::uint64_t>* evicted, MissOrder order) {
   if (capacity > kMaxPolicyCapacity)
     throw std::invalid_argument("simulate: capacity " + std::to_string(capacity) + " is above 2^62");
   SimStats st;
@@ -48,8 +48,9 @@ SimStats simulate(std::span<const Access> accesses, IReplacementPolicy& policy, 
       ++st.rejected;
       continue;
     }
-    policy.admit(a.key, a.size);
-    incoming = a.key;
+    const bool admit_first = order == MissOrder::kAdmitFirst;
+    if (admit_first) policy.admit(a.key, a.size);
+    incoming = admit_first ? a.key : kNoKey;
     while (a.size > capacity - held_bytes) {
       const std::uint64_t v = policy.evict(pin_incoming);
       const std::uint64_t* s = v == kNoKey ? nullptr : held.find(v);
@@ -60,6 +61,7 @@ SimStats simulate(std::span<const Access> accesses, IReplacementPolicy& policy, 
       ++st.evictions;
       if (evicted) evicted->push_back(v);
     }
+    if (!admit_first) policy.admit(a.key, a.size);
     held.put(a.key, a.size);
     held_bytes += a.size;
   }

@@ -33,13 +33,20 @@ struct SimStats {
 // Capacities above this are refused: 2 * capacity must not wrap (ARC bounds its directory by 2c).
 inline constexpr std::uint64_t kMaxPolicyCapacity = std::uint64_t{1} << 62;
 
+// The order of a miss. kAdmitFirst: admit the key, then evict with it pinned (LruCache::insert's
+// order; ARC's REPLACE needs the missed key). kEvictFirst: evict until the key fits, then admit
+// (libCacheSim's cache_get_base). LRU and FIFO choose the same victims either way; CLOCK does not:
+// admitted first, the new key sits behind the hand ahead of the keys whose bits the sweep then
+// clears, admitted after the sweep it comes after them (docs/cache.md, "Against libCacheSim").
+enum class MissOrder { kAdmitFirst, kEvictFirst };
+
 // Replays `accesses` through `policy` (fresh, or continuing from a previous replay's state: the
 // held keys start empty, so pass a fresh policy) at `capacity` in the owner's unit. Appends the
 // evicted keys in order to `evicted` when given. Throws std::invalid_argument for a key ~0
 // (reserved, kNoKey) or a capacity above kMaxPolicyCapacity; std::logic_error if the policy
 // returns kNoKey or a key it was not given while room is needed (a broken policy).
 SimStats simulate(std::span<const Access> accesses, IReplacementPolicy& policy, std::uint64_t capacity,
-                  std::vector<std::uint64_t>* evicted = nullptr);
+                  std::vector<std::uint64_t>* evicted = nullptr, MissOrder order = MissOrder::kAdmitFirst);
 
 // The VT pool's rules offline: accesses in frames (frame_start[f]: index of frame f's first
 // access; begin_frame(f) is called as each starts; empty: each access is a frame), keys the current frame requests (anywhere in it)

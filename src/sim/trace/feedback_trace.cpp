@@ -1,5 +1,7 @@
 #include "sim/trace/feedback_trace.h"
 
+#include "core/atomic_file.h"
+
 #include <zstd.h>
 
 #include <algorithm>
@@ -126,10 +128,9 @@ void feedback_tiles(const SpanBuffer& sb, std::uint32_t tile_size, std::vector<F
 
 FeedbackWriter::FeedbackWriter(const std::string& path, const FeedbackHeader& h, std::uint32_t frames_per_block)
     : path_(path), h_(h), per_block_(std::clamp<std::uint32_t>(frames_per_block, 1, kFeedbackMaxFramesPerBlock)) {
-  out_.open(path, std::ios::binary | std::ios::trunc);
-  if (!out_) throw InputError(path, "cannot write the feedback trace");
+  out_ = std::make_unique<AtomicFile>(path);
   const std::string hb = header_bytes(h);
-  out_.write(hb.data(), static_cast<std::streamsize>(hb.size()));
+  out_->write(hb);
   bytes_ = hb.size();
 }
 
@@ -182,8 +183,8 @@ void FeedbackWriter::flush_block() {
   put_u32(bh, static_cast<std::uint32_t>(raw_.size()));
   put_u32(bh, static_cast<std::uint32_t>(comp.size()));
   put_u64(bh, fnv1a64(raw_));
-  out_.write(bh.data(), static_cast<std::streamsize>(bh.size()));
-  out_.write(comp.data(), static_cast<std::streamsize>(comp.size()));
+  out_->write(bh);
+  out_->write(comp);
   bytes_ += bh.size() + comp.size();
   raw_.clear();
   block_frames_ = 0;
@@ -196,11 +197,10 @@ void FeedbackWriter::finish() {
   put_u32(e, 0);
   put_u64(e, frames_);
   put_u64(e, fnv1a64(e));
-  out_.write(e.data(), static_cast<std::streamsize>(e.size()));
+  out_->write(e);
   bytes_ += e.size();
-  out_.flush();
+  out_->commit();
   finished_ = true;
-  if (!out_) throw InputError(path_, "write error (disk full?)");
 }
 
 // ---- reader ----

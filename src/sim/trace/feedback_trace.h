@@ -24,6 +24,8 @@
 
 namespace vtsim {
 
+class AtomicFile;
+
 inline constexpr std::uint32_t kFeedbackVersion = 1;
 inline constexpr std::size_t kFeedbackHeaderBytes = 80;
 // Bounds that keep a hostile file from asking for huge allocations.
@@ -83,7 +85,7 @@ class FeedbackWriter {
  private:
   void flush_block();
   std::string path_;
-  std::ofstream out_;
+  std::unique_ptr<AtomicFile> out_;  // renamed over path_ by finish(); a writer never finished leaves path_ as it was
   FeedbackHeader h_;
   std::uint32_t per_block_;
   std::string raw_;

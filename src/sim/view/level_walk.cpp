@@ -338,6 +338,7 @@ double lw_wrap180(double a) {
 
 // What level_walk's steps share: the mesh's grid and walker, the parameters, the waypoints and the
 // floor found below each (has_floor: one was).
+struct LwGraph;
 struct LwInput {
   const LwGrid& grid;
   const LwWalker& walker;
@@ -345,17 +346,16 @@ struct LwInput {
   const std::vector<glm::dvec3>& wp;
   std::vector<double> floor;
   std::vector<char> has_floor;
+  std::size_t n = wp.size();
+
+  glm::dvec2 xy(std::size_t i) const { return {wp[i].x, wp[i].y}; }
+  void walk_in_order(LevelWalkStats& st, LwPath& path, std::vector<std::size_t>& order) const;
+  LwGraph graph(LevelWalkStats& st) const;
+  void tour(const LwGraph& g, LevelWalkStats& st, LwPath& path, std::vector<std::size_t>& order) const;
 };
 
 // in_order: the waypoints in the order given, each leg walkable straight, or an InputError.
-void lw_walk_in_order(const LwInput& in, LevelWalkStats& st, LwPath& path, std::vector<std::size_t>& order) {
-  const LwWalker& walker = in.walker;
-  const LevelWalkParams& p = in.p;
-  const std::vector<glm::dvec3>& wp = in.wp;
-  const std::vector<double>& floor = in.floor;
-  const std::vector<char>& has_floor = in.has_floor;
-  const std::size_t n = wp.size();
-  const auto xy = [&](std::size_t i) { return glm::dvec2(wp[i].x, wp[i].y); };
+void LwInput::walk_in_order(LevelWalkStats& st, LwPath& path, std::vector<std::size_t>& order) const {
   for (std::size_t i = 0; i < n; ++i)
     if (!has_floor[i])
       throw InputError("level_walk", fmt::format("waypoint {} ({}, {}, {}): no floor within {} m below it", i + 1,
@@ -383,15 +383,7 @@ struct LwGraph {
   std::vector<std::vector<std::pair<std::size_t, double>>> adj;
 };
 
-LwGraph lw_graph(const LwInput& in, LevelWalkStats& st) {
-  const LwGrid& grid = in.grid;
-  const LwWalker& walker = in.walker;
-  const LevelWalkParams& p = in.p;
-  const std::vector<glm::dvec3>& wp = in.wp;
-  const std::vector<double>& floor = in.floor;
-  const std::vector<char>& has_floor = in.has_floor;
-  const std::size_t n = wp.size();
-  const auto xy = [&](std::size_t i) { return glm::dvec2(wp[i].x, wp[i].y); };
+LwGraph LwInput::graph(LevelWalkStats& st) const {
   LwGraph g;
   std::vector<glm::dvec2>& nxy = g.nxy;
   std::vector<double>& nfloor = g.nfloor;
@@ -473,14 +465,7 @@ LwGraph lw_graph(const LwInput& in, LevelWalkStats& st) {
 
 // The tour of the graph: from the start (below), each next the nearest unvisited waypoint by
 // Dijkstra, the chain between them string-pulled into straight legs; `order` the waypoints visited.
-void lw_tour(const LwInput& in, const LwGraph& g, LevelWalkStats& st, LwPath& path, std::vector<std::size_t>& order) {
-  const LwWalker& walker = in.walker;
-  const LevelWalkParams& p = in.p;
-  const std::vector<glm::dvec3>& wp = in.wp;
-  const std::vector<double>& floor = in.floor;
-  const std::vector<char>& has_floor = in.has_floor;
-  const std::size_t n = wp.size();
-  const auto xy = [&](std::size_t i) { return glm::dvec2(wp[i].x, wp[i].y); };
+void LwInput::tour(const LwGraph& g, LevelWalkStats& st, LwPath& path, std::vector<std::size_t>& order) const {
   const std::vector<glm::dvec2>& nxy = g.nxy;
   const std::vector<double>& nfloor = g.nfloor;
   const std::vector<std::vector<std::pair<std::size_t, double>>>& adj = g.adj;
@@ -647,7 +632,7 @@ Trace level_walk(const Mesh& mesh, const std::vector<glm::dvec3>& wp, const Leve
   st.waypoints = wp.size();
   st.grid_cells = grid.cells();
   const std::size_t n = wp.size();
-  LwInput in{grid, walker, p, wp, std::vector<double>(n, 0.0), std::vector<char>(n, 0)};
+  LwInput in{grid, walker, p, wp, std::vector<double>(n, 0.0), std::vector<char>(n, 0), n};
   for (std::size_t i = 0; i < n; ++i) {
     in.has_floor[i] = walker.floor_below({wp[i].x, wp[i].y}, wp[i].z + 0.1, p.probe_m + 0.1, in.floor[i]);
     if (!in.has_floor[i]) st.no_floor_list.push_back(i);
@@ -656,8 +641,8 @@ Trace level_walk(const Mesh& mesh, const std::vector<glm::dvec3>& wp, const Leve
 
   LwPath path;
   std::vector<std::size_t> order;
-  if (p.in_order) lw_walk_in_order(in, st, path, order);
-  else lw_tour(in, lw_graph(in, st), st, path, order);
+  if (p.in_order) in.walk_in_order(st, path, order);
+  else in.tour(in.graph(st), st, path, order);
   Trace trace = lw_poses(path, order, p, n, st);
   st.rays = grid.rays();
   validate_trace(trace, "level_walk");

@@ -309,7 +309,6 @@ void compose_reference(const CompositeJob& job, std::uint8_t* out) {
     lp[k] = &samp_[static_cast<std::size_t>(k) * un * 4];
     wp[k] = &w_[static_cast<std::size_t>(k) * un];
   }
-  const std::size_t nm = job.masks.size();
   mask_columns(job, n, mx_, mfx_);
   for (int j = 0; j < n; ++j) {
     const double wy = job.origin_y_m + (j - job.border + 0.5) * job.m_per_texel;
