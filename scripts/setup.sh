@@ -9,12 +9,14 @@ set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 cd "$here"
 
+# pybind11-dev python3-dev python3-numpy: the Python module (docs/python.md; its results are numpy arrays).
 # openimageio-tools: Debian's OpenImageIOTargets.cmake references /usr/bin/iconvert etc., and
 # --no-install-recommends would leave them out, failing find_package(OpenImageIO).
 PKGS=(build-essential cmake pkg-config git
       libopenimageio-dev openimageio-tools libglm-dev doctest-dev libcli11-dev nlohmann-json3-dev
       libtomlplusplus-dev libfmt-dev libzstd-dev liblz4-dev liburing-dev libassimp-dev zlib1g-dev libxxhash-dev fio python3 ninja-build
-      libepoxy-dev libegl-dev libegl-mesa0 libgl1-mesa-dri)
+      libepoxy-dev libegl-dev libegl-mesa0 libgl1-mesa-dri
+      pybind11-dev python3-dev python3-numpy)
 
 . scripts/packages.sh
 ensure_packages "${PKGS[@]}"
