@@ -184,6 +184,46 @@ std::string format_summary(const nlohmann::json& s) {
   return out;
 }
 
+// The real clock's warnings from its summary section: O_DIRECT refused, the io_uring fallback, and
+// the tiles that failed after their retries (the first three named).
+void warn_real_clock(const nlohmann::json& rc, const std::string& store) {
+  const std::string warning = rc["o_direct_warning"].get<std::string>();
+  if (!warning.empty()) warn(warning);
+  if (const std::string w = rc.value("io_engine_warning", std::string()); !w.empty()) warn(w);
+  if (const auto& failed = rc["failed_tiles"]; !failed.empty()) {
+    std::string list;
+    for (std::size_t i = 0; i < failed.size() && i < 3; ++i)
+      list += fmt::format("{}layer {} level {} ({}, {}) {}", i ? ", " : "", failed[i]["layer"].get<int>(),
+                          failed[i]["level"].get<int>(), failed[i]["x"].get<std::int64_t>(), failed[i]["y"].get<std::int64_t>(),
+                          failed[i]["fault"].get<std::string>());
+    const std::size_t n = failed.size() + rc["failed_tiles_not_listed"].get<std::size_t>();
+    warn(fmt::format("{} tile{} failed after io.max_retries retries: {}{} (each with its reason in the summary's real_clock.failed_tiles; "
+                     "`vtsim store verify {}` checks every tile)",
+                     n, n == 1 ? "" : "s", list, n > 3 ? ", ..." : "", store));
+  }
+}
+
+// --report: the replay report, with the waterfalls of the most blurry frame after the start-up fill
+// (from the first sharp frame) and of --waterfall-frame when a timeline was recorded.
+void write_replay_report(const ReplayArgs& a, const ReplayConfig& cfg, const ReplayResult& r, const TimelineRecorder* timeline) {
+  ReportConfig shown;
+  for (const auto& f : replay_config_table().fields()) shown.emplace_back(f.key, f.get(cfg));
+  std::string waterfalls;
+  if (timeline) {
+    int from = 0;
+    if (const auto& fs = r.summary["startup"]["first_sharp_s"]; fs.is_number())
+      for (const FrameRow& row : r.metrics.frames())
+        if (row.t_s >= fs.get<double>()) {
+          from = row.frame;
+          break;
+        }
+    const int worst = worst_frame(*timeline, from);
+    if (worst >= 0) waterfalls += waterfall_svg(frame_waterfall(*timeline, worst, from > 0 ? "the most blurry after the start-up fill" : "the most blurry"));
+    if (a.waterfall_frame >= 0) waterfalls += waterfall_svg(frame_waterfall(*timeline, a.waterfall_frame, "--waterfall-frame"));
+  }
+  write_output(a.report, html_report(r.summary, r.metrics, shown, waterfalls));
+}
+
 }  // namespace
 
 void run_replay_command(const ReplayArgs& a) {
@@ -281,21 +321,7 @@ void run_replay_command(const ReplayArgs& a) {
     RealRun run = store ? run_real_replay(cfg, trace, *scene, *store, ro) : run_real_replay(cfg, trace, *scene, ro);
     r = std::move(run.result);
     if (!a.produce_samples.empty()) write_output(a.produce_samples, produce::produced_tiles_csv(run.produced_tiles));
-    const nlohmann::json& rc = r.summary["real_clock"];
-    const std::string warning = rc["o_direct_warning"].get<std::string>();
-    if (!warning.empty()) warn(warning);
-    if (const std::string w = rc.value("io_engine_warning", std::string()); !w.empty()) warn(w);
-    if (const auto& failed = rc["failed_tiles"]; !failed.empty()) {
-      std::string list;
-      for (std::size_t i = 0; i < failed.size() && i < 3; ++i)
-        list += fmt::format("{}layer {} level {} ({}, {}) {}", i ? ", " : "", failed[i]["layer"].get<int>(),
-                            failed[i]["level"].get<int>(), failed[i]["x"].get<std::int64_t>(), failed[i]["y"].get<std::int64_t>(),
-                            failed[i]["fault"].get<std::string>());
-      const std::size_t n = failed.size() + rc["failed_tiles_not_listed"].get<std::size_t>();
-      warn(fmt::format("{} tile{} failed after io.max_retries retries: {}{} (each with its reason in the summary's real_clock.failed_tiles; "
-                       "`vtsim store verify {}` checks every tile)",
-                       n, n == 1 ? "" : "s", list, n > 3 ? ", ..." : "", a.store));
-    }
+    warn_real_clock(r.summary["real_clock"], a.store);
   } else {
     ReplayEnv env;
     env.progress = progress;
@@ -328,26 +354,7 @@ void run_replay_command(const ReplayArgs& a) {
   }
   if (!a.summary.empty()) write_output(a.summary, r.summary.dump(2) + "\n");
   if (!a.frames.empty()) write_output_via(a.frames, [&](const std::string& p) { r.metrics.write_frames_csv(p); });
-  if (!a.report.empty()) {
-    ReportConfig shown;
-    for (const auto& f : replay_config_table().fields()) shown.emplace_back(f.key, f.get(cfg));
-    // The waterfalls: the most blurry frame after the start-up fill (the first sharp frame), and
-    // the chosen one.
-    std::string waterfalls;
-    if (timeline) {
-      int from = 0;
-      if (const auto& fs = r.summary["startup"]["first_sharp_s"]; fs.is_number())
-        for (const FrameRow& row : r.metrics.frames())
-          if (row.t_s >= fs.get<double>()) {
-            from = row.frame;
-            break;
-          }
-      const int worst = worst_frame(*timeline, from);
-      if (worst >= 0) waterfalls += waterfall_svg(frame_waterfall(*timeline, worst, from > 0 ? "the most blurry after the start-up fill" : "the most blurry"));
-      if (a.waterfall_frame >= 0) waterfalls += waterfall_svg(frame_waterfall(*timeline, a.waterfall_frame, "--waterfall-frame"));
-    }
-    write_output(a.report, html_report(r.summary, r.metrics, shown, waterfalls));
-  }
+  if (!a.report.empty()) write_replay_report(a, cfg, r, timeline ? &*timeline : nullptr);
   if (a.json) fmt::print("{}\n", r.summary.dump(2));
   else if (!a.quiet && to_stdout == 0) fmt::print("{}", format_summary(r.summary));
   else if (!a.quiet && !a.json) fmt::print(stderr, "{}", format_summary(r.summary));  // stdout carries a file

@@ -33,6 +33,7 @@
 #include "sim/run/real_replay.h"
 #include "sim/run/replay.h"
 #include "sim/run/replay_config.h"
+#include "sim/run/systems.h"
 #include "sim/sweep/sweep.h"
 #include "sim/sweep/sweep_spec.h"
 #include "sim/trace/trace_import.h"
@@ -364,7 +365,13 @@ py::dict load_trace(const py::object& path_obj, bool allow_repairs) {
 // texture.* and clipmap.clipsize, as `vtsim capacity -c` reads them.
 py::dict capacity(const py::object& config, const py::object& sets, const std::string& system, const py::object& screen,
                   double overdraw, double redundancy, double texels_per_pixel) {
-  if (system != "clipmap" && system != "vt") throw InputError("system", "'" + system + "': one of clipmap, vt");
+  // The systems whose capacity report is the window stack or the page pool (SystemCaps): not the
+  // produced terrain's (`vtsim capacity --system terrain`).
+  const SystemInfo* info = streaming_systems().find(system);
+  if (!info) throw InputError("system", streaming_systems().unknown(system));
+  const CapacityReport report = info->caps.capacity;
+  if (report != CapacityReport::window_stack && report != CapacityReport::page_pool)
+    throw InputError("system", "'" + system + "': capacity() reports a clipmap's window stack or a virtual texture's page pool");
   int sw = 1920, sh = 1080;
   if (!screen.is_none()) {
     if (!py::isinstance<py::tuple>(screen) && !py::isinstance<py::list>(screen))
@@ -387,7 +394,7 @@ py::dict capacity(const py::object& config, const py::object& sets, const std::s
   d["system"] = system;
   d["width"] = tx.width, d["height"] = tx.height, d["tile_size"] = tx.tile_size;
   d["bytes_per_texel"] = bpt;
-  if (system == "clipmap") {
+  if (report == CapacityReport::window_stack) {
     const ClipmapMemory m = clipmap_memory({tx.width, tx.height}, tx.tile_size, cfg.clipmap.clipsize);
     d["clipsize"] = cfg.clipmap.clipsize;
     d["levels"] = m.levels, d["stack_levels"] = m.stack_levels, d["pyramid_levels"] = m.pyramid_levels;
@@ -452,7 +459,7 @@ py::dict mrc(const py::object& accesses, const py::object& trace, const py::obje
     if (ca) {
       const ReplayConfig cfg = ca->load();
       const Trace t = load_trace_file(trace_path, false, warnings);
-      if (level.empty()) level = cfg.run.system == "vt" ? "pool" : "ram";
+      if (level.empty()) level = std::string(streaming_systems().at(cfg.run.system).caps.mrc_level);
       if (level != "ram" && level != "pool") throw InputError("level", "'" + level + "' is not ram or pool");
       RecordedReplay r = record_accesses(cfg, t);
       if (level == "pool" && r.accesses.pool.frame_start.empty())

@@ -1,5 +1,5 @@
 #pragma once
-// The replay report's tile waterfall (docs/report.md, "The tile waterfall"): the tiles one frame
+// The replay report's tile waterfall (docs/report.md, "The replay report"): the tiles one frame
 // was waiting for, one row each, their stages as horizontal bars on a shared time axis — queue,
 // read, decode wait, decode, upload wait, upload — and a mark where each was first sampled, like a
 // browser's network panel. Inline SVG in the style of svg_chart.h (the same text classes, sizes

@@ -59,6 +59,43 @@ struct Slice {
   int lane = 0;
 };
 
+// Lanes: per stage, slices by start time, each to the lowest lane free at its start (a lane is
+// free once its last slice ended; two slices that both start at a lane's end share it only if the
+// earlier one had a duration). Sets each slice's lane and each stage's lane count; returns the
+// slices' order (by stage, then start).
+std::vector<std::size_t> assign_lanes(std::vector<Slice>& slices, int (&lanes_of)[kPids]) {
+  std::vector<std::size_t> order(slices.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    const Slice& x = slices[a];
+    const Slice& y = slices[b];
+    if (x.pid != y.pid) return x.pid < y.pid;
+    return x.start < y.start;
+  });
+  std::vector<Ticks> lane_end, lane_start;
+  int pid = -1;
+  for (const std::size_t i : order) {
+    Slice& s = slices[i];
+    if (s.pid != pid) {
+      pid = s.pid;
+      lane_end.clear();
+      lane_start.clear();
+    }
+    std::size_t lane = 0;
+    while (lane < lane_end.size() && !(lane_end[lane] < s.start || (lane_end[lane] == s.start && lane_start[lane] < s.start)))
+      ++lane;
+    if (lane == lane_end.size()) {
+      lane_end.push_back(0);
+      lane_start.push_back(0);
+    }
+    lane_end[lane] = s.start + s.dur;
+    lane_start[lane] = s.start;
+    s.lane = static_cast<int>(lane);
+    lanes_of[pid] = std::max(lanes_of[pid], static_cast<int>(lane) + 1);
+  }
+  return order;
+}
+
 }  // namespace
 
 void parse_timeline_frames(const std::string& flag, const std::string& text, TimelineOptions& out) {
@@ -328,41 +365,8 @@ std::string TimelineRecorder::json() const {
     slices.push_back({kDecode, "decode", r.decode_start, std::max<Ticks>(0, r.decode_end - r.decode_start),
                       a + fmt::format(",\"bytes\":{}", r.decoded_bytes)});
   }
-  // Lanes: per stage, slices by start time, each to the lowest lane free at its start (a lane is
-  // free once its last slice ended; two slices that both start at a lane's end share it only if
-  // the earlier one had a duration).
-  std::vector<std::size_t> order(slices.size());
-  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    const Slice& x = slices[a];
-    const Slice& y = slices[b];
-    if (x.pid != y.pid) return x.pid < y.pid;
-    return x.start < y.start;
-  });
   int lanes_of[kPids] = {};
-  {
-    std::vector<Ticks> lane_end, lane_start;
-    int pid = -1;
-    for (const std::size_t i : order) {
-      Slice& s = slices[i];
-      if (s.pid != pid) {
-        pid = s.pid;
-        lane_end.clear();
-        lane_start.clear();
-      }
-      std::size_t lane = 0;
-      while (lane < lane_end.size() && !(lane_end[lane] < s.start || (lane_end[lane] == s.start && lane_start[lane] < s.start)))
-        ++lane;
-      if (lane == lane_end.size()) {
-        lane_end.push_back(0);
-        lane_start.push_back(0);
-      }
-      lane_end[lane] = s.start + s.dur;
-      lane_start[lane] = s.start;
-      s.lane = static_cast<int>(lane);
-      lanes_of[pid] = std::max(lanes_of[pid], static_cast<int>(lane) + 1);
-    }
-  }
+  const std::vector<std::size_t> order = assign_lanes(slices, lanes_of);
   std::string out;
   out.reserve(slices.size() * 150 + lives_.size() * 120 + 4096);
   out += "{\"displayTimeUnit\":\"ms\",\"otherData\":{";
