@@ -276,9 +276,17 @@ bool FeedbackReader::load_block() {
   if (first != frame_) fail("block.first_frame", fmt::format("{}: frames out of order (expected {})", first, frame_));
   if (raw_n > kFeedbackMaxBlockBytes || comp_n > kFeedbackMaxBlockBytes || comp_n == 0)
     fail("block.bytes", fmt::format("{} / {} bytes is outside the bound {}", raw_n, comp_n, kFeedbackMaxBlockBytes));
-  std::string comp(comp_n, '\0');
-  in_->read(comp.data(), comp_n);
-  if (in_->gcount() != static_cast<std::streamsize>(comp_n)) fail("block", fmt::format("truncated: the block at byte {} is cut", offset_));
+  // Read in pieces, so a header claiming more than the file holds costs only what is there; and
+  // the frame's recorded content size checked before the block is inflated into raw_n bytes.
+  std::string comp;
+  while (comp.size() < comp_n) {
+    const std::size_t at = comp.size(), piece = std::min<std::size_t>(comp_n - at, std::size_t{1} << 20);
+    comp.resize(at + piece);
+    in_->read(comp.data() + at, static_cast<std::streamsize>(piece));
+    if (in_->gcount() != static_cast<std::streamsize>(piece)) fail("block", fmt::format("truncated: the block at byte {} is cut", offset_));
+  }
+  if (ZSTD_getFrameContentSize(comp.data(), comp.size()) != raw_n)
+    fail("block", fmt::format("the block at byte {} is corrupt (its zstd frame does not hold {} bytes)", offset_, raw_n));
   raw_.assign(raw_n, '\0');
   const std::size_t n = ZSTD_decompress(raw_.data(), raw_.size(), comp.data(), comp.size());
   if (ZSTD_isError(n) || n != raw_n) fail("block", fmt::format("the block at byte {} is corrupt (zstd: {})", offset_, ZSTD_isError(n) ? ZSTD_getErrorName(n) : "size mismatch"));
