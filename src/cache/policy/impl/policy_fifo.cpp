@@ -1,12 +1,12 @@
 // FIFO: evict the key admitted longest ago; a hit changes nothing (Belady, "A study of replacement
 // algorithms for a virtual-storage computer", IBM Systems Journal 1966, names it as the baseline;
-// libCacheSim's FIFO.c is the same queue). A doubly linked list over a node slab indexed through
-// a PageMap, so remove() of any key is O(1). Memory: 24 bytes per node + 2-4 PageMap slots of 16
+// libCacheSim's FIFO.c is the same queue). One list of the shared node slab (node_lists.h: the
+// sentinel's next is the newest, its prev the oldest) indexed through a PageMap, so remove() of any
+// key is O(1). Memory: 24 bytes per node + 2-4 PageMap slots of 16
 // bytes. Sizes are not read (the owner weighs). Thread-safety: none.
-#include <vector>
-
 #include "cache/page_map.h"
 #include "cache/policy/i_replacement.h"
+#include "cache/policy/node_lists.h"
 
 namespace vtsim {
 namespace {
@@ -15,16 +15,16 @@ class PolicyFifo final : public IReplacementPolicy {
  public:
   void admit(std::uint64_t key, std::uint64_t) override {
     if (index_.contains(key)) return;  // a cached key: the owner's error, ignored
-    const std::uint32_t n = alloc(key);
+    const std::uint32_t n = nodes_.alloc(key);
     index_.put(key, n);
-    link_after(0, n);  // the newest end
+    nodes_.insert_after(0, n);  // the newest end
   }
   void hit(std::uint64_t) override {}
   void remove(std::uint64_t key) override {
     if (const std::uint32_t* n = index_.find(key)) {
       const std::uint32_t i = *n;
-      unlink(i);
-      release(i);
+      nodes_.unlink(i);
+      nodes_.release(i);
       index_.erase(key);
     }
   }
@@ -32,8 +32,8 @@ class PolicyFifo final : public IReplacementPolicy {
     for (std::uint32_t n = nodes_[0].prev; n != 0; n = nodes_[n].prev) {  // oldest first
       const std::uint64_t key = nodes_[n].key;
       if (pinned(key)) continue;
-      unlink(n);
-      release(n);
+      nodes_.unlink(n);
+      nodes_.release(n);
       index_.erase(key);
       return key;
     }
@@ -42,9 +42,9 @@ class PolicyFifo final : public IReplacementPolicy {
   // The victim returns to the old end: the next eviction meets it first, as if it had stayed.
   void restore(std::uint64_t key, std::uint64_t) override {
     if (index_.contains(key)) return;
-    const std::uint32_t n = alloc(key);
+    const std::uint32_t n = nodes_.alloc(key);
     index_.put(key, n);
-    link_after(nodes_[0].prev, n);
+    nodes_.insert_after(nodes_[0].prev, n);
   }
   void set_capacity(std::uint64_t) override {}
   std::uint64_t size() const override { return index_.size(); }
@@ -54,36 +54,7 @@ class PolicyFifo final : public IReplacementPolicy {
     std::uint64_t key = kNoKey;
     std::uint32_t prev = 0, next = 0;  // prev: towards the newest; node 0, the sentinel: next newest, prev oldest
   };
-  std::uint32_t alloc(std::uint64_t key) {
-    std::uint32_t n;
-    if (!free_.empty()) {
-      n = free_.back();
-      free_.pop_back();
-    } else {
-      n = static_cast<std::uint32_t>(nodes_.size());
-      nodes_.emplace_back();
-    }
-    nodes_[n].key = key;
-    return n;
-  }
-  void release(std::uint32_t n) {
-    nodes_[n].key = kNoKey;
-    free_.push_back(n);
-  }
-  void unlink(std::uint32_t n) {
-    nodes_[nodes_[n].prev].next = nodes_[n].next;
-    nodes_[nodes_[n].next].prev = nodes_[n].prev;
-  }
-  // Links n between p and p's next, i.e. just older than p (p = 0, the sentinel: the newest).
-  void link_after(std::uint32_t p, std::uint32_t n) {
-    nodes_[n].prev = p;
-    nodes_[n].next = nodes_[p].next;
-    nodes_[nodes_[p].next].prev = n;
-    nodes_[p].next = n;
-  }
-
-  std::vector<Node> nodes_ = std::vector<Node>(1);
-  std::vector<std::uint32_t> free_;
+  NodeSlab<Node> nodes_{1};  // node 0: the sentinel
   PageMap<std::uint32_t> index_;
 };
 
