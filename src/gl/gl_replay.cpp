@@ -39,17 +39,7 @@ class Sink final : public IUploadSink {
   void upload(const TileUpload& t) override {
     vt_.upload(t);
     const UploadItem& u = *t.item;
-    TileLatency lat;
-    lat.total = now_ - u.needed_time;
-    lat.frames = frame_ - u.needed_frame;
-    lat.queue = u.queue_ticks;
-    lat.io = u.io_ticks;
-    lat.decode_wait = u.decode_wait_ticks;
-    lat.decode = u.decode_ticks;
-    lat.upload_wait = u.ram_ticks;
-    lat.level = static_cast<std::uint8_t>(u.key.level());
-    lat.ram_hit = u.ram_hit;
-    m_.add_latency(lat);
+    m_.add_latency(upload_latency(u, now_, frame_, 0));  // the GPU copy is timed by GL queries
     if (u.key.level() < level_upload_.size()) level_upload_[u.key.level()] += u.bytes;
     row_->upload_bytes += u.bytes;
     ++row_->uploads;

@@ -245,18 +245,7 @@ class SystemRun::Uploads final : public IUploadSink {
 // An upload the system accepts: its latency is recorded, then the environment copies it.
 void SystemRun::on_upload(const TileUpload& t, FrameRow& row) {
   const UploadItem& u = *t.item;
-  TileLatency lat;
-  lat.needed = u.needed_time;
-  lat.total = now_ - u.needed_time;
-  lat.frames = frame_ - u.needed_frame;
-  lat.queue = u.queue_ticks;
-  lat.io = u.io_ticks;
-  lat.decode_wait = u.decode_wait_ticks;
-  lat.decode = u.decode_ticks;
-  lat.upload_wait = u.ram_ticks;
-  lat.upload = transfer_ticks(u.bytes, link_Bps_);
-  lat.level = static_cast<std::uint8_t>(u.key.level());
-  lat.ram_hit = u.ram_hit;
+  const TileLatency lat = upload_latency(u, now_, frame_, transfer_ticks(u.bytes, link_Bps_));
   res_.metrics.add_latency(lat);
   level_upload_[u.key.level()] += u.bytes;
   row.upload_bytes += u.bytes;

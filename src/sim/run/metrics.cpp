@@ -12,6 +12,22 @@
 
 namespace vtsim {
 
+TileLatency upload_latency(const UploadItem& u, Ticks now, int frame, Ticks upload) {
+  TileLatency lat;
+  lat.needed = u.needed_time;
+  lat.total = now - u.needed_time;
+  lat.frames = frame - u.needed_frame;
+  lat.queue = u.queue_ticks;
+  lat.io = u.io_ticks;
+  lat.decode_wait = u.decode_wait_ticks;
+  lat.decode = u.decode_ticks;
+  lat.upload_wait = u.ram_ticks;
+  lat.upload = upload;
+  lat.level = static_cast<std::uint8_t>(u.key.level());
+  lat.ram_hit = u.ram_hit;
+  return lat;
+}
+
 Percentiles percentiles(std::vector<double> v) {
   Percentiles p;
   p.count = v.size();

@@ -52,6 +52,11 @@ struct TileLatency {
   bool ram_hit = false;
 };
 
+// The latency of an upload committed at `now` in `frame`, from what its UploadItem carries (each
+// stage's ticks); `upload` is the copy's own time (the simulated link; 0 where the client times it
+// elsewhere, as the GL client's GPU copy).
+TileLatency upload_latency(const UploadItem& u, Ticks now, int frame, Ticks upload);
+
 // Kaplan–Meier (1958) quantiles of a time to an event, with right-censored observations: S(t) =
 // Π over event times t_i <= t of (1 − d_i / n_i) (d_i events at t_i, n_i still at risk; at a tie
 // events come before censorings); the q-quantile is the smallest event time with 1 − S >= q, or
