@@ -12,6 +12,7 @@
 #include "sim/run/replay.h"
 #include "sim/run/systems.h"
 #include "sim/trace/trace_io.h"
+#include "sim/trace/trace_transform.h"
 #include "sim/view/scene.h"
 #include "stream/system/i_system.h"
 #include "test_util.h"
@@ -38,6 +39,8 @@ TEST_CASE("frame loop: systems stepped on one view each give exactly their repla
       {"scene.kind=town", "view.render_threads=0", "throttle.policy=none", "upload.tiles_per_frame=4", "disk.preset=hdd"},
       {"scene.kind=town", "view.render_threads=0", "run.system=vt", "vt.pool_pages=96", "throttle.policy=unreal_bias"},
       {"scene.kind=town", "view.render_threads=0", "run.system=vt", "vt.pool_pages=400", "ram.capacity_MiB=8"},
+      // A feedback latency delays what the run reads, not the view: it shares the view too.
+      {"scene.kind=town", "view.render_threads=0", "run.system=vt", "view.feedback_latency=2"},
   };
   std::vector<ReplayConfig> cfgs;
   for (const auto& s : sets) cfgs.push_back(load_replay_config("", s));
@@ -93,4 +96,58 @@ TEST_CASE("frame loop: the plan renders every feedback_every-th frame whose pose
   CHECK(plan.duration_s == doctest::Approx(12.0 / 60.0));
   CHECK(plan.target(3) == seconds_to_ticks(3.0 / 60.0));
   CHECK_THROWS_AS(plan_frames(cfg, Trace{}), InputError);
+}
+
+TEST_CASE("frame loop: view.feedback_latency = k hands the runtime the feedback rendered k frames before") {
+  // A still camera: every frame renders the same view, so a run whose runtime reads each frame's
+  // feedback k frames late is the run without latency, k frames later. Pop-in is measured on the
+  // current frame either way.
+  Trace t;
+  t.image_width = 320;
+  t.image_height = 180;
+  for (int i = 0; i < 40; ++i) {
+    Pose p;
+    p.t_s = i / 60.0;
+    p.pos_m = {100.0, 100.0, 20.0};
+    p.q = yaw_pitch_quat(30.0, -25.0);
+    t.poses.push_back(p);
+  }
+  // No locked levels: the locked pages are requested at frame 0 whatever the feedback says.
+  const ReplayConfig base = load_replay_config("", {"run.system=vt", "view.render_threads=0", "vt.locked_levels=0"});
+  const auto scene = make_scene_from_config(base);
+  const ReplayResult r0 = run_replay(base, t, *scene);
+  const std::vector<FrameRow>& f0 = r0.metrics.frames();
+  int first_upload = -1;
+  for (const FrameRow& r : f0)
+    if (r.uploads > 0 && first_upload < 0) first_upload = r.frame;
+  REQUIRE(first_upload >= 0);
+  for (int k : {1, 3}) {
+    CAPTURE(k);
+    ReplayConfig cfg = base;
+    cfg.view.feedback_latency = k;
+    const ReplayResult rk = run_replay(cfg, t, *scene);
+    const std::vector<FrameRow>& fk = rk.metrics.frames();
+    REQUIRE(fk.size() == f0.size());
+    for (int f = 0; f < k; ++f) {  // nothing read back yet: nothing needed, everything blurry
+      CHECK(fk[f].needs == 0);
+      CHECK(fk[f].uploads == 0);
+      CHECK(fk[f].blurry == fk[f].samples);
+    }
+    // One frame before the shifted first upload: nothing uploaded; at it: the same uploads.
+    CHECK(fk[first_upload + k - 1].uploads == 0);
+    CHECK(fk[first_upload + k].uploads == f0[first_upload].uploads);
+    for (std::size_t f = static_cast<std::size_t>(k); f < fk.size(); ++f) {
+      CAPTURE(f);
+      const FrameRow& a = fk[f];
+      const FrameRow& b = f0[f - static_cast<std::size_t>(k)];
+      CHECK(a.samples == b.samples);
+      CHECK(a.blurry == b.blurry);
+      CHECK(a.uploads == b.uploads);
+      CHECK(a.upload_bytes == b.upload_bytes);
+      CHECK(a.disk_bytes == b.disk_bytes);
+      CHECK(a.needs == b.needs);
+      CHECK(a.live_requests == b.live_requests);
+      CHECK(a.finest_needed == b.finest_needed);
+    }
+  }
 }

@@ -52,6 +52,7 @@ struct GlOptions {
   float lod_bias = 0.0f;
   float aniso = 0.0f;
   int latency = 2;
+  bool latency_set = false;  // gl replay: --latency given (else view.feedback_latency)
   std::string sampling = "middle";
   long long frames = 0;      // 0: the whole trace
   long long every = 1;       // use every Nth trace frame
@@ -284,7 +285,7 @@ void run_replay(const GlOptions& o) {
   gl::Context ctx(warn);
   gl::GlReplayOptions go;
   go.sampling = sampling_of(o.sampling);
-  go.latency = o.latency;
+  go.latency = o.latency_set ? o.latency : cfg.view.feedback_latency;
   go.pace = !o.no_pace;
   go.frames_png = o.frames_png;
   go.png_every = o.png_every;
@@ -369,7 +370,9 @@ void register_gl_commands(CLI::App& app) {
   rep->add_option("--summary", po->summary, "write the summary JSON here (- for stdout)");
   rep->add_option("--frames", po->frames_csv, "write one CSV row per frame here (- for stdout)");
   rep->add_option("--sampling", po->sampling, "pixel of each feedback tile: middle | sequence")->capture_default_str();
-  rep->add_option("--latency", po->latency, "feedback read back this many frames late")->capture_default_str();
+  rep->add_option_function<int>(
+      "--latency", [po](int k) { po->latency = k, po->latency_set = true; },
+      "feedback read back this many frames late (default: view.feedback_latency, 0; engines: 2-3)");
   rep->add_option("--frames-png", po->frames_png, "write the main pass of every --png-every-th frame here");
   rep->add_option("--png-every", po->png_every, "frames between PNGs")->capture_default_str();
   rep->add_option("--record-feedback", po->record_feedback,

@@ -128,7 +128,7 @@ class GpuFeedbackRecorder {
 // client shares (sim/run/run_summary.h), then this client's cost and its "gl" section.
 void gl_summary(GlReplayRun& run, Context& ctx, const ReplayConfig& bound, const FramePlan& plan, StreamingRuntime& rt,
                 const StreamedVt& vt, const std::vector<std::uint64_t>& level_upload, const FeedbackSettings& fs,
-                const GlReplayOptions& o, std::uint64_t feedback_read) {
+                std::uint64_t feedback_read) {
   nlohmann::json& s = run.result.summary;
   static const std::string kClock = "gl";
   fill_run_summary(s, {bound, plan, kClock, rt.pipeline(), rt.system(), run.result.metrics, level_upload.data(),
@@ -145,7 +145,7 @@ void gl_summary(GlReplayRun& run, Context& ctx, const ReplayConfig& bound, const
              {"platform", ctx.platform()},
              {"gl_errors", ctx.errors()},
              {"feedback", {buffer_extent(plan.trace.image_width, fs.divisor), buffer_extent(plan.trace.image_height, fs.divisor)}},
-             {"feedback_latency_frames", o.latency},
+             {"feedback_latency_frames", fs.latency},
              {"feedback_frames_read", feedback_read},
              {"sink_uploads", run.sink_uploads},
              {"gpu_page_copies", run.gpu_copies},
@@ -165,7 +165,8 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
     if (o.warn) o.warn(w);
   if (bound.run.system != "vt")
     throw InputError("run.system", fmt::format("gl replay streams the vt system, not '{}'", bound.run.system));
-  if (o.latency < 0 || o.latency > 16) throw InputError("--latency", "must be in [0, 16]");
+  const int latency = o.latency < 0 ? cfg.view.feedback_latency : o.latency;
+  if (latency > 16) throw InputError("--latency", "must be in [0, 16]");
   if (o.png_every < 1) throw InputError("--png-every", "must be >= 1");
   const store::LayerInfo& l0 = store.layer(0);
   if (l0.bits != 8) throw InputError("--store", fmt::format("layer 0 has {}-bit channels; the GL client draws 8-bit ones", l0.bits));
@@ -191,7 +192,7 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
   fs.max_aniso = static_cast<float>(bound.view.max_aniso);
   fs.near_m = bound.view.near_m;
   fs.far_m = bound.view.far_m;
-  fs.latency = o.latency;
+  fs.latency = latency;
   double feedback_bias = 0.0;
   int clamp = 0;
   std::uint64_t feedback_read = 0;
@@ -279,7 +280,7 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
   rt->system().pool_pages(run.pool_pages);
   run.page_table_consistent = gl_page_table_consistent(run, vt, ext, tile, levels);
 
-  gl_summary(run, ctx, bound, plan, *rt, vt, level_upload, fs, o, feedback_read);
+  gl_summary(run, ctx, bound, plan, *rt, vt, level_upload, fs, feedback_read);
   return run;
 }
 

@@ -26,7 +26,7 @@ class Context;
 
 struct GlReplayOptions {
   FeedbackSampling sampling = FeedbackSampling::middle;
-  int latency = 2;                // feedback read back this many frames late (k)
+  int latency = -1;               // feedback read back this many frames late (k); -1: view.feedback_latency
   bool pace = true;               // start frame f no earlier than its trace time (the real clock)
   std::string frames_png;         // non-empty: the main pass of every png_every-th frame, as PNG
   long long png_every = 60;

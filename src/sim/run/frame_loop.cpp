@@ -277,8 +277,23 @@ const SpanLevels& SystemRun::popin_levels(const SpanBuffer& spans, PopinShare* s
   return own;
 }
 
+void SystemRun::set_feedback(const FrameView& view) {
+  const int k = cfg_.view.feedback_latency;
+  if (k == 0) {
+    rt_->set_feedback(*view.feedback, view.fresh);
+    return;
+  }
+  if (view.fresh) delayed_.push_back({view.frame, *view.feedback});
+  // The newest buffer rendered at or before frame − k; older ones are no longer read.
+  const int due = view.frame - k;
+  while (delayed_.size() >= 2 && delayed_[1].frame <= due) delayed_.pop_front();
+  if (delayed_.empty() || delayed_.front().frame > due) return;  // nothing read back yet: no requests
+  // Not fresh when the runtime read the same buffer last frame (feedback_every, a still pose).
+  rt_->set_feedback(delayed_.front().spans, delayed_.front().frame == due);
+}
+
 void SystemRun::step(const FrameView& view, PopinShare* share) {
-  rt_->set_feedback(*view.feedback, view.fresh);
+  set_feedback(view);
   FrameRow row;
   row.frame = frame_;
   row.t_s = view.pose->t_s - plan_.t0_s;

@@ -15,6 +15,7 @@
 // now); view.frame(f, any run's keep_samples()); run.step(view). Thread-safety: single-threaded
 // (the loop), but for render-ahead's workers behind ViewStream.
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -216,6 +217,9 @@ class SystemRun {
   // state; `marking`: the lookup marks what it samples (applied from the entry on a share).
   const SpanLevels& popin_levels(const SpanBuffer& spans, PopinShare* share, const ResidencyFingerprint* fp, bool marking,
                                  SpanLevels& own);
+  // Hands the runtime the feedback of this frame, or with view.feedback_latency = k the one
+  // rendered k frames before (none before frame k), as an engine reads its feedback back.
+  void set_feedback(const FrameView& view);
   void add_cache_bounds(nlohmann::json& summary) const;
 
   const ReplayConfig& cfg_;
@@ -242,6 +246,13 @@ class SystemRun {
   std::vector<std::uint64_t> marks_;  // popin_levels: the marks of a lookup offered to a share
   PopinShare::Counts share_counts_;
   std::uint64_t level_upload_[TileKey::kMaxLevels] = {};
+  // view.feedback_latency > 0: copies of the feedback rendered in the last k frames, oldest first
+  // (a deque: the runtime holds a reference to the front one until the frame ends).
+  struct DelayedFeedback {
+    int frame = 0;  // the frame it was rendered at
+    SpanBuffer spans;
+  };
+  std::deque<DelayedFeedback> delayed_;
   ReplayResult res_;
 };
 

@@ -68,6 +68,8 @@ struct ViewConfig {
   double max_aniso = 16.0;         // anisotropy clamp
   int popin_divisor = 0;           // pop-in measurement buffer divisor; 0 = the feedback buffer
   int feedback_every = 1;          // render feedback every k frames
+  int feedback_latency = 0;        // frames between rendering feedback and acting on it (an engine's
+                                   // asynchronous readback: 2–3 frames; 0 = the same frame)
   int render_threads = -1;         // threads rendering feedback ahead of the loop; 0 = the loop; -1 = auto
   double near_m = 0.05;            // near clip, m
   double far_m = 1.0e7;            // far clip, m

@@ -141,6 +141,9 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
         .add(cfg::real<C>("view.max_aniso", at(&C::view, &ViewConfig::max_aniso), 1.0, 64.0, "anisotropy clamp of the anisotropic rule"))
         .add(cfg::integer<C>("view.popin_divisor", at(&C::view, &ViewConfig::popin_divisor), 0, 256, "pop-in buffer divisor; 0 = the feedback buffer"))
         .add(cfg::integer<C>("view.feedback_every", at(&C::view, &ViewConfig::feedback_every), 1, 1000, "render feedback every k frames"))
+        .add(cfg::integer<C>("view.feedback_latency", at(&C::view, &ViewConfig::feedback_latency), 0, 16,
+                             "frames between rendering feedback and the runtime reading it (an engine's asynchronous "
+                             "readback, PBO + fence: 2-3); pop-in is still measured on the current frame"))
         .add(cfg::integer<C>("view.render_threads", at(&C::view, &ViewConfig::render_threads), -1, 64,
                              "threads rendering feedback ahead of the frame loop, same results; 0 = the loop renders "
                              "(one core); -1 = auto (one per core up to 8; sim clock only)"))

@@ -22,7 +22,8 @@ namespace vtsim {
 std::string view_key(const ReplayConfig& cfg) {
   std::string key;
   for (const auto& f : replay_config_table().fields()) {
-    const bool view = f.key.rfind("view.", 0) == 0 && f.key != "view.render_threads";
+    // view.feedback_latency delays what each run reads (SystemRun), not what is rendered.
+    const bool view = f.key.rfind("view.", 0) == 0 && f.key != "view.render_threads" && f.key != "view.feedback_latency";
     const bool scene = f.key.rfind("scene.", 0) == 0;
     const bool texture = f.key == "texture.width" || f.key == "texture.height" || f.key == "texture.texels_per_m" ||
                          f.key == "texture.origin_x_m" || f.key == "texture.origin_y_m";
