@@ -53,12 +53,12 @@ trap 'for p in "${bg[@]}"; do kill -- "-$p" 2>/dev/null || true; done' EXIT
 # The build's own packages first, then, in the background while the first variant builds, those
 # only tests use: the ctest sweep_slurm starts a local Slurm cluster (scripts/slurm_local.sh; root
 # only), report_browser renders the reports in Debian's chromium, python_module makes a pandas
-# DataFrame of a sweep's rows.
+# DataFrame of a sweep's rows, the gl tests encode a video with ffmpeg.
 pkg_pid=
 if [ "$(id -u)" -eq 0 ] && [[ $variants == *release* || $variants == *asan* ]]; then
   phase "packages"
   bash scripts/setup.sh --packages-only
-  setsid bash -c '. scripts/packages.sh; ensure_packages slurm-wlm munge chromium python3-pandas' > "$logs/packages.log" 2>&1 &
+  setsid bash -c '. scripts/packages.sh; ensure_packages slurm-wlm munge chromium python3-pandas ffmpeg' > "$logs/packages.log" 2>&1 &
   pkg_pid=$!; bg+=("$pkg_pid")
 fi
 
@@ -77,7 +77,7 @@ for ((i = 0; i < ${#vs[@]}; i++)); do
     next_pid=$!; bg+=("$next_pid")
   fi
   if [ -n "$pkg_pid" ] && [ "$v" != tsan ]; then
-    wait "$pkg_pid" || { cat "$logs/packages.log" >&2; echo "test.sh: installing slurm-wlm munge chromium python3-pandas failed" >&2; exit 1; }
+    wait "$pkg_pid" || { cat "$logs/packages.log" >&2; echo "test.sh: installing slurm-wlm munge chromium python3-pandas ffmpeg failed" >&2; exit 1; }
     pkg_pid=
   fi
   phase "$v: tests ($dir)"

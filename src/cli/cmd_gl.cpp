@@ -57,6 +57,7 @@ struct GlOptions {
   long long frames = 0;      // 0: the whole trace
   long long every = 1;       // use every Nth trace frame
   std::string frames_png;
+  std::string video;
   long long png_every = 60;
   int tile_size = 128;
   std::string divisors = "1,8,16";
@@ -276,6 +277,7 @@ void run_replay(const GlOptions& o) {
   if (o.store.empty()) throw InputError("--store", "a tile store is required (vtsim store gen)");
   const Trace trace = load_cli_trace(o.trace, o.allow_repairs);
   check_output("--record-feedback", o.record_feedback);
+  check_output("--video", o.video);
   if (!o.frames_png.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(o.frames_png, ec);
@@ -289,6 +291,7 @@ void run_replay(const GlOptions& o) {
   go.pace = !o.no_pace;
   go.frames_png = o.frames_png;
   go.png_every = o.png_every;
+  go.video = o.video;
   go.record_feedback = o.record_feedback;
   go.warn = warn;
   const gl::GlReplayRun run = gl::run_gl_replay(ctx, cfg, trace, store, go);
@@ -297,6 +300,7 @@ void run_replay(const GlOptions& o) {
   if (!o.record_feedback.empty() && !o.json)
     fmt::print(stderr, "vtsim: feedback trace {}: {} frames, {} bytes (the GPU's feedback; replay it with `vtsim replay --feedback`)\n",
                o.record_feedback, s["trace"]["frames"].get<int>(), run.feedback_trace_bytes);
+  if (!o.video.empty() && !o.json) fmt::print(stderr, "vtsim: video {}: {} frames\n", o.video, run.video_frames);
   if (!o.frames_csv.empty()) write_output_via(o.frames_csv, [&](const std::string& p) { run.result.metrics.write_frames_csv(p); });
   if (o.json) {
     fmt::print("{}\n", s.dump(2));
@@ -375,6 +379,7 @@ void register_gl_commands(CLI::App& app) {
       "feedback read back this many frames late (default: view.feedback_latency, 0; engines: 2-3)");
   rep->add_option("--frames-png", po->frames_png, "write the main pass of every --png-every-th frame here");
   rep->add_option("--png-every", po->png_every, "frames between PNGs")->capture_default_str();
+  rep->add_option("--video", po->video, "write a video of every frame here (needs ffmpeg; .mp4, .mkv, .mov or .webm)");
   rep->add_option("--record-feedback", po->record_feedback,
                   "write the GPU feedback each frame acted on as a feedback trace (docs/feedback.md)");
   rep->add_flag("--no-pace", po->no_pace, "start each frame as soon as the last ends (default: at its trace time)");

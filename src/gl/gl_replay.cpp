@@ -1,9 +1,11 @@
 #include "gl/gl_replay.h"
+#include "gl/video_writer.h"
 
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <chrono>
+#include <memory>
 #include <thread>
 #include <tuple>
 
@@ -210,6 +212,8 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
     h.frame_rate = 1.0 / plan.period_s;
     rec = std::make_unique<GpuFeedbackRecorder>(o.record_feedback, h);
   }
+  std::unique_ptr<VideoWriter> video;
+  if (!o.video.empty()) video = std::make_unique<VideoWriter>("--video", o.video, plan.trace.image_width, plan.trace.image_height, 1.0 / plan.period_s);
   const auto t0 = std::chrono::steady_clock::now();
   for (int f = 0; f < plan.frames; ++f) {
     const Pose& pose = plan.trace.poses[static_cast<std::size_t>(f)];
@@ -262,6 +266,10 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
     row.throttled_needs = rt->system().throttled_needs();
     rt->system().frame_counters(row.system);
     m.add_frame(row);
+    if (video) {
+      int w = 0, h = 0;
+      video->add(vt.read_colour(w, h).data());
+    }
     if (!o.frames_png.empty() && f % o.png_every == 0) {
       int w = 0, h = 0;
       const std::vector<std::uint8_t> px = vt.read_colour(w, h);
@@ -274,6 +282,10 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
   }
   run.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (rec) run.feedback_trace_bytes = rec->finish();
+  if (video) {
+    video->finish();
+    run.video_frames = video->frames();
+  }
   run.sink_uploads = vt.uploads();
   run.gpu_copies = vt.copies();
   run.page_table = vt.page_table();

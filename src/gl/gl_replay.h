@@ -30,6 +30,9 @@ struct GlReplayOptions {
   bool pace = true;               // start frame f no earlier than its trace time (the real clock)
   std::string frames_png;         // non-empty: the main pass of every png_every-th frame, as PNG
   long long png_every = 60;
+  // Non-empty: a video of every frame's main pass (ffmpeg, gl/video_writer.h; the container by
+  // the extension: .mp4, .mkv, .mov, .webm), written whole at the end or not at all.
+  std::string video;
   // Non-empty: the GPU feedback each frame acted on, as a feedback trace (docs/feedback.md): at
   // frame f the tiles of the feedback read back then (rendered `latency` frames before), with the
   // frame's pose; frames with no readback are not fresh. Written whole at the end, or not at all.
@@ -46,6 +49,7 @@ struct GlReplayRun {
   bool page_table_consistent = false;  // every page-table entry points at a resident page's slot
   double seconds = 0.0;                // wall time of the frame loop
   std::uint64_t feedback_trace_bytes = 0;  // GlReplayOptions::record_feedback's size, bytes
+  std::uint64_t video_frames = 0;          // frames in GlReplayOptions::video
 };
 
 // Throws InputError for a config the store does not match (before the first frame), a system

@@ -5,7 +5,10 @@
 // entry a resident page's slot and level); and the fully streamed view ends with no blurry pixel.
 #include <doctest/doctest.h>
 
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <unistd.h>
 
@@ -23,6 +26,11 @@
 namespace {
 
 using namespace vtsim;
+
+std::string slurp_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
 
 // 512² texels (16 m at 32 texels/m), pages of 64 + 4-texel borders, one RGBA8 layer: 94 pages.
 std::string gl_stream_store() {
@@ -134,5 +142,44 @@ TEST_CASE("gl: gl replay refuses a config the store does not match, before the f
   CHECK(refused({"texture.texels_per_m=32", "texture.tile_size=32"}).find("texture.tile_size") != std::string::npos);
   CHECK(refused({"texture.texels_per_m=32", "texture.width=1024", "texture.height=1024"}).find("texture.width") != std::string::npos);
   CHECK(refused({"texture.texels_per_m=32", "vt.pool_pages=10000000"}).find("vt.pool_pages") != std::string::npos);
+  std::filesystem::remove(path);
+}
+
+TEST_CASE("gl: --video writes every frame through ffmpeg, and without ffmpeg refuses before the first frame") {
+  const std::string path = gl_stream_store();
+  const TileStore store = TileStore::open(path);
+  const ReplayConfig cfg = load_replay_config("", {"texture.texels_per_m=32", "view.divisor=1"}, "vt");
+  TraceGenParams tg = default_gen_params("static");
+  tg.start_m = {8.0, 8.0};
+  tg.duration_s = 0.25;  // 16 frames (0 to 0.25 s at 60 Hz)
+  tg.image_width = 128;
+  tg.image_height = 72;
+  const Trace trace = generate_trace(tg);
+  gl_test::Shared& gs = gl_test::shared();
+  gl::GlReplayOptions o;
+  o.pace = false;
+  o.video = path + ".mp4";
+  {  // ffmpeg not on PATH: an InputError naming --video, and the existing file is left as it was.
+    std::ofstream(o.video) << "old";
+    const std::string saved = std::getenv("PATH") ? std::getenv("PATH") : "";
+    ::setenv("PATH", "/nonexistent-vtsim-path", 1);
+    CHECK_THROWS_WITH_AS(gl::run_gl_replay(gs.ctx, cfg, trace, store, o), doctest::Contains("--video"), InputError);
+    ::setenv("PATH", saved.c_str(), 1);
+    CHECK(slurp_file(o.video) == "old");
+  }
+  if (std::system("ffprobe -version > /dev/null 2>&1") != 0) {
+    MESSAGE("ffmpeg is not installed: the video itself is not checked (scripts/test.sh installs it)");
+  } else {
+    const gl::GlReplayRun run = gl::run_gl_replay(gs.ctx, cfg, trace, store, o);
+    const std::size_t frames = run.result.metrics.frames().size();
+    CHECK(frames == 16u);
+    CHECK(run.video_frames == frames);
+    const std::string probe = path + ".probe";
+    REQUIRE(std::system(("ffprobe -v error -count_frames -select_streams v:0 -show_entries stream=nb_read_frames,width,height "
+                         "-of csv=p=0 '" + o.video + "' > '" + probe + "'").c_str()) == 0);
+    CHECK(slurp_file(probe) == "128,72," + std::to_string(frames) + "\n");  // every frame, at the trace's size
+    std::filesystem::remove(probe);
+  }
+  std::filesystem::remove(o.video);
   std::filesystem::remove(path);
 }
