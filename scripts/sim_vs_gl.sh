@@ -9,7 +9,9 @@
 # Traces (640x360, 60 Hz): walk and drive of the plane (10 s), the town walk (10 s), and an
 # OpenArena level walk (20 s of oa_dm1; scripts/fetch_levels.sh installs openarena-data).
 # Usage: scripts/sim_vs_gl.sh [OUT_DIR] [REPS] [K]      (default build/sim_vs_gl, 3, 2; needs build/vtsim
-#        with GL). VTSIM_SIM_VS_GL_TRACES="walk drive town level" picks traces.
+#        with GL). VTSIM_SIM_VS_GL_TRACES="walk drive town level" picks traces; VTSIM_SIM_VS_GL_FPS
+#        (default 60) the frame rate both replay at (run.fps): latencies in ms agree only while the GL
+#        client holds it (its summary's gl.frames_per_s); in frames they agree at any rate.
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 out=${1:-$here/build/sim_vs_gl}
@@ -27,7 +29,8 @@ export LP_NUM_THREADS=${LP_NUM_THREADS:-2}
 # Stores of 4096² and 8192² texels (the town's faces need the larger at 2 texels/m), 128-texel
 # pages with 4-texel borders, one zstd layer.
 store() { [ -f "t$1.vts" ] || "$vtsim" store gen -o "t$1.vts" --size "$2x$2" --tile 128 --border 4 --layers albedo:zstd --feature 1024 >/dev/null; }
-common=(--set view.lod_model=gpu --set view.popin_divisor=1 --set "view.feedback_latency=$k")
+fps=${VTSIM_SIM_VS_GL_FPS:-60}
+common=(--set view.lod_model=gpu --set view.popin_divisor=1 --set "view.feedback_latency=$k" --set "run.fps=$fps")
 declare -A sets
 for t in $traces; do
   s=4k

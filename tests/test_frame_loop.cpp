@@ -3,6 +3,8 @@
 #include <doctest/doctest.h>
 
 #include <memory>
+#include <set>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -13,6 +15,7 @@
 #include "sim/run/systems.h"
 #include "sim/trace/trace_io.h"
 #include "sim/trace/trace_transform.h"
+#include "sim/view/gpu_model.h"
 #include "sim/view/scene.h"
 #include "stream/system/i_system.h"
 #include "test_util.h"
@@ -150,4 +153,63 @@ TEST_CASE("frame loop: view.feedback_latency = k hands the runtime the feedback 
       CHECK(a.finest_needed == b.finest_needed);
     }
   }
+}
+
+TEST_CASE("frame loop: view.feedback_sampling = sequence renders frame f's feedback at the tile pixel of f, every frame") {
+  // A still camera: with the middle pixel the plan renders frame 0 only; with the sequence every
+  // frame, each the GPU model at that frame's pixel of the sequence, in the loop and ahead alike.
+  Trace t;
+  t.image_width = 160;
+  t.image_height = 90;
+  for (int i = 0; i < 20; ++i) {
+    Pose p;
+    p.t_s = i / 60.0;
+    p.pos_m = {100.0, 100.0, 20.0};
+    p.q = yaw_pitch_quat(30.0, -25.0);
+    t.poses.push_back(p);
+  }
+  CHECK_THROWS_WITH_AS(load_replay_config("", {"view.feedback_sampling=sequence"}), doctest::Contains("view.feedback_sampling"),
+                       InputError);
+  CHECK_THROWS_WITH_AS(load_replay_config("", {"view.feedback_sampling=random", "view.lod_model=gpu"}),
+                       doctest::Contains("view.feedback_sampling"), InputError);
+  const ReplayConfig middle = load_replay_config("", {"run.system=vt", "view.lod_model=gpu", "view.render_threads=0"});
+  ReplayConfig seq = middle;
+  seq.view.feedback_sampling = "sequence";
+  CHECK(plan_frames(middle, t).render_frames == std::vector<int>{0});
+  const FramePlan plan = plan_frames(seq, t);
+  CHECK(plan.render_frames.size() == 20u);
+
+  const auto gpu = make_scene_from_config(seq);  // the plane, drawn with the GPU model (view.lod_model = gpu)
+  std::set<std::pair<int, int>> offsets;
+  for (int threads : {0, 2}) {
+    CAPTURE(threads);
+    ViewStream view(seq, plan, *gpu, 7, true, threads);
+    for (int f = 0; f < plan.frames; ++f) {
+      const FrameView& v = view.frame(f, true);
+      REQUIRE(v.fresh);
+      ViewParams p = view_params(seq.view);
+      feedback_tile_offset(FeedbackSampling::sequence, f, seq.view.divisor, p.sample_ox, p.sample_oy);
+      CHECK(feedback_params(seq.view, f).sample_ox == p.sample_ox);
+      CHECK(feedback_params(seq.view, f).sample_oy == p.sample_oy);
+      offsets.insert({p.sample_ox, p.sample_oy});
+      ViewBuffer direct;
+      render_gpu_model(*gpu, make_camera(t.poses[static_cast<std::size_t>(f)], t.image_width, t.image_height), p,
+                       p.sample_ox, p.sample_oy, direct);
+      REQUIRE(v.feedback->has_samples);
+      REQUIRE(v.feedback->view.samples.size() == direct.samples.size());
+      bool same = true;
+      for (std::size_t i = 0; i < direct.samples.size(); ++i) {
+        const ViewSample &a = v.feedback->view.samples[i], &b = direct.samples[i];
+        same = same && a.u == b.u && a.v == b.v && a.lod == b.lod && a.pixel == b.pixel;
+      }
+      CHECK(same);
+    }
+  }
+  CHECK(offsets.size() == 20u);  // 20 frames, 20 different pixels of the 8x8 tile
+
+  // The whole replay: the same results with the feedback rendered ahead on worker threads.
+  ReplayConfig ahead = seq;
+  ahead.view.render_threads = 2;
+  test::check_same_results(run_replay(seq, t, *gpu), run_replay(ahead, t, *gpu));
+  CHECK(run_replay(seq, t, *gpu).summary["popin"].dump() != run_replay(middle, t, *gpu).summary["popin"].dump());
 }

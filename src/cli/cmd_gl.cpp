@@ -52,7 +52,8 @@ struct GlOptions {
   float lod_bias = 0.0f;
   float aniso = 0.0f;
   int latency = 2;
-  bool latency_set = false;  // gl replay: --latency given (else view.feedback_latency)
+  bool latency_set = false;
+  bool sampling_set = false;  // gl replay: --sampling given (else view.feedback_sampling)  // gl replay: --latency given (else view.feedback_latency)
   std::string sampling = "middle";
   long long frames = 0;      // 0: the whole trace
   long long every = 1;       // use every Nth trace frame
@@ -286,7 +287,7 @@ void run_replay(const GlOptions& o) {
   const TileStore store = TileStore::open(o.store);
   gl::Context ctx(warn);
   gl::GlReplayOptions go;
-  go.sampling = sampling_of(o.sampling);
+  go.sampling = sampling_of(o.sampling_set ? o.sampling : cfg.view.feedback_sampling);
   go.latency = o.latency_set ? o.latency : cfg.view.feedback_latency;
   go.pace = !o.no_pace;
   go.frames_png = o.frames_png;
@@ -373,7 +374,9 @@ void register_gl_commands(CLI::App& app) {
   rep->add_option("--store", po->store, "tile store (vtsim store gen) matching the config's texture")->required();
   rep->add_option("--summary", po->summary, "write the summary JSON here (- for stdout)");
   rep->add_option("--frames", po->frames_csv, "write one CSV row per frame here (- for stdout)");
-  rep->add_option("--sampling", po->sampling, "pixel of each feedback tile: middle | sequence")->capture_default_str();
+  rep->add_option_function<std::string>(
+      "--sampling", [po](const std::string& s) { po->sampling = s, po->sampling_set = true; },
+      "pixel of each feedback tile: middle | sequence (default: view.feedback_sampling, middle)");
   rep->add_option_function<int>(
       "--latency", [po](int k) { po->latency = k, po->latency_set = true; },
       "feedback read back this many frames late (default: view.feedback_latency, 0; engines: 2-3)");

@@ -106,6 +106,8 @@ void validate_view_params(const ViewParams& p) {
   if (!(p.near_m > 0.0) || !std::isfinite(p.near_m))
     throw InputError("near_m", "must be finite and > 0");
   if (!(p.far_m > p.near_m)) throw InputError("far_m", "must be greater than near_m");
+  for (const int o : {p.sample_ox, p.sample_oy})
+    if (o < -1 || o >= p.divisor) throw InputError("sample offset", "must be -1 (the middle) or in [0, divisor)");
 }
 
 }  // namespace vtsim

@@ -23,6 +23,9 @@ struct ViewParams {
   float max_aniso = 16.0f;     // anisotropy clamp for the anisotropic rule
   double near_m = 0.05;        // samples nearer than this are clipped
   double far_m = 1.0e7;        // samples farther than this are clipped
+  // The GPU model only (view.lod_model = gpu, sim/view/gpu_model.h): the pixel (x, y) of each
+  // divisor² feedback tile this frame's feedback samples; −1: the middle one (divisor / 2).
+  int sample_ox = -1, sample_oy = -1;
 };
 
 // One feedback sample that hit a textured surface.

@@ -16,6 +16,7 @@
 #include "sim/run/provenance.h"
 #include "sim/run/render_ahead.h"
 #include "sim/run/resources.h"
+#include "sim/view/gpu_model.h"
 #include "sim/run/run_summary.h"
 #include "sim/run/runtime_setup.h"
 #include "sim/run/systems.h"
@@ -54,6 +55,12 @@ bool separate_popin(const ReplayConfig& cfg) {
 
 }  // namespace
 
+ViewParams feedback_params(const ViewConfig& v, int frame) {
+  ViewParams p = view_params(v);
+  if (v.feedback_sampling == "sequence") feedback_tile_offset(FeedbackSampling::sequence, frame, v.divisor, p.sample_ox, p.sample_oy);
+  return p;
+}
+
 FramePlan plan_frames(const ReplayConfig& cfg, const Trace& trace_in) {
   if (trace_in.poses.empty()) throw InputError(trace_in.name, "the trace has no poses");
   FramePlan p;
@@ -69,9 +76,11 @@ FramePlan plan_frames(const ReplayConfig& cfg, const Trace& trace_in) {
   p.duration_s = (poses.back().t_s - p.t0_s) + p.period_s;
   p.feedback_every = cfg.view.feedback_every;
   const Pose* last = nullptr;
+  // A sequence samples another pixel of each feedback tile every frame: a still pose renders anew.
+  const bool per_frame = cfg.view.feedback_sampling == "sequence";
   for (int f = 0; f < p.frames; f += p.feedback_every) {
     const Pose& pose = poses[static_cast<std::size_t>(f)];
-    if (last && same_view(pose, *last)) continue;
+    if (last && !per_frame && same_view(pose, *last)) continue;
     p.render_frames.push_back(f);
     last = &pose;
   }
@@ -82,7 +91,7 @@ FramePlan plan_frames(const ReplayConfig& cfg, const Trace& trace_in) {
 
 ViewStream::ViewStream(const ReplayConfig& cfg, const FramePlan& plan, const IScene& scene, int block_shift,
                        bool keep_samples, int render_threads)
-    : plan_(plan), scene_(scene), vp_(view_params(cfg.view)), pp_(popin_params(cfg)),
+    : plan_(plan), scene_(scene), vc_(cfg.view), vp_(view_params(cfg.view)), pp_(popin_params(cfg)),
       separate_popin_(separate_popin(cfg)), threads_(render_threads) {
   fb_.block_shift = pb_.block_shift = block_shift;
   fb_.keep_samples = pb_.keep_samples = keep_samples;
@@ -91,8 +100,12 @@ ViewStream::ViewStream(const ReplayConfig& cfg, const FramePlan& plan, const ISc
       return make_camera(plan.trace.poses[static_cast<std::size_t>(plan.render_frames[j])], plan.trace.image_width,
                          plan.trace.image_height);
     };
+    std::function<ViewParams(std::size_t)> feedback_of;
+    if (vc_.feedback_sampling != "middle")
+      feedback_of = [this](std::size_t j) { return feedback_params(vc_, plan_.render_frames[j]); };
     ahead_ = std::make_unique<RenderAhead>(scene_, plan_.render_frames.size(), camera_of, vp_,
-                                           separate_popin_ ? &pp_ : nullptr, block_shift, keep_samples, threads_);
+                                           separate_popin_ ? &pp_ : nullptr, block_shift, keep_samples, threads_,
+                                           feedback_of);
   }
   view_.feedback = &fb_;
   view_.popin = separate_popin_ ? &pb_ : &fb_;
@@ -117,7 +130,7 @@ void ViewStream::warm_up(bool keep_samples) {
   const Camera cam = make_camera(plan_.trace.poses[static_cast<std::size_t>(plan_.render_frames[0])],
                                  plan_.trace.image_width, plan_.trace.image_height);
   fb_.keep_samples = pb_.keep_samples = keep_samples;
-  scene_.render_spans(cam, vp_, fb_);
+  scene_.render_spans(cam, feedback_params(vc_, plan_.render_frames[0]), fb_);
   if (separate_popin_) scene_.render_spans(cam, pp_, pb_);
 }
 
@@ -138,7 +151,7 @@ const FrameView& ViewStream::frame(int f, bool keep_samples) {
     view_.popin = separate_popin_ ? &b.popin : &b.feedback;
   } else {
     const Camera cam = make_camera(*view_.pose, plan_.trace.image_width, plan_.trace.image_height);
-    scene_.render_spans(cam, vp_, fb_);
+    scene_.render_spans(cam, vc_.feedback_sampling == "middle" ? vp_ : feedback_params(vc_, f), fb_);
     if (separate_popin_) scene_.render_spans(cam, pp_, pb_);
   }
   ++next_render_;

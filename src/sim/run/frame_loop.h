@@ -112,6 +112,11 @@ struct FramePlan {
 // Throws InputError for a trace without poses.
 FramePlan plan_frames(const ReplayConfig& cfg, const Trace& trace);
 
+// The feedback pass's view parameters at frame f: the [view] section's, with the GPU model's sample
+// within each feedback tile that view.feedback_sampling gives (sequence: feedback_tile_offset of f,
+// sim/view/gpu_model.h; middle: −1).
+ViewParams feedback_params(const ViewConfig& v, int frame);
+
 // What frame f sees: the same for every system on the view.
 struct FrameView {
   int frame = 0;
@@ -153,6 +158,7 @@ class ViewStream {
  private:
   const FramePlan& plan_;
   const IScene& scene_;
+  const ViewConfig vc_;
   ViewParams vp_, pp_;
   bool separate_popin_ = false;
   int threads_ = 0;

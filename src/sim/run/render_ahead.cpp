@@ -11,11 +11,12 @@ namespace vtsim {
 
 RenderAhead::RenderAhead(const IScene& scene, std::size_t jobs, std::function<Camera(std::size_t)> camera,
                          const ViewParams& feedback, const ViewParams* popin, int block_shift, bool keep_samples,
-                         int threads)
+                         int threads, std::function<ViewParams(std::size_t)> feedback_of)
     : scene_(scene),
       jobs_(jobs),
       camera_(std::move(camera)),
       feedback_(feedback),
+      feedback_of_(std::move(feedback_of)),
       popin_(popin ? *popin : feedback),
       has_popin_(popin != nullptr),
       keep_samples_(keep_samples) {
@@ -72,7 +73,7 @@ void RenderAhead::work() {
       thread_local SpanBuffer local;
       local.block_shift = s.buf.feedback.block_shift;
       local.keep_samples = s.buf.feedback.keep_samples;
-      scene_.render_spans(cam, feedback_, local);
+      scene_.render_spans(cam, feedback_of_ ? feedback_of_(j) : feedback_, local);
       s.buf.feedback = local;
       if (has_popin_) scene_.render_spans(cam, popin_, s.buf.popin);
     } catch (...) {

@@ -39,9 +39,12 @@ class RenderAhead {
   // Renders `jobs` frames, job j from camera(j) (called on the workers: thread-safe, pure), with
   // `threads` (>= 1) workers. `popin`: also render each with these params into Buffers::popin (a
   // separate pop-in divisor). block_shift and keep_samples are set on every buffer as the loop
-  // would. Throws std::invalid_argument for threads < 1.
+  // would. `feedback_of` (optional, thread-safe and pure like `camera`): job j's feedback params
+  // instead of `feedback` (view.feedback_sampling = sequence moves the sample per frame). Throws
+  // std::invalid_argument for threads < 1.
   RenderAhead(const IScene& scene, std::size_t jobs, std::function<Camera(std::size_t)> camera,
-              const ViewParams& feedback, const ViewParams* popin, int block_shift, bool keep_samples, int threads);
+              const ViewParams& feedback, const ViewParams* popin, int block_shift, bool keep_samples, int threads,
+              std::function<ViewParams(std::size_t)> feedback_of = nullptr);
   ~RenderAhead();
   RenderAhead(const RenderAhead&) = delete;
   RenderAhead& operator=(const RenderAhead&) = delete;
@@ -87,6 +90,7 @@ class RenderAhead {
   const std::size_t jobs_;
   const std::function<Camera(std::size_t)> camera_;
   const ViewParams feedback_;
+  const std::function<ViewParams(std::size_t)> feedback_of_;  // null: feedback_ for every job
   const ViewParams popin_;
   const bool has_popin_;
   std::vector<Slot> slots_;

@@ -73,6 +73,8 @@ struct ViewConfig {
   int render_threads = -1;         // threads rendering feedback ahead of the loop; 0 = the loop; -1 = auto
   double near_m = 0.05;            // near clip, m
   double far_m = 1.0e7;            // far clip, m
+  std::string feedback_sampling = "middle";  // GPU model: the pixel of each feedback tile sampled, the
+                                            // middle one or a per-frame sequence visiting them all
   std::string lod_model = "analytic";  // analytic: footprint per full-resolution pixel; gpu: what a GPU
                                        // feedback pass at 1/divisor requests (sim/view/gpu_model.h)
 };

@@ -149,6 +149,9 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
                              "(one core); -1 = auto (one per core up to 8; sim clock only)"))
         .add(cfg::real<C>("view.near_m", at(&C::view, &ViewConfig::near_m), 1e-6, 1e6, "near clip, m"))
         .add(cfg::real<C>("view.far_m", at(&C::view, &ViewConfig::far_m), 1e-3, 1e12, "far clip, m"))
+        .add(cfg::text<C>("view.feedback_sampling", at(&C::view, &ViewConfig::feedback_sampling), one_of_mesh({"middle", "sequence"}),
+                          "view.lod_model = gpu: the pixel of each divisor^2 feedback tile sampled: middle, or sequence (a "
+                          "per-frame sequence visiting every pixel, Unreal's SampleVirtualTextureFeedbackSequence)"))
         .add(cfg::text<C>("view.lod_model", at(&C::view, &ViewConfig::lod_model), one_of_mesh({"analytic", "gpu"}),
                           "analytic: footprint per full-resolution pixel; gpu: a GPU feedback pass's request (2x2-quad "
                           "differences at feedback resolution, bias -log2(divisor); docs/gpu.md)"))
@@ -292,6 +295,8 @@ void validate(const ReplayConfig& c) {
   const SystemInfo* system = streaming_systems().find(c.run.system);
   if (!system) bad("run.system", streaming_systems().unknown(c.run.system));
   system->validate(c);
+  if (c.view.feedback_sampling == "sequence" && c.view.lod_model != "gpu")
+    bad("view.feedback_sampling", "sequence moves the GPU model's sample within each feedback tile: set view.lod_model = gpu too");
   if (c.upload.tiles_per_frame == 0)
     bad("upload.tiles_per_frame", "a zero budget uploads nothing; use -1 for no tile limit");
   if (c.upload.bytes_per_frame == 0)

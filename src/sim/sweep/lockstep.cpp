@@ -58,7 +58,7 @@ class ViewRing {
  public:
   ViewRing(const ReplayConfig& cfg, const FramePlan& plan, const IScene& scene, int block_shift, bool keep_samples,
            int consumers)
-      : plan_(plan), scene_(scene), vp_(view_params(cfg.view)), pp_(view_params(cfg.view)),
+      : plan_(plan), scene_(scene), vc_(cfg.view), vp_(view_params(cfg.view)), pp_(view_params(cfg.view)),
         separate_popin_(cfg.view.popin_divisor > 0 && cfg.view.popin_divisor != cfg.view.divisor),
         consumers_(consumers), slots_(static_cast<std::size_t>(consumers) + kSlack),
         held_(static_cast<std::size_t>(consumers), -1), next_(static_cast<std::size_t>(consumers)),
@@ -167,7 +167,7 @@ class ViewRing {
     try {
       const Pose& pose = plan_.trace.poses[static_cast<std::size_t>(plan_.render_frames[j])];
       const Camera cam = make_camera(pose, plan_.trace.image_width, plan_.trace.image_height);
-      scene_.render_spans(cam, vp_, s.feedback);
+      scene_.render_spans(cam, vc_.feedback_sampling == "middle" ? vp_ : feedback_params(vc_, plan_.render_frames[j]), s.feedback);
       if (separate_popin_) scene_.render_spans(cam, pp_, s.popin);
       s.share.begin_frame(separate_popin_ ? &s.popin : &s.feedback);
     } catch (const std::exception& e) {
@@ -183,6 +183,7 @@ class ViewRing {
 
   const FramePlan& plan_;
   const IScene& scene_;
+  const ViewConfig vc_;
   ViewParams vp_, pp_;
   bool separate_popin_;
   int consumers_;

@@ -221,7 +221,8 @@ class GpuModelScene final : public IScene {
   TextureExtent texture() const override { return inner_->texture(); }
   void render(const Camera& cam, const ViewParams& params, ViewBuffer& out) const override {
     const int o = params.divisor / 2;
-    render_gpu_model(*inner_, cam, params, o, o, out);
+    render_gpu_model(*inner_, cam, params, params.sample_ox < 0 ? o : params.sample_ox,
+                     params.sample_oy < 0 ? o : params.sample_oy, out);
   }
   void surface_at(const Camera& cam, const ViewParams& params, double px, double py, SurfaceHit& hit) const override {
     inner_->surface_at(cam, params, px, py, hit);

@@ -56,7 +56,8 @@ void render_gpu_model(const IScene& scene, const Camera& cam, const ViewParams& 
                       ViewBuffer& out);
 
 // `inner` drawn with the GPU model (view.lod_model = gpu in a replay): render() is
-// render_gpu_model at the middle pixel of each tile, render_spans the spans of its samples
+// render_gpu_model at the pixel params.sample_ox / sample_oy of each tile (−1: the middle one;
+// view.feedback_sampling = sequence sets them per frame, feedback_tile_offset), render_spans the spans of its samples
 // (IScene's default); texture, surface_at and load_warnings are the inner scene's.
 std::unique_ptr<IScene> make_gpu_model_scene(std::unique_ptr<IScene> inner);
 
