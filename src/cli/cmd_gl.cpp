@@ -362,10 +362,11 @@ void register_gl_commands(CLI::App& app) {
   check->add_option("--divisors", co->divisors, "comma-separated divisors")->capture_default_str();
   check->callback([co]() { gl_cmd::run_check(*co); });
   auto po = std::make_shared<gl_cmd::GlOptions>();
-  auto* rep = gl->add_subcommand("replay", "Stream a virtual texture from a tile store through the streaming runtime on the GPU, real clock; "
+  auto* rep = gl->add_subcommand("replay", "Stream a virtual texture or a clipmap (run.system) from a tile store through the streaming runtime on "
+                                           "the GPU, real clock; "
                                            "the summary and per-frame CSV of `vtsim replay`");
   rep->add_option("--trace,-t", po->trace, "camera trace")->required();
-  add_config_options(rep, po->configs, po->sets, " (run.system must be vt)");
+  add_config_options(rep, po->configs, po->sets, " (run.system vt, the default here, or clipmap)");
   rep->add_option("--store", po->store, "tile store (vtsim store gen) matching the config's texture")->required();
   rep->add_option("--summary", po->summary, "write the summary JSON here (- for stdout)");
   rep->add_option("--frames", po->frames_csv, "write one CSV row per frame here (- for stdout)");
