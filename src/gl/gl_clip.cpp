@@ -119,16 +119,21 @@ StreamedClip::StreamedClip(Renderer& r, const ClipGeometry& g) : impl_(std::make
   GLint max_side = 0, max_layers = 0;
   glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_side);
   glGetIntegerv(GL_MAX_ARRAY_TEXTURE_LAYERS, &max_layers);
-  const auto stack_bytes = static_cast<std::uint64_t>(g.clipsize) * static_cast<std::uint64_t>(g.clipsize) *
+  // A layer holds the largest window: N×N, or less when the texture is smaller than the clipsize.
+  for (const Level& L : lv_) {
+    layer_w_ = std::max(layer_w_, static_cast<int>(L.wx * g.tile));
+    layer_h_ = std::max(layer_h_, static_cast<int>(L.wy * g.tile));
+  }
+  const auto stack_bytes = static_cast<std::uint64_t>(layer_w_) * static_cast<std::uint64_t>(layer_h_) *
                            static_cast<std::uint64_t>(levels()) * static_cast<std::uint64_t>(g.channels);
-  if (g.clipsize > max_side || levels() > max_layers || stack_bytes > (std::uint64_t{1} << 30))
-    throw InputError("clipmap.clipsize", fmt::format("a clip stack of {} layers of {}² texels ({} MiB) exceeds this GL's {}² x {} layers "
-                                                     "or the client's 1 GiB",
-                                                     levels(), g.clipsize, stack_bytes >> 20, max_side, max_layers));
+  if (std::max(layer_w_, layer_h_) > max_side || levels() > max_layers || stack_bytes > (std::uint64_t{1} << 30))
+    throw InputError("clipmap.clipsize", fmt::format("a clip stack of {} layers of {}x{} texels ({} MiB) exceeds this GL's {}² x {} "
+                                                     "layers or the client's 1 GiB",
+                                                     levels(), layer_w_, layer_h_, stack_bytes >> 20, max_side, max_layers));
   m.side = g.tile + 2 * g.border;
   m.tile_bytes = static_cast<std::size_t>(m.side) * static_cast<std::size_t>(m.side) * static_cast<std::size_t>(g.channels);
   glCreateTextures(GL_TEXTURE_2D_ARRAY, 1, &m.stack);
-  glTextureStorage3D(m.stack, 1, gl_internal_format(g.channels), g.clipsize, g.clipsize, levels());
+  glTextureStorage3D(m.stack, 1, gl_internal_format(g.channels), layer_w_, layer_h_, levels());
   glTextureParameteri(m.stack, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
   glTextureParameteri(m.stack, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
   m.ok.assign(static_cast<std::size_t>(slot_off), 0u);

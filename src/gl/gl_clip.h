@@ -2,9 +2,9 @@
 // The GL client's clip stack (docs/gpu.md, "The clipmap: a clip stack on the GPU"): the engine side
 // of the streaming runtime (stream/runtime/streaming_runtime.h) for the clipmap system
 // (stream/system/clipmap_system.h, cache/clipmap.h; Tanner, Migdal & Jones 1998).
-//   - texels: a GL_TEXTURE_2D_ARRAY with one N×N layer per level (N = clipmap.clipsize): the
-//     stack's windows and the pyramid's whole levels alike (a pyramid level is at most N texels a
-//     side). Tile (x, y) of level l lives at toroidal slot (x mod w, y mod h) of layer l (w×h: the
+//   - texels: a GL_TEXTURE_2D_ARRAY with one N×N layer per level (N = clipmap.clipsize; less when
+//     the texture is smaller): the stack's windows and the pyramid's whole levels alike (a pyramid
+//     level is at most N texels a side). Tile (x, y) of level l lives at toroidal slot (x mod w, y mod h) of layer l (w×h: the
 //     level's window in tiles), so texel (u, v) of level l at (u mod wT, v mod hT).
 //   - upload (IUploadSink): the tile's payload (its T×T texels inside the store's border) copied by
 //     glTextureSubImage3D from the PBO ring (StreamPass) into its slot; every layer's upload is
@@ -45,7 +45,8 @@ struct ClipGeometry {
 class StreamedClip final : public StreamedTexture {
  public:
   // Throws InputError when the geometry cannot be drawn (clipsize not a multiple of the tile, a
-  // texture side above 2^30 texels, more than 32 levels, or a clip stack above this GL's limits).
+  // texture side above 2^30 texels, more than 32 levels, or a clip stack above this GL's limits
+  // or 1 GiB).
   StreamedClip(Renderer& r, const ClipGeometry& g);
   ~StreamedClip() override;
   StreamedClip(const StreamedClip&) = delete;
@@ -87,6 +88,7 @@ class StreamedClip final : public StreamedTexture {
   ClipGeometry g_;
   std::vector<Level> lv_;
   std::uint32_t full_mask_ = 1;
+  int layer_w_ = 0, layer_h_ = 0;  // the array's layers: the largest window, texels
   std::uint64_t uploads_ = 0, copies_ = 0;
   bool dirty_ = true;
 };
