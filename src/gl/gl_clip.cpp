@@ -28,13 +28,14 @@ layout(std430, binding = 0) readonly buffer Slots { uint slot_ok[]; };
 uniform int u_levels, u_clamp, u_tile, u_margin;
 uniform ivec4 u_win[32];    // window origin and size, tiles of the level
 uniform ivec4 u_valid[32];  // texels that may be sampled: [x0, x1) x [y0, y1) as (x0, x1, y0, y1)
-uniform ivec4 u_size[32];   // level texels (x, y), the level's first slot in slot_ok, 0
+uniform ivec4 u_size[32];   // level texels (x, y), the level's first slot in slot_ok, 1: every slot valid
 bool usable(int l, ivec2 ti) {
   ivec2 c = ti >> l;
   ivec4 sz = u_size[l], va = u_valid[l], w = u_win[l];
   int x0 = max(0, c.x - u_margin), x1 = min(sz.x - 1, c.x + u_margin);
   int y0 = max(0, c.y - u_margin), y1 = min(sz.y - 1, c.y + u_margin);
   if (x0 < va.x || x1 >= va.y || y0 < va.z || y1 >= va.w) return false;
+  if (sz.w != 0) return true;  // complete (Clipmap::resident_level's missing == 0)
   for (int ty = y0 / u_tile; ty <= y1 / u_tile; ++ty)
     for (int tx = x0 / u_tile; tx <= x1 / u_tile; ++tx)
       if (slot_ok[sz.z + (ty % w.w) * w.z + (tx % w.z)] == 0u) return false;
@@ -145,10 +146,6 @@ StreamedClip::StreamedClip(Renderer& r, const ClipGeometry& g) : impl_(std::make
   glProgramUniform1i(p, glGetUniformLocation(p, "u_levels"), levels());
   glProgramUniform1i(p, glGetUniformLocation(p, "u_tile"), g.tile);
   glProgramUniform1i(p, glGetUniformLocation(p, "u_margin"), g.filter_margin);
-  std::vector<GLint> size;
-  for (const Level& L : lv_)
-    size.insert(size.end(), {static_cast<GLint>(L.texels_x), static_cast<GLint>(L.texels_y), L.slot_off, 0});
-  glProgramUniform4iv(p, glGetUniformLocation(p, "u_size"), levels(), size.data());
 }
 
 StreamedClip::~StreamedClip() {
@@ -211,7 +208,7 @@ void StreamedClip::apply(const FrameUpdates& u) {
     dirty_ = true;
   }
   if (!dirty_) return;
-  std::vector<GLint> win, valid;
+  std::vector<GLint> win, valid, size;
   const std::int64_t T = g_.tile, b = g_.invalid_border;
   for (const Level& L : lv_) {
     const ClipWindow& W = L.win;
@@ -223,14 +220,18 @@ void StreamedClip::apply(const FrameUpdates& u) {
     valid.insert(valid.end(), {static_cast<GLint>(tx0 * T), static_cast<GLint>(std::min(L.texels_x, tx1 * T)), static_cast<GLint>(ty0 * T),
                                static_cast<GLint>(std::min(L.texels_y, ty1 * T))});
     // A slot is valid when it holds, in every layer, the window tile that maps to it.
+    bool complete = true;
     for (std::size_t i = 0; i < L.slots.size(); ++i) {
       const Slot& s = L.slots[i];
       const bool in = s.tx >= W.x0 && s.tx < W.x0 + W.w && s.ty >= W.y0 && s.ty < W.y0 + W.h;
       m.ok[static_cast<std::size_t>(L.slot_off) + i] = in && s.mask == full_mask_ ? 1u : 0u;
+      complete = complete && in && s.mask == full_mask_;
     }
+    size.insert(size.end(), {static_cast<GLint>(L.texels_x), static_cast<GLint>(L.texels_y), L.slot_off, complete ? 1 : 0});
   }
   glProgramUniform4iv(m.prog, glGetUniformLocation(m.prog, "u_win"), levels(), win.data());
   glProgramUniform4iv(m.prog, glGetUniformLocation(m.prog, "u_valid"), levels(), valid.data());
+  glProgramUniform4iv(m.prog, glGetUniformLocation(m.prog, "u_size"), levels(), size.data());
   glNamedBufferSubData(m.slots, 0, static_cast<GLsizeiptr>(m.ok.size() * 4), m.ok.data());
   dirty_ = false;
 }
