@@ -26,16 +26,18 @@ layout(location = 1) out uvec2 o_lv;   // (desired level + 1, sampled level + 1)
 layout(binding = 1) uniform sampler2DArray u_stack;
 layout(std430, binding = 0) readonly buffer Slots { uint slot_ok[]; };
 uniform int u_levels, u_clamp, u_tile, u_margin;
+uniform uint u_nonempty;    // bit l: level l has a valid slot
 uniform ivec4 u_win[32];    // window origin and size, tiles of the level
 uniform ivec4 u_valid[32];  // texels that may be sampled: [x0, x1) x [y0, y1) as (x0, x1, y0, y1)
-uniform ivec4 u_size[32];   // level texels (x, y), the level's first slot in slot_ok, 1: every slot valid
+uniform ivec4 u_size[32];   // level texels (x, y), the level's first slot in slot_ok, 0 no / 1 some / 2 every slot valid
 bool usable(int l, ivec2 ti) {
+  ivec4 sz = u_size[l];
   ivec2 c = ti >> l;
-  ivec4 sz = u_size[l], va = u_valid[l], w = u_win[l];
+  ivec4 va = u_valid[l], w = u_win[l];
   int x0 = max(0, c.x - u_margin), x1 = min(sz.x - 1, c.x + u_margin);
   int y0 = max(0, c.y - u_margin), y1 = min(sz.y - 1, c.y + u_margin);
   if (x0 < va.x || x1 >= va.y || y0 < va.z || y1 >= va.w) return false;
-  if (sz.w != 0) return true;  // complete (Clipmap::resident_level's missing == 0)
+  if (sz.w == 2) return true;  // complete (Clipmap::resident_level's missing == 0)
   for (int ty = y0 / u_tile; ty <= y1 / u_tile; ++ty)
     for (int tx = x0 / u_tile; tx <= x1 / u_tile; ++tx)
       if (slot_ok[sz.z + (ty % w.w) * w.z + (tx % w.z)] == 0u) return false;
@@ -56,8 +58,13 @@ void main() {
   // The feedback's rule (desired_level): floor of the LOD, in [0, levels - 1].
   int desired = lod > 0.0 ? min(int(lod), u_levels - 1) : 0;
   int L = u_levels;
-  for (int l = max(desired, u_clamp); l < u_levels; ++l)
+  // The levels from max(desired, clamp) down, finest first, skipping those with nothing valid.
+  uint todo = u_nonempty & ~((1u << uint(max(desired, u_clamp))) - 1u);
+  while (todo != 0u) {
+    int l = findLSB(todo);
     if (usable(l, ti)) { L = l; break; }
+    todo &= todo - 1u;
+  }
   o_lv = uvec2(uint(desired + 1), uint(L + 1));
   if (L == u_levels) { o = vec4(0.5, 0.5, 0.5, 1.0); return; }
   // Bilinear at level L around its texel b = ti >> L, the offset within b kept exact (the level-0
@@ -209,6 +216,7 @@ void StreamedClip::apply(const FrameUpdates& u) {
   }
   if (!dirty_) return;
   std::vector<GLint> win, valid, size;
+  std::uint32_t nonempty = 0;
   const std::int64_t T = g_.tile, b = g_.invalid_border;
   for (const Level& L : lv_) {
     const ClipWindow& W = L.win;
@@ -220,18 +228,22 @@ void StreamedClip::apply(const FrameUpdates& u) {
     valid.insert(valid.end(), {static_cast<GLint>(tx0 * T), static_cast<GLint>(std::min(L.texels_x, tx1 * T)), static_cast<GLint>(ty0 * T),
                                static_cast<GLint>(std::min(L.texels_y, ty1 * T))});
     // A slot is valid when it holds, in every layer, the window tile that maps to it.
-    bool complete = true;
+    std::size_t valid_slots = 0;
     for (std::size_t i = 0; i < L.slots.size(); ++i) {
       const Slot& s = L.slots[i];
       const bool in = s.tx >= W.x0 && s.tx < W.x0 + W.w && s.ty >= W.y0 && s.ty < W.y0 + W.h;
-      m.ok[static_cast<std::size_t>(L.slot_off) + i] = in && s.mask == full_mask_ ? 1u : 0u;
-      complete = complete && in && s.mask == full_mask_;
+      const bool v = in && s.mask == full_mask_;
+      m.ok[static_cast<std::size_t>(L.slot_off) + i] = v ? 1u : 0u;
+      valid_slots += v ? 1 : 0;
     }
-    size.insert(size.end(), {static_cast<GLint>(L.texels_x), static_cast<GLint>(L.texels_y), L.slot_off, complete ? 1 : 0});
+    const int state = valid_slots == 0 ? 0 : valid_slots == L.slots.size() ? 2 : 1;
+    if (state != 0) nonempty |= 1u << (&L - lv_.data());
+    size.insert(size.end(), {static_cast<GLint>(L.texels_x), static_cast<GLint>(L.texels_y), L.slot_off, state});
   }
   glProgramUniform4iv(m.prog, glGetUniformLocation(m.prog, "u_win"), levels(), win.data());
   glProgramUniform4iv(m.prog, glGetUniformLocation(m.prog, "u_valid"), levels(), valid.data());
   glProgramUniform4iv(m.prog, glGetUniformLocation(m.prog, "u_size"), levels(), size.data());
+  glProgramUniform1ui(m.prog, glGetUniformLocation(m.prog, "u_nonempty"), nonempty);
   glNamedBufferSubData(m.slots, 0, static_cast<GLsizeiptr>(m.ok.size() * 4), m.ok.data());
   dirty_ = false;
 }
