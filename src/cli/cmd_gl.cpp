@@ -303,11 +303,11 @@ void run_replay(const GlOptions& o) {
     return;
   }
   const nlohmann::json& pop = s["popin"];
-  fmt::print("{} ({}): {} frames in {:.2f} s ({:.1f} frames/s); {} tiles uploaded ({} pages copied to the GPU, {:.2f} ms of GPU upload time over {} timed frames); "
-             "{} GL errors\n",
+  fmt::print("{} ({}): {} frames in {:.2f} s ({:.1f} frames/s); {} tiles uploaded ({} {} copied to the GPU, {:.2f} ms of GPU upload time over {} timed frames); "
+             "{} GL errors{}\n",
              ctx.renderer(), ctx.version(), s["trace"]["frames"].get<int>(), run.seconds, s["gl"]["frames_per_s"].get<double>(),
-             run.sink_uploads, run.gpu_copies, s["gl"]["upload_gpu_ms_total"].get<double>(), s["gl"]["upload_timed_frames"].get<std::uint64_t>(),
-             ctx.errors());
+             run.sink_uploads, run.gpu_copies, s["gl"].contains("clip_stack_consistent") ? "tiles" : "pages", s["gl"]["upload_gpu_ms_total"].get<double>(), s["gl"]["upload_timed_frames"].get<std::uint64_t>(),
+             ctx.errors(), s["gl"].contains("clip_stack_consistent") && !run.clip_consistent ? "; the clip stack disagrees with the runtime's clipmap" : "");
   fmt::print("popin: {}\nlatency_ms: {}\n", pop.dump(), s["latency_ms"].dump());
 }
 
