@@ -308,11 +308,11 @@ void run_replay(const GlOptions& o) {
     return;
   }
   const nlohmann::json& pop = s["popin"];
-  fmt::print("{} ({}): {} frames in {:.2f} s ({:.1f} frames/s); {} tiles uploaded ({} pages copied to the GPU, {:.2f} ms of GPU upload time over {} timed frames); "
-             "{} GL errors\n",
+  fmt::print("{} ({}): {} frames in {:.2f} s ({:.1f} frames/s); {} tiles uploaded ({} {} copied to the GPU, {:.2f} ms of GPU upload time over {} timed frames); "
+             "{} GL errors{}\n",
              ctx.renderer(), ctx.version(), s["trace"]["frames"].get<int>(), run.seconds, s["gl"]["frames_per_s"].get<double>(),
-             run.sink_uploads, run.gpu_copies, s["gl"]["upload_gpu_ms_total"].get<double>(), s["gl"]["upload_timed_frames"].get<std::uint64_t>(),
-             ctx.errors());
+             run.sink_uploads, run.gpu_copies, s["gl"].contains("clip_stack_consistent") ? "tiles" : "pages", s["gl"]["upload_gpu_ms_total"].get<double>(), s["gl"]["upload_timed_frames"].get<std::uint64_t>(),
+             ctx.errors(), s["gl"].contains("clip_stack_consistent") && !run.clip_consistent ? "; the clip stack disagrees with the runtime's clipmap" : "");
   fmt::print("popin: {}\nlatency_ms: {}\n", pop.dump(), s["latency_ms"].dump());
 }
 
@@ -367,10 +367,11 @@ void register_gl_commands(CLI::App& app) {
   check->add_option("--divisors", co->divisors, "comma-separated divisors")->capture_default_str();
   check->callback([co]() { gl_cmd::run_check(*co); });
   auto po = std::make_shared<gl_cmd::GlOptions>();
-  auto* rep = gl->add_subcommand("replay", "Stream a virtual texture from a tile store through the streaming runtime on the GPU, real clock; "
+  auto* rep = gl->add_subcommand("replay", "Stream a virtual texture or a clipmap (run.system) from a tile store through the streaming runtime on "
+                                           "the GPU, real clock; "
                                            "the summary and per-frame CSV of `vtsim replay`");
   rep->add_option("--trace,-t", po->trace, "camera trace")->required();
-  add_config_options(rep, po->configs, po->sets, " (run.system must be vt)");
+  add_config_options(rep, po->configs, po->sets, " (run.system vt, the default here, or clipmap)");
   rep->add_option("--store", po->store, "tile store (vtsim store gen) matching the config's texture")->required();
   rep->add_option("--summary", po->summary, "write the summary JSON here (- for stdout)");
   rep->add_option("--frames", po->frames_csv, "write one CSV row per frame here (- for stdout)");

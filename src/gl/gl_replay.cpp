@@ -13,6 +13,7 @@
 #include "core/error.h"
 #include "core/image_io.h"
 #include "core/view.h"
+#include "gl/gl_clip.h"
 #include "gl/gl_context.h"
 #include "gl/gl_renderer.h"
 #include "gl/gl_stream.h"
@@ -23,6 +24,8 @@
 #include "sim/run/run_summary.h"
 #include "sim/trace/feedback_trace.h"
 #include "sim/run/runtime_setup.h"
+#include "stream/exec/threaded_executor.h"
+#include "stream/system/clipmap_backed.h"
 
 namespace vtsim::gl {
 
@@ -32,7 +35,7 @@ namespace {
 // needed -> uploaded; the upload stage is the GPU copy, not modelled here: 0) and the row's bytes.
 class Sink final : public IUploadSink {
  public:
-  Sink(StreamedVt& vt, MetricsCollector& m, std::vector<std::uint64_t>& level_upload) : vt_(vt), m_(m), level_upload_(level_upload) {}
+  Sink(StreamedTexture& vt, MetricsCollector& m, std::vector<std::uint64_t>& level_upload) : vt_(vt), m_(m), level_upload_(level_upload) {}
   void begin(FrameRow& row, int frame, Ticks now) {
     row_ = &row;
     frame_ = frame;
@@ -48,7 +51,7 @@ class Sink final : public IUploadSink {
   }
 
  private:
-  StreamedVt& vt_;
+  StreamedTexture& vt_;
   MetricsCollector& m_;
   std::vector<std::uint64_t>& level_upload_;
   FrameRow* row_ = nullptr;
@@ -76,6 +79,26 @@ bool gl_page_table_consistent(const GlReplayRun& run, const StreamedVt& vt, Text
         const auto s = slot_level.find(static_cast<std::int64_t>(e & 0xffffffu));
         ok = el >= l && s != slot_level.end() && s->second == el &&
              run.page_table.count(TileKey(0, static_cast<std::uint32_t>(el), x >> (el - l), y >> (el - l))) == 1;
+      }
+  }
+  return ok;
+}
+
+// The GPU's clip stack against the runtime's clipmap: the same windows, and each window tile's
+// slot valid on the GPU exactly when the clipmap holds the tile in every layer.
+bool gl_clip_consistent(GlReplayRun& run, const StreamedClip& clip, const IStreamingSystem& sys, int layers) {
+  run.gpu_windows = clip.gpu_windows();
+  sys.clip_windows(run.runtime_windows);
+  bool ok = run.gpu_windows == run.runtime_windows;
+  const auto* cm = dynamic_cast<const ClipmapBacked*>(&sys);
+  if (!cm) return false;
+  for (int l = 0; ok && l < clip.levels(); ++l) {
+    const ClipWindow& w = run.runtime_windows[static_cast<std::size_t>(l)];
+    for (std::int64_t y = w.y0; ok && y < w.y0 + w.h; ++y)
+      for (std::int64_t x = w.x0; ok && x < w.x0 + w.w; ++x) {
+        bool all = true;
+        for (int k = 0; k < layers; ++k) all = all && cm->clipmap().resident(TileKey(static_cast<std::uint32_t>(k), static_cast<std::uint32_t>(l), x, y));
+        ok = all == clip.gpu_tile_valid(l, x, y);
       }
   }
   return ok;
@@ -129,7 +152,7 @@ class GpuFeedbackRecorder {
 // The summary, in `vtsim replay`'s schema: the measured sections from the builder every runtime
 // client shares (sim/run/run_summary.h), then this client's cost and its "gl" section.
 void gl_summary(GlReplayRun& run, Context& ctx, const ReplayConfig& bound, const FramePlan& plan, StreamingRuntime& rt,
-                const StreamedVt& vt, const std::vector<std::uint64_t>& level_upload, const FeedbackSettings& fs,
+                const StreamedTexture& vt, const std::vector<std::uint64_t>& level_upload, const FeedbackSettings& fs,
                 std::uint64_t feedback_read) {
   nlohmann::json& s = run.result.summary;
   static const std::string kClock = "gl";
@@ -156,6 +179,10 @@ void gl_summary(GlReplayRun& run, Context& ctx, const ReplayConfig& bound, const
              {"seconds", run.seconds},
              {"frames_per_s", run.seconds > 0 ? plan.frames / run.seconds : 0.0},
              {"page_table_consistent", run.page_table_consistent}};
+  if (bound.run.system == "clipmap") {
+    s["gl"].erase("page_table_consistent");
+    s["gl"]["clip_stack_consistent"] = run.clip_consistent;
+  }
 }
 
 }  // namespace
@@ -165,8 +192,9 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
   ReplayConfig bound = cfg;
   for (const std::string& w : bind_store_texture(bound, store))
     if (o.warn) o.warn(w);
-  if (bound.run.system != "vt")
-    throw InputError("run.system", fmt::format("gl replay streams the vt system, not '{}'", bound.run.system));
+  const bool clipmap = bound.run.system == "clipmap";
+  if (bound.run.system != "vt" && !clipmap)
+    throw InputError("run.system", fmt::format("gl replay streams the vt and clipmap systems, not '{}'", bound.run.system));
   const int latency = o.latency < 0 ? cfg.view.feedback_latency : o.latency;
   if (latency > 16) throw InputError("--latency", "must be in [0, 16]");
   if (o.png_every < 1) throw InputError("--png-every", "must be >= 1");
@@ -180,8 +208,31 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
                                           store.geometry().width, store.geometry().height));
   auto rt = make_streaming_runtime(bound, store);
   const int tile = bound.texture.tile_size, levels = rt->system().num_levels();
-  StreamedVt vt(r, tile, static_cast<int>(store.geometry().border), static_cast<int>(l0.channels),
-                static_cast<std::int64_t>(bound.vt.pool_pages), levels);
+  std::unique_ptr<StreamedTexture> tex;
+  StreamedVt* vtp = nullptr;
+  StreamedClip* clip = nullptr;
+  if (clipmap) {
+    ClipGeometry g;
+    g.extent = ext;
+    g.tile = tile;
+    g.border = static_cast<int>(store.geometry().border);
+    g.channels = static_cast<int>(l0.channels);
+    g.layers = static_cast<int>(store.layer_count());
+    g.clipsize = bound.clipmap.clipsize;
+    g.filter_margin = bound.clipmap.filter_margin_texels;
+    g.invalid_border = bound.clipmap.invalid_border_tiles;
+    auto c = std::make_unique<StreamedClip>(r, g);
+    if (c->levels() != levels)
+      throw std::logic_error(fmt::format("gl clip stack: {} levels where the clipmap has {}", c->levels(), levels));
+    clip = c.get();
+    tex = std::move(c);
+  } else {
+    auto v = std::make_unique<StreamedVt>(r, tile, static_cast<int>(store.geometry().border), static_cast<int>(l0.channels),
+                                          static_cast<std::int64_t>(bound.vt.pool_pages), levels);
+    vtp = v.get();
+    tex = std::move(v);
+  }
+  StreamedTexture& vt = *tex;
   GlReplayRun run;
   MetricsCollector& m = run.result.metrics;
   m.set_system_columns(rt->system().frame_counter_names());
@@ -214,6 +265,17 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
   }
   std::unique_ptr<VideoWriter> video;
   if (!o.video.empty()) video = std::make_unique<VideoWriter>("--video", o.video, plan.trace.image_width, plan.trace.image_height, 1.0 / plan.period_s);
+  // An engine builds its pipelines before its first frame: one feedback and one main pass off the
+  // clock (llvmpipe compiles a shader's variant at its first draw, ~0.1 s), then the executor's
+  // clock restarts at 0, as the real clock's frame loop does at frame 0 (sim/run/real_replay.cpp),
+  // so frame 0 starts at its trace time and setup is not counted in the tiles' latency.
+  if (plan.frames > 0) {
+    const Camera cam0 = make_camera(plan.trace.poses.front(), plan.trace.image_width, plan.trace.image_height);
+    (void)r.feedback_now(cam0, fs, 0, 0);
+    vt.apply(FrameUpdates{});
+    (void)vt.draw(cam0, fs, 0);
+  }
+  if (auto* te = dynamic_cast<ThreadedExecutor*>(&rt->executor())) te->restart_clock();
   const auto t0 = std::chrono::steady_clock::now();
   for (int f = 0; f < plan.frames; ++f) {
     const Pose& pose = plan.trace.poses[static_cast<std::size_t>(f)];
@@ -288,9 +350,12 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
   }
   run.sink_uploads = vt.uploads();
   run.gpu_copies = vt.copies();
-  run.page_table = vt.page_table();
-  rt->system().pool_pages(run.pool_pages);
-  run.page_table_consistent = gl_page_table_consistent(run, vt, ext, tile, levels);
+  if (vtp) {
+    run.page_table = vtp->page_table();
+    rt->system().pool_pages(run.pool_pages);
+    run.page_table_consistent = gl_page_table_consistent(run, *vtp, ext, tile, levels);
+  }
+  if (clip) run.clip_consistent = gl_clip_consistent(run, *clip, rt->system(), static_cast<int>(store.layer_count()));
 
   gl_summary(run, ctx, bound, plan, *rt, vt, level_upload, fs, feedback_read);
   return run;

@@ -96,14 +96,41 @@ GLenum internal_of(int channels) {
   }
 }
 
+// Links the pop-in count's compute program (throws when it does not compile or link).
+GLuint link_count_program() {
+  const GLuint cs = glCreateShader(GL_COMPUTE_SHADER);
+  glShaderSource(cs, 1, &kCountCompute, nullptr);
+  glCompileShader(cs);
+  GLint ok = 0;
+  glGetShaderiv(cs, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    char log[4096];
+    glGetShaderInfoLog(cs, sizeof log, nullptr, log);
+    glDeleteShader(cs);
+    throw std::runtime_error(std::string("gl: the pop-in count shader does not compile: ") + log);
+  }
+  const GLuint prog = glCreateProgram();
+  glAttachShader(prog, cs);
+  glLinkProgram(prog);
+  glDeleteShader(cs);
+  glGetProgramiv(prog, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    glDeleteProgram(prog);
+    throw std::runtime_error("gl: the pop-in count program does not link");
+  }
+  return prog;
+}
+
 }  // namespace
 
-struct StreamedVt::Impl {
-  GLuint prog = 0, count_prog = 0, phys = 0, pt_buf = 0, counts = 0;
+unsigned gl_pixel_format(int channels) { return format_of(channels); }
+unsigned gl_internal_format(int channels) { return internal_of(channels); }
+
+struct StreamPass::Impl {
+  GLuint count_prog = 0, counts = 0;
   GLuint fbo = 0, colour = 0, lv = 0, depth = 0;
   int w = 0, h = 0;
-  int slots_x = 0, side = 0, phys_side = 0;
-  std::size_t page_bytes = 0;
+  std::size_t staging = 0;
   std::array<GLuint, kRing> pbo{};
   std::array<GLsync, kRing> fence{};
   int ring = 0;
@@ -139,6 +166,128 @@ struct StreamedVt::Impl {
   }
 };
 
+StreamPass::StreamPass(std::size_t staging_bytes) : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  m.staging = staging_bytes;
+  for (GLuint& b : m.pbo) {
+    glCreateBuffers(1, &b);
+    glNamedBufferStorage(b, static_cast<GLsizeiptr>(staging_bytes), nullptr, GL_MAP_WRITE_BIT);
+  }
+  glCreateQueries(GL_TIME_ELAPSED, kQueries, m.query.data());
+  glCreateBuffers(1, &m.counts);
+  glNamedBufferData(m.counts, 16, nullptr, GL_DYNAMIC_READ);
+  m.count_prog = link_count_program();
+}
+
+StreamPass::~StreamPass() {
+  Impl& m = *impl_;
+  if (m.query_open) glEndQuery(GL_TIME_ELAPSED);
+  for (GLsync& f : m.fence)
+    if (f) glDeleteSync(f);
+  glDeleteBuffers(kRing, m.pbo.data());
+  glDeleteQueries(kQueries, m.query.data());
+  if (m.fbo) {
+    glDeleteFramebuffers(1, &m.fbo);
+    glDeleteTextures(1, &m.colour);
+    glDeleteTextures(1, &m.lv);
+    glDeleteTextures(1, &m.depth);
+  }
+  glDeleteBuffers(1, &m.counts);
+  glDeleteProgram(m.count_prog);
+}
+
+void StreamPass::copy(const void* bytes, std::size_t n, const std::function<void()>& copy) {
+  Impl& m = *impl_;
+  if (n > m.staging) throw std::logic_error("gl upload: a copy larger than the staging buffers");
+  if (!m.query_open && m.pending_queries.size() < kQueries) {
+    glBeginQuery(GL_TIME_ELAPSED, m.query[static_cast<std::size_t>(m.next_query)]);
+    m.query_open = true;
+  }
+  // The ring's next buffer, once the GPU has read what it held.
+  const auto i = static_cast<std::size_t>(m.ring);
+  m.ring = (m.ring + 1) % kRing;
+  if (m.fence[i]) {
+    while (glClientWaitSync(m.fence[i], GL_SYNC_FLUSH_COMMANDS_BIT, 1'000'000'000) == GL_TIMEOUT_EXPIRED) {
+    }
+    glDeleteSync(m.fence[i]);
+    m.fence[i] = nullptr;
+  }
+  void* dst = glMapNamedBufferRange(m.pbo[i], 0, static_cast<GLsizeiptr>(n),
+                                    GL_MAP_WRITE_BIT | GL_MAP_INVALIDATE_BUFFER_BIT | GL_MAP_UNSYNCHRONIZED_BIT);
+  if (dst == nullptr) throw std::runtime_error("gl upload: cannot map the staging buffer");
+  std::memcpy(dst, bytes, n);
+  glUnmapNamedBuffer(m.pbo[i]);
+  glBindBuffer(GL_PIXEL_UNPACK_BUFFER, m.pbo[i]);
+  copy();
+  glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
+  m.fence[i] = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+}
+
+void StreamPass::end_uploads() {
+  Impl& m = *impl_;
+  if (m.query_open) {
+    glEndQuery(GL_TIME_ELAPSED);
+    m.query_open = false;
+    m.pending_queries.push_back(m.next_query);
+    m.next_query = (m.next_query + 1) % kQueries;
+  }
+  while (!m.pending_queries.empty()) {
+    const GLuint q = m.query[static_cast<std::size_t>(m.pending_queries.front())];
+    GLint ready = 0;
+    glGetQueryObjectiv(q, GL_QUERY_RESULT_AVAILABLE, &ready);
+    if (!ready) break;
+    GLuint64 ns = 0;
+    glGetQueryObjectui64v(q, GL_QUERY_RESULT, &ns);
+    upload_gpu_ms_ += static_cast<double>(ns) * 1e-6;
+    ++timed_frames_;
+    m.pending_queries.pop_front();
+  }
+}
+
+PopinCount StreamPass::draw(Renderer& r, unsigned program, const Camera& cam, const FeedbackSettings& fs) {
+  Impl& m = *impl_;
+  m.target(cam.width, cam.height);
+  const float sky[4] = {0.55f, 0.7f, 0.9f, 1.0f};
+  const GLuint zero4[4] = {0, 0, 0, 0};
+  const float zero = 0.0f;
+  glClearNamedFramebufferfv(m.fbo, GL_COLOR, 0, sky);
+  glClearNamedFramebufferuiv(m.fbo, GL_COLOR, 1, zero4);
+  glClearNamedFramebufferfv(m.fbo, GL_DEPTH, 0, &zero);
+  glBindFramebuffer(GL_FRAMEBUFFER, m.fbo);
+  r.draw_program(program, cam, fs);
+  // The count: one invocation per pixel, atomics into three uints.
+  glClearNamedBufferData(m.counts, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
+  glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT);
+  glUseProgram(m.count_prog);
+  glBindImageTexture(0, m.lv, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RG32UI);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m.counts);
+  glDispatchCompute(static_cast<GLuint>((m.w + 15) / 16), static_cast<GLuint>((m.h + 15) / 16), 1);
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
+  std::uint32_t c[3] = {0, 0, 0};
+  glGetNamedBufferSubData(m.counts, 0, sizeof c, c);
+  return PopinCount{c[0], c[1], c[2]};
+}
+
+std::vector<std::uint8_t> StreamPass::read_colour(int& w, int& h) {
+  Impl& m = *impl_;
+  w = m.w;
+  h = m.h;
+  std::vector<std::uint8_t> px(static_cast<std::size_t>(w) * static_cast<std::size_t>(h) * 4);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, m.fbo);
+  glReadBuffer(GL_COLOR_ATTACHMENT0);
+  glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, px.data());
+  return px;
+}
+
+struct StreamedVt::Impl {
+  GLuint prog = 0, phys = 0, pt_buf = 0;
+  int slots_x = 0, side = 0, phys_side = 0;
+  std::size_t page_bytes = 0;
+  std::unique_ptr<StreamPass> pass;
+};
+
 StreamedVt::StreamedVt(Renderer& r, int tile, int border, int channels, std::int64_t slots, int levels)
     : impl_(std::make_unique<Impl>()), r_(r), tile_(tile), border_(border), channels_(channels), levels_(levels), slots_(slots) {
   if (tile < 1 || border < 0 || channels < 1 || channels > 4 || slots < 1 || slots > 0xffffff || levels < 1)
@@ -161,11 +310,7 @@ StreamedVt::StreamedVt(Renderer& r, int tile, int border, int channels, std::int
   glTextureParameteri(m.phys, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
   glTextureParameteri(m.phys, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
   glTextureParameteri(m.phys, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-  for (GLuint& b : m.pbo) {
-    glCreateBuffers(1, &b);
-    glNamedBufferStorage(b, static_cast<GLsizeiptr>(m.page_bytes), nullptr, GL_MAP_WRITE_BIT);
-  }
-  glCreateQueries(GL_TIME_ELAPSED, kQueries, m.query.data());
+  m.pass = std::make_unique<StreamPass>(m.page_bytes);
   // The page table's layout: each level's pages row by row, levels finest first.
   const TextureExtent ext = r.texture();
   int total = 0;
@@ -181,8 +326,6 @@ StreamedVt::StreamedVt(Renderer& r, int tile, int border, int channels, std::int
   pt_.assign(static_cast<std::size_t>(total), kNone);
   glCreateBuffers(1, &m.pt_buf);
   glNamedBufferData(m.pt_buf, static_cast<GLsizeiptr>(pt_.size() * 4), pt_.data(), GL_DYNAMIC_DRAW);
-  glCreateBuffers(1, &m.counts);
-  glNamedBufferData(m.counts, 16, nullptr, GL_DYNAMIC_READ);
   m.prog = Renderer::link_program(kStreamFragment);
   const GLuint p = m.prog;
   glProgramUniform1i(p, glGetUniformLocation(p, "u_levels"), levels_);
@@ -191,44 +334,18 @@ StreamedVt::StreamedVt(Renderer& r, int tile, int border, int channels, std::int
   glProgramUniform1i(p, glGetUniformLocation(p, "u_slots_x"), m.slots_x);
   glProgramUniform1iv(p, glGetUniformLocation(p, "u_level_off"), static_cast<GLsizei>(level_off_.size()), level_off_.data());
   glProgramUniform2f(p, glGetUniformLocation(p, "u_phys_size"), static_cast<float>(m.phys_side), static_cast<float>(m.phys_side));
-  const GLuint cs = glCreateShader(GL_COMPUTE_SHADER);
-  glShaderSource(cs, 1, &kCountCompute, nullptr);
-  glCompileShader(cs);
-  GLint ok = 0;
-  glGetShaderiv(cs, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[4096];
-    glGetShaderInfoLog(cs, sizeof log, nullptr, log);
-    glDeleteShader(cs);
-    throw std::runtime_error(std::string("gl: the pop-in count shader does not compile: ") + log);
-  }
-  m.count_prog = glCreateProgram();
-  glAttachShader(m.count_prog, cs);
-  glLinkProgram(m.count_prog);
-  glDeleteShader(cs);
-  glGetProgramiv(m.count_prog, GL_LINK_STATUS, &ok);
-  if (!ok) throw std::runtime_error("gl: the pop-in count program does not link");
 }
 
 StreamedVt::~StreamedVt() {
   Impl& m = *impl_;
-  if (m.query_open) glEndQuery(GL_TIME_ELAPSED);
-  for (GLsync& f : m.fence)
-    if (f) glDeleteSync(f);
-  glDeleteBuffers(kRing, m.pbo.data());
-  glDeleteQueries(kQueries, m.query.data());
-  if (m.fbo) {
-    glDeleteFramebuffers(1, &m.fbo);
-    glDeleteTextures(1, &m.colour);
-    glDeleteTextures(1, &m.lv);
-    glDeleteTextures(1, &m.depth);
-  }
+  m.pass.reset();
   glDeleteTextures(1, &m.phys);
   glDeleteBuffers(1, &m.pt_buf);
-  glDeleteBuffers(1, &m.counts);
   glDeleteProgram(m.prog);
-  glDeleteProgram(m.count_prog);
 }
+
+double StreamedVt::upload_gpu_ms() const { return impl_->pass->upload_gpu_ms(); }
+std::uint64_t StreamedVt::timed_frames() const { return impl_->pass->timed_frames(); }
 
 void StreamedVt::upload(const TileUpload& u) {
   ++uploads_;
@@ -238,52 +355,17 @@ void StreamedVt::upload(const TileUpload& u) {
   if (static_cast<int>(u.data->side) != m.side || static_cast<int>(u.data->channels) != channels_ || u.data->bytes != m.page_bytes)
     throw std::runtime_error(fmt::format("gl upload: page {}x{}x{} where the physical texture holds {}x{}x{}", u.data->side,
                                          u.data->side, u.data->channels, m.side, m.side, channels_));
-  if (!m.query_open && m.pending_queries.size() < kQueries) {
-    glBeginQuery(GL_TIME_ELAPSED, m.query[static_cast<std::size_t>(m.next_query)]);
-    m.query_open = true;
-  }
-  // The ring's next buffer, once the GPU has read what it held.
-  const auto i = static_cast<std::size_t>(m.ring);
-  m.ring = (m.ring + 1) % kRing;
-  if (m.fence[i]) {
-    while (glClientWaitSync(m.fence[i], GL_SYNC_FLUSH_COMMANDS_BIT, 1'000'000'000) == GL_TIMEOUT_EXPIRED) {
-    }
-    glDeleteSync(m.fence[i]);
-    m.fence[i] = nullptr;
-  }
-  void* dst = glMapNamedBufferRange(m.pbo[i], 0, static_cast<GLsizeiptr>(m.page_bytes),
-                                    GL_MAP_WRITE_BIT | GL_MAP_INVALIDATE_BUFFER_BIT | GL_MAP_UNSYNCHRONIZED_BIT);
-  if (dst == nullptr) throw std::runtime_error("gl upload: cannot map the staging buffer");
-  std::memcpy(dst, u.data->texels.get(), m.page_bytes);
-  glUnmapNamedBuffer(m.pbo[i]);
-  glBindBuffer(GL_PIXEL_UNPACK_BUFFER, m.pbo[i]);
-  glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-  glTextureSubImage2D(m.phys, 0, static_cast<GLint>(u.slot % m.slots_x) * m.side, static_cast<GLint>(u.slot / m.slots_x) * m.side,
-                      m.side, m.side, format_of(channels_), GL_UNSIGNED_BYTE, nullptr);
-  glBindBuffer(GL_PIXEL_UNPACK_BUFFER, 0);
-  m.fence[i] = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+  m.pass->copy(u.data->texels.get(), m.page_bytes, [&] {
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glTextureSubImage2D(m.phys, 0, static_cast<GLint>(u.slot % m.slots_x) * m.side, static_cast<GLint>(u.slot / m.slots_x) * m.side,
+                        m.side, m.side, format_of(channels_), GL_UNSIGNED_BYTE, nullptr);
+  });
   ++copies_;
 }
 
 void StreamedVt::apply(const FrameUpdates& u) {
   Impl& m = *impl_;
-  if (m.query_open) {
-    glEndQuery(GL_TIME_ELAPSED);
-    m.query_open = false;
-    m.pending_queries.push_back(m.next_query);
-    m.next_query = (m.next_query + 1) % kQueries;
-  }
-  while (!m.pending_queries.empty()) {
-    const GLuint q = m.query[static_cast<std::size_t>(m.pending_queries.front())];
-    GLint ready = 0;
-    glGetQueryObjectiv(q, GL_QUERY_RESULT_AVAILABLE, &ready);
-    if (!ready) break;
-    GLuint64 ns = 0;
-    glGetQueryObjectui64v(q, GL_QUERY_RESULT, &ns);
-    upload_gpu_ms_ += static_cast<double>(ns) * 1e-6;
-    ++timed_frames_;
-    m.pending_queries.pop_front();
-  }
+  m.pass->end_uploads();
   for (const PageTableUpdate& p : u.page_table) {
     const TileKey page(0, p.page.level(), p.page.x(), p.page.y());  // a page: every layer at one slot
     if (p.slot < 0) table_.erase(page);
@@ -317,43 +399,13 @@ std::uint32_t StreamedVt::entry(int level, std::int64_t x, std::int64_t y) const
 
 PopinCount StreamedVt::draw(const Camera& cam, const FeedbackSettings& fs, int clamp, double sample_bias) {
   Impl& m = *impl_;
-  m.target(cam.width, cam.height);
   glProgramUniform1i(m.prog, glGetUniformLocation(m.prog, "u_clamp"), std::clamp(clamp, 0, levels_ - 1));
   glProgramUniform1f(m.prog, glGetUniformLocation(m.prog, "u_sample_bias"), static_cast<float>(sample_bias));
-  const float sky[4] = {0.55f, 0.7f, 0.9f, 1.0f};
-  const GLuint zero4[4] = {0, 0, 0, 0};
-  const float zero = 0.0f;
-  glClearNamedFramebufferfv(m.fbo, GL_COLOR, 0, sky);
-  glClearNamedFramebufferuiv(m.fbo, GL_COLOR, 1, zero4);
-  glClearNamedFramebufferfv(m.fbo, GL_DEPTH, 0, &zero);
-  glBindFramebuffer(GL_FRAMEBUFFER, m.fbo);
   glBindTextureUnit(1, m.phys);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m.pt_buf);
-  r_.draw_program(m.prog, cam, fs);
-  // The count: one invocation per pixel, atomics into three uints.
-  glClearNamedBufferData(m.counts, GL_R32UI, GL_RED_INTEGER, GL_UNSIGNED_INT, nullptr);
-  glMemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT);
-  glUseProgram(m.count_prog);
-  glBindImageTexture(0, m.lv, 0, GL_FALSE, 0, GL_READ_ONLY, GL_RG32UI);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m.counts);
-  glDispatchCompute(static_cast<GLuint>((m.w + 15) / 16), static_cast<GLuint>((m.h + 15) / 16), 1);
-  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);
-  std::uint32_t c[3] = {0, 0, 0};
-  glGetNamedBufferSubData(m.counts, 0, sizeof c, c);
-  return PopinCount{c[0], c[1], c[2]};
+  return m.pass->draw(r_, m.prog, cam, fs);
 }
 
-std::vector<std::uint8_t> StreamedVt::read_colour(int& w, int& h) {
-  Impl& m = *impl_;
-  w = m.w;
-  h = m.h;
-  std::vector<std::uint8_t> px(static_cast<std::size_t>(w) * static_cast<std::size_t>(h) * 4);
-  glBindFramebuffer(GL_READ_FRAMEBUFFER, m.fbo);
-  glReadBuffer(GL_COLOR_ATTACHMENT0);
-  glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
-  glPixelStorei(GL_PACK_ALIGNMENT, 1);
-  glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, px.data());
-  return px;
-}
+std::vector<std::uint8_t> StreamedVt::read_colour(int& w, int& h) { return impl_->pass->read_colour(w, h); }
 
 }  // namespace vtsim::gl

@@ -15,6 +15,7 @@
 // Layer 0 (the albedo) is the one drawn; the other layers' pages are counted as uploads but not
 // copied (one physical texture).
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <vector>
@@ -32,7 +33,60 @@ struct PopinCount {
   std::uint64_t deficit = 0;  // sum of max(0, sampled − desired)
 };
 
-class StreamedVt final : public IUploadSink {
+// The GL pixel format and sized internal format of 8-bit texels with `channels` channels (1..4).
+unsigned gl_pixel_format(int channels);
+unsigned gl_internal_format(int channels);
+
+// What the streamed textures share (the VT's physical page texture, the clipmap's clip stack):
+// the upload ring (16 pixel-unpack buffers, each reused only after its fence; each frame's copies
+// bracketed by a GL_TIME_ELAPSED query read back when available) and the main pass's targets
+// (colour, the RG32UI (desired + 1, sampled + 1) target, depth) with the compute pass that sums
+// the pop-in on the GPU.
+class StreamPass {
+ public:
+  // `staging_bytes`: the largest copy (one tile as the store holds it).
+  explicit StreamPass(std::size_t staging_bytes);
+  ~StreamPass();
+  StreamPass(const StreamPass&) = delete;
+  StreamPass& operator=(const StreamPass&) = delete;
+
+  // Stages `n` bytes in the ring's next buffer, binds it as GL_PIXEL_UNPACK_BUFFER and calls
+  // `copy` (the client's glTexture*SubImage* with a null offset), then fences the buffer.
+  void copy(const void* bytes, std::size_t n, const std::function<void()>& copy);
+  // The frame's copies are done: closes the frame's timer query, reads the ready ones.
+  void end_uploads();
+  // The main pass with `program` (bound textures and buffers are the caller's), then the count.
+  PopinCount draw(Renderer& r, unsigned program, const Camera& cam, const FeedbackSettings& fs);
+  std::vector<std::uint8_t> read_colour(int& w, int& h);
+  double upload_gpu_ms() const { return upload_gpu_ms_; }
+  std::uint64_t timed_frames() const { return timed_frames_; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  double upload_gpu_ms_ = 0.0;
+  std::uint64_t timed_frames_ = 0;
+};
+
+// A texture streamed through the runtime and drawn by the main pass: the runtime's sink, the
+// frame's updates, the pass.
+class StreamedTexture : public IUploadSink {
+ public:
+  // The frame's updates (after end_frame): page table or windows.
+  virtual void apply(const FrameUpdates& u) = 0;
+  // The main pass; returns the frame's pop-in counts (the GPU's sums). `clamp`: MaxTextureLOD;
+  // `sample_bias`: the LOD bias the screen samples with (the desired level is measured without it).
+  virtual PopinCount draw(const Camera& cam, const FeedbackSettings& fs, int clamp, double sample_bias = 0.0) = 0;
+  // The last main pass as RGBA8, image rows top first.
+  virtual std::vector<std::uint8_t> read_colour(int& w, int& h) = 0;
+  virtual std::uint64_t uploads() const = 0;  // sink calls (every layer)
+  virtual std::uint64_t copies() const = 0;   // layer-0 tiles copied to the GPU
+  // GPU time of the uploads, summed over the frames whose queries were read back, ms.
+  virtual double upload_gpu_ms() const = 0;
+  virtual std::uint64_t timed_frames() const = 0;
+};
+
+class StreamedVt final : public StreamedTexture {
  public:
   // `tile`: payload texels a side; `border`: texels of border each side (the store's); `channels`:
   // 8-bit channels of layer 0's decoded texels (1..4); `slots`: the page pool; `levels`: the
@@ -45,22 +99,18 @@ class StreamedVt final : public IUploadSink {
 
   void upload(const TileUpload& u) override;
   // The frame's page-table updates (after end_frame).
-  void apply(const FrameUpdates& u);
-  // The main pass; returns the frame's pop-in counts (the GPU's sums). `clamp`: MaxTextureLOD;
-  // `sample_bias`: the LOD bias the screen samples with (the desired level is measured without it).
-  PopinCount draw(const Camera& cam, const FeedbackSettings& fs, int clamp, double sample_bias = 0.0);
-  // The last main pass as RGBA8, image rows top first.
-  std::vector<std::uint8_t> read_colour(int& w, int& h);
+  void apply(const FrameUpdates& u) override;
+  PopinCount draw(const Camera& cam, const FeedbackSettings& fs, int clamp, double sample_bias = 0.0) override;
+  std::vector<std::uint8_t> read_colour(int& w, int& h) override;
 
-  std::uint64_t uploads() const { return uploads_; }          // sink calls (every layer)
-  std::uint64_t copies() const { return copies_; }            // layer-0 pages copied to the GPU
+  std::uint64_t uploads() const override { return uploads_; }
+  std::uint64_t copies() const override { return copies_; }
   const std::map<TileKey, std::int64_t>& page_table() const { return table_; }  // page -> slot
   // The page-table buffer as the GPU reads it (entry of page (level, x, y); kNone: nothing resident).
   static constexpr std::uint32_t kNone = 0xffffffffu;
   std::uint32_t entry(int level, std::int64_t x, std::int64_t y) const;
-  // GPU time of the uploads, summed over the frames whose queries were read back, ms.
-  double upload_gpu_ms() const { return upload_gpu_ms_; }
-  std::uint64_t timed_frames() const { return timed_frames_; }
+  double upload_gpu_ms() const override;
+  std::uint64_t timed_frames() const override;
 
  private:
   struct Impl;
@@ -68,8 +118,7 @@ class StreamedVt final : public IUploadSink {
   Renderer& r_;
   int tile_, border_, channels_, levels_;
   std::int64_t slots_;
-  std::uint64_t uploads_ = 0, copies_ = 0, timed_frames_ = 0;
-  double upload_gpu_ms_ = 0.0;
+  std::uint64_t uploads_ = 0, copies_ = 0;
   std::map<TileKey, std::int64_t> table_;
   std::vector<std::uint32_t> pt_;
   std::vector<int> level_off_, tiles_x_, tiles_y_;
