@@ -23,6 +23,9 @@ phase() { echo "== $1 at $(date -u +%T), ${SECONDS}s into the run, $(cpu)s CPU";
 
 # Sanitizer builds at -O1 with line tables only (-g1): ASan+UBSan at -O2 -g compiled 2x slower
 # (37.6 s vs 18.7 s for src/sim/compare/compare.cpp) for stack traces that -g1 already gives file:line.
+# They compile with clang (Debian's clang 14), the Release build with GCC: under ASan+UBSan clang
+# took 51 s against GCC's 81 s of CPU for the largest library batch at -O1, 17-18 s against 31-34 s
+# for a test batch at -O0 (docs/bench.md, "CI time"). Two compilers also see more warnings.
 san=(-DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1")
 dirs=() ; argsets=()
 for v in $variants; do
@@ -42,6 +45,8 @@ build() {
   read -ra extra <<< "${argsets[$i]}"
   [ "${vs[$i]}" = release ] || extra+=("${san[@]}")
   [ -z "${2:-}" ] || pre=(setsid nice -n 10)
+  # clang when installed (root runs install it; GCC otherwise); takes effect at the first configure.
+  if [ "${vs[$i]}" != release ] && command -v clang++ >/dev/null; then pre=(env CC=clang CXX=clang++ "${pre[@]}"); fi
   "${pre[@]}" bash scripts/setup.sh "${dirs[$i]}" "${extra[@]}"
 }
 logs=out/test-logs
@@ -53,32 +58,37 @@ trap 'for p in "${bg[@]}"; do kill -- "-$p" 2>/dev/null || true; done' EXIT
 # The build's own packages first, then, in the background while the first variant builds, those
 # only tests use: the ctest sweep_slurm starts a local Slurm cluster (scripts/slurm_local.sh; root
 # only), report_browser renders the reports in Debian's chromium, python_module makes a pandas
-# DataFrame of a sweep's rows, the gl tests encode a video with ffmpeg.
+# DataFrame of a sweep's rows, the gl tests encode a video with ffmpeg; and clang with its sanitizer
+# runtimes for the ASan and TSan builds (waited for before they start).
 pkg_pid=
-if [ "$(id -u)" -eq 0 ] && [[ $variants == *release* || $variants == *asan* ]]; then
+bg_pkgs="slurm-wlm munge chromium python3-pandas ffmpeg clang libclang-rt-dev"
+if [ "$(id -u)" -eq 0 ]; then
   phase "packages"
   bash scripts/setup.sh --packages-only
-  setsid bash -c '. scripts/packages.sh; ensure_packages slurm-wlm munge chromium python3-pandas ffmpeg' > "$logs/packages.log" 2>&1 &
+  setsid bash -c ". scripts/packages.sh; ensure_packages $bg_pkgs" > "$logs/packages.log" 2>&1 &
   pkg_pid=$!; bg+=("$pkg_pid")
 fi
+wait_packages() {
+  [ -n "$pkg_pid" ] || return 0
+  wait "$pkg_pid" || { cat "$logs/packages.log" >&2; echo "test.sh: installing $bg_pkgs failed" >&2; exit 1; }
+  pkg_pid=
+}
 
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 export LSAN_OPTIONS=suppressions=$here/scripts/lsan.supp:print_suppressions=0
 export TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1:suppressions=$here/scripts/tsan.supp:print_suppressions=0
 
 phase "${vs[0]}: build (${dirs[0]})"
+[ "${vs[0]}" = release ] || wait_packages
 build 0
 for ((i = 0; i < ${#vs[@]}; i++)); do
   v=${vs[$i]} dir=${dirs[$i]} next_pid=
   # The next variant compiles, niced, while this one's tests run.
+  wait_packages  # the tests (Slurm, Chromium, pandas, ffmpeg) and the next build (clang) need them
   if ((i + 1 < ${#vs[@]})); then
     phase "${vs[i+1]}: build (${dirs[i+1]}) starts beside the ${v} tests"
     build $((i + 1)) nice > "$logs/${vs[i+1]}-build.log" 2>&1 &
     next_pid=$!; bg+=("$next_pid")
-  fi
-  if [ -n "$pkg_pid" ] && [ "$v" != tsan ]; then
-    wait "$pkg_pid" || { cat "$logs/packages.log" >&2; echo "test.sh: installing slurm-wlm munge chromium python3-pandas ffmpeg failed" >&2; exit 1; }
-    pkg_pid=
   fi
   phase "$v: tests ($dir)"
   if [ "$v" = tsan ]; then

@@ -210,7 +210,8 @@ TEST_CASE("cachesim: exact misses on the textbook string, 3 frames, for every po
   const std::map<std::string, std::uint64_t> want = {{"fifo", 15}, {"lru", 12}, {"clock", 11}, {"s3fifo", 15},
                                                      {"arc", 13},  {"belady", 9}, {"belady_reused", 8}};
   for (const auto& [p, m] : want) {
-    CAPTURE(p);
+    const auto& p_ = p;  // clang 14 cannot capture a structured binding (CAPTURE's lambda)
+    CAPTURE(p_);
     const CacheSimResult r = cachesim_run(seq, p, 3, CapacityUnit::kObjects);
     CHECK(r.stats.requests == 20);
     CHECK(r.stats.misses == m);
@@ -232,7 +233,8 @@ TEST_CASE("cachesim: exact misses and miss bytes with sizes, derived by hand") {
   const std::map<std::string, std::pair<std::uint64_t, std::uint64_t>> want = {
       {"lru", {5, 23}}, {"clock", {5, 23}}, {"fifo", {4, 20}}, {"belady", {4, 20}}, {"belady_reused", {3, 14}}};
   for (const auto& [p, m] : want) {
-    CAPTURE(p);
+    const auto& p_ = p;  // clang 14 cannot capture a structured binding (CAPTURE's lambda)
+    CAPTURE(p_);
     const CacheSimResult r = cachesim_run(seq, p, 10, CapacityUnit::kBytes);
     CHECK(r.stats.misses == m.first);
     CHECK(r.stats.bytes_missed == m.second);
@@ -286,7 +288,8 @@ TEST_CASE("cachesim: LRU, FIFO, CLOCK and Belady equal independent Python refere
         if (std::sscanf(line.c_str(), "%63s %llu %llu %llu %llu", name, &cap, &requests, &misses, &miss_bytes) != 5) continue;
         const std::string policy = name;
         CAPTURE(seq_i);
-        CAPTURE(unit);
+        const auto& unit_ = unit;  // clang 14 cannot capture a structured binding (CAPTURE's lambda)
+        CAPTURE(unit_);
         CAPTURE(policy);
         CAPTURE(cap);
         const CacheSimResult r =
@@ -347,7 +350,8 @@ TEST_CASE("cachesim: the CLI prints the table, writes CSV and JSON, and refuses 
       {"cachesim -a " + og + ".missing -s 10B", "vtsim: error:"},
   };
   for (const auto& [args, msg] : bad) {
-    CAPTURE(args);
+    const auto& args_ = args;  // clang 14 cannot capture a structured binding (CAPTURE's lambda)
+    CAPTURE(args_);
     r = cs_cli(args);
     CHECK(r.code == 2);
     CHECK(vtsim::test::contains(r.err, msg));

@@ -282,7 +282,8 @@ TEST_CASE("mrc: access files: format, round trip and errors naming file:line") {
       {"1 1099511627777\n", "f:1: size"},     {"frame 2\n", "f:1: 'frame' takes nothing"},
       {"1 +3\n", "f:1: size '+3'"}};
   for (const auto& [in, want] : bad) {
-    CAPTURE(in);
+    const auto& in_ = in;  // clang 14 cannot capture a structured binding (CAPTURE's lambda)
+    CAPTURE(in_);
     try {
       vtsim::parse_accesses(in, "f");
       FAIL("accepted");
@@ -322,7 +323,8 @@ TEST_CASE("mrc CLI: the curve, its outputs, and exit 2 naming the flag or file:l
       {"--unit kb", "--unit"},      {"--sizes 1", "--sizes"},      {"--sizes 1000000", "--sizes"},
       {"--json-file " + dir + "/no/such/x.json", "--json-file: '" + dir + "/no/such/x.json': the directory"}};
   for (const auto& [args, want] : bad) {
-    CAPTURE(args);
+    const auto& args_ = args;  // clang 14 cannot capture a structured binding (CAPTURE's lambda)
+    CAPTURE(args_);
     r = vtsim::test::run_vtsim_capture("mrc --accesses " + acc + " " + args, err);
     CHECK(r.code == 2);
     CHECK(vtsim::test::contains(r.err, "vtsim: error: "));
@@ -373,7 +375,8 @@ TEST_CASE("mrc CLI: a replay's recorded accesses, the pool in pages or RAM in by
       {"mrc --accesses " + rec + " --record " + dir + "/x", "--record"},
       {"mrc", "either an access file"}};
   for (const auto& [args, want] : bad) {
-    CAPTURE(args);
+    const auto& args_ = args;  // clang 14 cannot capture a structured binding (CAPTURE's lambda)
+    CAPTURE(args_);
     r = vtsim::test::run_vtsim_capture(args, err);
     CHECK(r.code == 2);
     CHECK(vtsim::test::contains(r.err, want));

@@ -129,8 +129,9 @@ TEST_CASE("odd sizes, border 0 and a coarsest level other than 1x1 build correct
   test::TempDir dir;
   for (auto [w, h, t, b, levels] : {std::tuple{37u, 23u, 8u, 2u, 0u}, std::tuple{37u, 23u, 8u, 0u, 3u}, std::tuple{1u, 1u, 4u, 4u, 0u},
                                     std::tuple{129u, 2u, 128u, 1u, 0u}}) {
-    CAPTURE(w);
-    CAPTURE(b);
+    const unsigned width = w, border = b;  // clang 14 cannot capture a structured binding (CAPTURE's lambda)
+    CAPTURE(width);
+    CAPTURE(border);
     const Image8 img = test::make_image(w, h, 4, w + b);
     write_image8(dir.file("in.png"), img);
     BuildOptions o;

@@ -28,7 +28,8 @@ TEST_CASE("lossless codecs round-trip every channel count exactly, including odd
       for (auto [w, h] : {std::pair{136, 136}, std::pair{7, 5}, std::pair{1, 1}}) {
         CAPTURE(codec->name());
         CAPTURE(c);
-        CAPTURE(w);
+        const int width = w;  // clang 14 cannot capture a structured binding (CAPTURE's lambda)
+        CAPTURE(width);
         const Image8 img = test::make_image(std::uint64_t(w), std::uint64_t(h), c, 7);
         const auto bytes = codec->encode(img.texels.data(), w, h, int(c));
         std::vector<std::uint8_t> out(img.texels.size(), 0xAB);

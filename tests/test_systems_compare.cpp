@@ -137,7 +137,8 @@ TEST_CASE("systems: vtsim capacity --system terrain carries VT Terrain Design's 
            {"--set terrain.brush_size=1000", "terrain.brush_size"},
            {"--camera 9000,1", "--camera"},
            {"--camera x", "--camera"}}) {
-    CAPTURE(args);
+    const auto& args_ = args;  // clang 14 cannot capture a structured binding (CAPTURE's lambda)
+    CAPTURE(args_);
     r = test::run_vtsim_capture("capacity --system terrain " + args + cfg, d.file("err"));
     CHECK(r.code == 2);
     CHECK_MESSAGE(test::contains(r.err, field), r.err);

@@ -124,9 +124,10 @@ struct MemberPath<Last> {
     return (obj.*last);
   }
 };
-template <class... Members>
-MemberPath<Members...> at(Members... members) {
-  return {members...};
+template <class First, class... Rest>
+MemberPath<First, Rest...> at(First first, Rest... rest) {
+  if constexpr (sizeof...(Rest) == 0) return MemberPath<First>{first};
+  else return MemberPath<First, Rest...>{first, at(rest...)};  // each level braced (clang's -Wmissing-braces)
 }
 
 // The member `ref` designates in `c` (a reference, const when c is).

@@ -289,7 +289,7 @@ struct StreamedVt::Impl {
 };
 
 StreamedVt::StreamedVt(Renderer& r, int tile, int border, int channels, std::int64_t slots, int levels)
-    : impl_(std::make_unique<Impl>()), r_(r), tile_(tile), border_(border), channels_(channels), levels_(levels), slots_(slots) {
+    : impl_(std::make_unique<Impl>()), r_(r), channels_(channels), levels_(levels), slots_(slots) {
   if (tile < 1 || border < 0 || channels < 1 || channels > 4 || slots < 1 || slots > 0xffffff || levels < 1)
     throw InputError("gl", fmt::format("streamed VT: bad page geometry (tile {}, border {}, channels {}, slots {})", tile, border,
                                        channels, slots));

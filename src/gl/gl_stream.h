@@ -116,7 +116,7 @@ class StreamedVt final : public StreamedTexture {
   struct Impl;
   std::unique_ptr<Impl> impl_;
   Renderer& r_;
-  int tile_, border_, channels_, levels_;
+  int channels_, levels_;
   std::int64_t slots_;
   std::uint64_t uploads_ = 0, copies_ = 0;
   std::map<TileKey, std::int64_t> table_;
