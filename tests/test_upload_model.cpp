@@ -21,10 +21,10 @@ using namespace vtsim;
 namespace {
 
 // Frames of `tiles` pages of `bytes` each, timed exactly by the model (a + b·bytes per page).
-std::vector<UploadSample> model_samples(double a_us, double mbps) {
+std::vector<UploadSample> model_samples(double a_us, double mbps, double frame_us = 0.0) {
   std::vector<UploadSample> s;
   for (const std::uint64_t bytes : {18496ull, 73984ull, 295936ull})
-    for (const int tiles : {1, 4, 16, 64}) s.push_back({bytes, tiles, tiles * (a_us + static_cast<double>(bytes) / mbps)});
+    for (const int tiles : {1, 4, 16, 64}) s.push_back({bytes, tiles, frame_us + tiles * (a_us + static_cast<double>(bytes) / mbps)});
   return s;
 }
 
@@ -54,33 +54,39 @@ ReplayResult upload_replay(const std::vector<std::string>& sets) {
 
 TEST_CASE("upload fit: recovers the per-page cost and the bandwidth of synthetic timings exactly") {
   const UploadFit f = fit_upload_model(model_samples(12.5, 800.0));
-  CHECK(f.per_tile_us == doctest::Approx(12.5).epsilon(1e-12));
-  CHECK(f.MBps == doctest::Approx(800.0).epsilon(1e-12));
-  CHECK(f.max_abs_rel < 1e-12);
+  CHECK(f.per_tile_us == doctest::Approx(12.5).epsilon(1e-9));
+  CHECK(f.MBps == doctest::Approx(800.0).epsilon(1e-9));
+  CHECK(f.per_frame_us == doctest::Approx(0.0).epsilon(1e-9));
+  CHECK(f.max_abs_rel < 1e-9);
   CHECK(f.notes.empty());
   REQUIRE(f.model_us.size() == 12);
-  CHECK(f.model_us[5] == doctest::Approx(4 * (12.5 + 73984.0 / 800.0)).epsilon(1e-12));
-  // A measured point 10 % slow: its residual is −1/11 when the fit stays the model's.
-  std::vector<UploadSample> s = model_samples(3.0, 2000.0);
-  const UploadFit g = fit_upload_model(s);
-  CHECK(g.per_tile_us == doctest::Approx(3.0).epsilon(1e-12));
-  CHECK(g.MBps == doctest::Approx(2000.0).epsilon(1e-12));
+  CHECK(f.model_us[5] == doctest::Approx(4 * (12.5 + 73984.0 / 800.0)).epsilon(1e-9));
+  // With a frame's fixed cost (the timer query, the fence): recovered beside the per-page terms.
+  const UploadFit g = fit_upload_model(model_samples(3.0, 2000.0, 45.0));
+  CHECK(g.per_tile_us == doctest::Approx(3.0).epsilon(1e-9));
+  CHECK(g.MBps == doctest::Approx(2000.0).epsilon(1e-9));
+  CHECK(g.per_frame_us == doctest::Approx(45.0).epsilon(1e-9));
+  CHECK(g.max_abs_rel < 1e-9);
 }
 
-TEST_CASE("upload fit: a negative term is clamped to 0 and said, bad samples are refused") {
-  // Per-page times that fall with the bytes: no per-byte cost, the mean per page.
-  const UploadFit f = fit_upload_model({{1000, 1, 30.0}, {4000, 2, 40.0}});
+TEST_CASE("upload fit: a negative term is left out and said, bad samples are refused") {
+  // Per-page times that fall with the bytes (one batch size: no frame term): the mean per page.
+  const UploadFit f = fit_upload_model({{1000, 1, 30.0}, {4000, 1, 20.0}});
   CHECK(f.MBps == 0.0);
   CHECK(f.per_tile_us == doctest::Approx(25.0));
-  CHECK(f.notes.size() == 1);
-  // Through the origin: 1 us a page at 1000 B, 6 at 4000 B would give a < 0; b = Σxy / Σx².
+  CHECK(f.per_frame_us == 0.0);
+  CHECK(f.notes.size() == 2);  // no per-byte cost, no frame cost (it cannot be told from the per-page one)
+  // 1 us a page at 1000 B, 6 at 4000 B: a < 0 with b, so b alone through the origin: Σxy / Σx².
   const UploadFit g = fit_upload_model({{1000, 1, 1.0}, {4000, 1, 6.0}});
   CHECK(g.per_tile_us == 0.0);
   CHECK(g.MBps == doctest::Approx((1000.0 * 1000 + 4000.0 * 4000) / (1000.0 * 1 + 4000.0 * 6)));
-  CHECK(g.notes.size() == 1);
+  // Weights: a sample weighing 3x pulls the one-term fit to it (3·20 + 30) / 4.
+  const UploadFit h = fit_upload_model({{1000, 1, 30.0, 1.0}, {4000, 1, 20.0, 3.0}});
+  CHECK(h.per_tile_us == doctest::Approx(22.5));
   CHECK_THROWS_AS(fit_upload_model({}), std::invalid_argument);
   CHECK_THROWS_AS(fit_upload_model({{1000, 0, 1.0}}), std::invalid_argument);
   CHECK_THROWS_AS(fit_upload_model({{1000, 1, -1.0}}), std::invalid_argument);
+  CHECK_THROWS_AS(fit_upload_model({{1000, 1, 1.0, 0.0}}), std::invalid_argument);
 }
 
 TEST_CASE("upload fit: the profile is an [upload] table that loads as a config, beside calibrate's keys") {

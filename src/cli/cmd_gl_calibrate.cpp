@@ -34,7 +34,7 @@ struct UploadArgs {
   std::string store, out;
   std::string batches = "1,4,16,64";
   std::string tiles;  // payload sides; default: the store's, half and twice
-  std::string clock = "gpu";
+  std::string clock = "auto";
   int reps = 7;
   std::uint64_t seed = 1;
   bool json = false, quiet = false;
@@ -63,7 +63,8 @@ std::vector<int> int_list(const std::string& flag, const std::string& s) {
 
 void run_upload(const UploadArgs& a) {
   if (a.store.empty()) throw InputError("--store", "required (the tile store whose pages are timed)");
-  if (a.clock != "gpu" && a.clock != "cpu") throw InputError("--clock", fmt::format("expected gpu or cpu, got '{}'", a.clock));
+  if (a.clock != "auto" && a.clock != "gpu" && a.clock != "cpu")
+    throw InputError("--clock", fmt::format("expected auto, gpu or cpu, got '{}'", a.clock));
   check_output("--output", a.out);
   if (a.json && a.out == "-") throw InputError("--output", "--json already prints to stdout: give a file or drop --json");
   gl::UploadCalibrateOptions o;
@@ -88,9 +89,16 @@ void run_upload(const UploadArgs& a) {
   gl::UploadProgress progress;
   if (!a.quiet) progress = [](const std::string& s) { fmt::print(stderr, "vtsim: timing {}\n", s); };
   const gl::UploadCalibration c = gl::calibrate_upload(r, o, progress);
-  const bool gpu = a.clock == "gpu";
-  const std::string source = fmt::format("{} ({}, {}), {} clock ({}), {} repetitions, medians", ctx.renderer(), ctx.version(), ctx.platform(),
-                                         a.clock, gpu ? "GL_TIME_ELAPSED of the frame's copies" : "wall time to glFinish", a.reps);
+  // auto: the GPU's timer when it saw the copies (UploadCalibration::gpu_saw_copies), else the CPU's.
+  const bool gpu_saw = c.gpu_saw_copies;
+  const bool gpu = a.clock == "gpu" || (a.clock == "auto" && gpu_saw);
+  const std::string clock_used = gpu ? "gpu" : "cpu";
+  if (a.clock == "gpu" && !gpu_saw)
+    warn("the GL_TIME_ELAPSED queries measured under a tenth of the submitting thread's wall time on the largest frame: this GL "
+         "copies on the CPU (--clock cpu fits that)");
+  const std::string source = fmt::format("{} ({}, {}), {} clock ({}){}, {} repetitions, medians", ctx.renderer(), ctx.version(), ctx.platform(),
+                                         clock_used, gpu ? "GL_TIME_ELAPSED of the frame's copies" : "wall time to glFinish",
+                                         a.clock == "auto" ? " chosen by --clock auto" : "", a.reps);
   const std::string toml = upload_profile_toml(gpu ? c.gpu : c.cpu, gpu ? c.gpu_samples : c.cpu_samples, source);
   if (!a.out.empty()) write_output(a.out, toml);
   if (a.json) {
@@ -103,12 +111,12 @@ void run_upload(const UploadArgs& a) {
                              {"pages_per_frame", p.batch}, {"reps", p.reps}, {"gpu_us", p.gpu_us}, {"submit_us", p.submit_us},
                              {"complete_us", p.complete_us}});
     const auto fit = [](const UploadFit& f) {
-      return nlohmann::json{{"per_tile_us", f.per_tile_us}, {"link_MBps", f.MBps}, {"model_us", f.model_us},
+      return nlohmann::json{{"per_tile_us", f.per_tile_us}, {"link_MBps", f.MBps}, {"per_frame_us", f.per_frame_us}, {"model_us", f.model_us},
                             {"rel_residual", f.rel_residual}, {"max_abs_rel_residual", f.max_abs_rel}, {"notes", f.notes}};
     };
     j["fit"] = {{"gpu", fit(c.gpu)}, {"cpu", fit(c.cpu)}};
     j["profile"] = {{"upload.per_tile_us", (gpu ? c.gpu : c.cpu).per_tile_us}, {"upload.link_MBps", (gpu ? c.gpu : c.cpu).MBps}};
-    j["clock"] = a.clock;
+    j["clock"] = clock_used;
     fmt::print("{}\n", j.dump(2));
     return;
   }
@@ -123,7 +131,7 @@ void run_upload(const UploadArgs& a) {
   fmt::print("GPU clock: per_tile_us {:.2f}, link_MBps {:.1f} (largest residual {:.1f} %); CPU clock: per_tile_us {:.2f}, link_MBps {:.1f} "
              "({:.1f} %)\n",
              c.gpu.per_tile_us, c.gpu.MBps, c.gpu.max_abs_rel * 100, c.cpu.per_tile_us, c.cpu.MBps, c.cpu.max_abs_rel * 100);
-  fmt::print("wrote {} ({} clock)\n", a.out, a.clock);
+  fmt::print("wrote {} ({} clock)\n", a.out, clock_used);
 }
 
 #else
@@ -148,7 +156,7 @@ void register_gl_calibrate_command(CLI::App& gl) {
   c->add_option("--reps", a->reps, "repetitions of each (page size, batch); medians")->capture_default_str();
   c->add_option("--clock", a->clock,
                 "fit the profile to: gpu (the GL_TIME_ELAPSED queries, as gl replay's gl.upload_gpu_ms_total) | cpu (the submitting "
-                "thread's wall time to glFinish)")
+                "thread's wall time to glFinish) | auto (gpu when its queries saw the copies, else cpu: llvmpipe)")
       ->capture_default_str();
   c->add_option("--seed", a->seed, "seed of the pages' texels")->capture_default_str();
   c->add_flag("--json", a->json, "print the measurements and both fits as JSON");

@@ -126,10 +126,17 @@ UploadCalibration calibrate_upload(Renderer& r, const UploadCalibrateOptions& o,
       p.complete_us = median_of(com[i]);
       p.gpu_us = median_of(gpu[i]);
       c.points.push_back(p);
-      c.gpu_samples.push_back({p.bytes, p.batch, p.gpu_us});
-      c.cpu_samples.push_back({p.bytes, p.batch, p.complete_us});
+      // Relative error: each point's per-page time squared in the weight (a 200 KB page's
+      // microseconds would outweigh a 15 KB one's); the store's own page, what the client copies, 4x.
+      const double w = tile == o.tile ? 4.0 : 1.0;
+      const auto rel = [&](double us) { return us > 0 ? w / ((us / p.batch) * (us / p.batch)) : w; };
+      c.gpu_samples.push_back({p.bytes, p.batch, p.gpu_us, rel(p.gpu_us)});
+      c.cpu_samples.push_back({p.bytes, p.batch, p.complete_us, rel(p.complete_us)});
     }
   }
+  const UploadPoint& big = *std::max_element(c.points.begin(), c.points.end(),
+                                              [](const UploadPoint& x, const UploadPoint& y) { return x.complete_us < y.complete_us; });
+  c.gpu_saw_copies = big.gpu_us >= 0.1 * big.complete_us;
   c.gpu = fit_upload_model(c.gpu_samples);
   c.cpu = fit_upload_model(c.cpu_samples);
   return c;

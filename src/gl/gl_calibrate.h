@@ -46,6 +46,10 @@ struct UploadCalibration {
   std::vector<UploadPoint> points;
   UploadFit gpu, cpu;  // fitted to gpu_us and to complete_us
   std::vector<UploadSample> gpu_samples, cpu_samples;
+  // The GPU's timer saw the copies: on the frame the submitting thread spent longest on, the
+  // query measured at least a tenth of that. llvmpipe copies on the submitting thread, and its
+  // GL_TIME_ELAPSED, bracketing no GPU work, reads ~0.
+  bool gpu_saw_copies = false;
 };
 
 using UploadProgress = std::function<void(const std::string&)>;

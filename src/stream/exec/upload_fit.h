@@ -15,22 +15,25 @@ struct UploadSample {
   std::uint64_t bytes = 0;  // one page, bytes (payload + borders × channels)
   int tiles = 0;            // pages copied in the frame
   double us = 0.0;          // the frame's copy time, microseconds
+  double weight = 1.0;      // in the least squares (calibrate-upload: the store's own page 4x)
 };
 
 struct UploadFit {
   double per_tile_us = 0.0;  // fixed cost per page, us (>= 0)
   double MBps = 0.0;         // bytes per us; 0 = the per-byte cost is nil (an unlimited link)
+  double per_frame_us = 0.0;  // a frame's fixed cost (query, fence), us (>= 0): reported, not a config key
   // Per sample, in order: the model's frame time and (model − measured) / measured.
   std::vector<double> model_us, rel_residual;
   double max_abs_rel = 0.0;  // the largest |rel_residual|
   std::vector<std::string> notes;  // constraints applied (a negative term clamped to 0)
 };
 
-// Least squares of the per-page time (us / tiles) against the page's bytes: us / tiles = a + b ·
-// bytes, every sample weighing alike, with a >= 0 and b >= 0 (a negative intercept refits b
-// through the origin; a negative slope fits a alone). MBps = 1 / b. Recovers a and b exactly from
-// samples the model generated. Throws std::invalid_argument for no samples, a sample with tiles
-// < 1 or a time that is not finite and >= 0.
+// Weighted non-negative least squares of the per-page time (us / tiles) against the page's bytes
+// and the batch: us / tiles = a + b · bytes + c / tiles (c: the frame's fixed cost), a, b, c >= 0
+// (of the fits on each subset of the terms with no negative coefficient, the least squared error;
+// a term left out is said in notes). MBps = 1 / b (0 when b = 0). Recovers a, b and c exactly (to
+// rounding) from samples the model generated. Throws std::invalid_argument for no samples, a
+// sample with tiles < 1, a time that is not finite and >= 0 or a weight that is not > 0.
 UploadFit fit_upload_model(const std::vector<UploadSample>& samples);
 
 // The profile: an [upload] table of config keys (per_tile_us, link_MBps) for `-c`, with the
