@@ -98,6 +98,11 @@ UploadCalibration calibrate_upload(Renderer& r, const UploadCalibrateOptions& o,
   for (const int t : tiles)
     if (t < 1 || t > 8192) throw InputError("--tiles", fmt::format("{} texels (must be in 1..8192)", t));
   const int slots = *std::max_element(o.batches.begin(), o.batches.end());
+  for (const int t : tiles) {
+    const auto side = static_cast<std::uint64_t>(t + 2 * o.border);
+    if (side * side * static_cast<std::uint64_t>(o.channels) * static_cast<std::uint64_t>(slots) > (std::uint64_t{1} << 29))
+      throw InputError("--tiles", fmt::format("{} pages of {}+2x{} texels a frame are over 512 MiB: fewer or smaller", slots, t, o.border));
+  }
   UploadCalibration c;
   std::uint64_t seed = o.seed;
   for (const int tile : tiles) {
