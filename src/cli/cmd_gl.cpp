@@ -390,6 +390,7 @@ void register_gl_commands(CLI::App& app) {
   rep->add_flag("--allow-repairs", po->allow_repairs, kAllowRepairsHelp);
   rep->add_flag("--json", po->json, "print the summary JSON");
   rep->callback([po]() { gl_cmd::run_replay(*po); });
+  register_gl_calibrate_command(*gl);
 }
 
 }  // namespace vtsim::cli

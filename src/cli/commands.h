@@ -36,6 +36,8 @@ void register_cachesim_commands(CLI::App& app);
 void register_report_commands(CLI::App& app);
 void register_atlas_commands(CLI::App& app);
 void register_gl_commands(CLI::App& app);
+// `vtsim gl calibrate-upload` (cmd_gl_calibrate.cpp), under `gl`.
+void register_gl_calibrate_command(CLI::App& gl);
 // `vtsim help [CMD...]` and `vtsim completion bash`, generated from the commands registered before.
 void register_help_commands(CLI::App& app);
 // The bash completion script for `app`'s commands and options (every subcommand, every flag).

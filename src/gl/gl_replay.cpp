@@ -42,13 +42,17 @@ class Sink final : public IUploadSink {
     now_ = now;
   }
   void upload(const TileUpload& t) override {
+    const auto c0 = std::chrono::steady_clock::now();
     vt_.upload(t);
+    cpu_ms_ += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - c0).count();
     const UploadItem& u = *t.item;
     m_.add_latency(upload_latency(u, now_, frame_, 0));  // the GPU copy is timed by GL queries
     if (u.key.level() < level_upload_.size()) level_upload_[u.key.level()] += u.bytes;
     row_->upload_bytes += u.bytes;
     ++row_->uploads;
   }
+  // The submitting thread's wall time in the copies (llvmpipe copies there), ms.
+  double cpu_ms() const { return cpu_ms_; }
 
  private:
   StreamedTexture& vt_;
@@ -57,6 +61,7 @@ class Sink final : public IUploadSink {
   FrameRow* row_ = nullptr;
   int frame_ = 0;
   Ticks now_ = 0;
+  double cpu_ms_ = 0.0;
 };
 
 // Every entry of the GPU's page table names a resident page's (slot, level).
@@ -176,6 +181,7 @@ void gl_summary(GlReplayRun& run, Context& ctx, const ReplayConfig& bound, const
              {"gpu_page_copies", run.gpu_copies},
              {"upload_gpu_ms_total", vt.upload_gpu_ms()},
              {"upload_timed_frames", vt.timed_frames()},
+             {"upload_cpu_ms_total", run.upload_cpu_ms},
              {"seconds", run.seconds},
              {"frames_per_s", run.seconds > 0 ? plan.frames / run.seconds : 0.0},
              {"page_table_consistent", run.page_table_consistent}};
@@ -349,6 +355,7 @@ GlReplayRun run_gl_replay(Context& ctx, const ReplayConfig& cfg, const Trace& tr
     run.video_frames = video->frames();
   }
   run.sink_uploads = vt.uploads();
+  run.upload_cpu_ms = sink.cpu_ms();
   run.gpu_copies = vt.copies();
   if (vtp) {
     run.page_table = vtp->page_table();

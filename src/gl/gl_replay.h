@@ -58,6 +58,7 @@ struct GlReplayRun {
   double seconds = 0.0;                // wall time of the frame loop
   std::uint64_t feedback_trace_bytes = 0;  // GlReplayOptions::record_feedback's size, bytes
   std::uint64_t video_frames = 0;          // frames in GlReplayOptions::video
+  double upload_cpu_ms = 0.0;              // the submitting thread's wall time in the sink's copies (gl.upload_cpu_ms_total)
 };
 
 // Throws InputError for a config the store does not match (before the first frame), a system

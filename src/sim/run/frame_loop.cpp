@@ -180,7 +180,6 @@ SystemRun::SystemRun(const ReplayConfig& cfg, const FramePlan& plan, TextureExte
     pipe_->record_ram_accesses(&accesses_->ram);
     system_->record_pool_accesses(&accesses_->pool);
   }
-  link_Bps_ = cfg.upload.link_MBps * 1e6;
   if (env.timeline) {
     pipe_->set_observer(env.timeline);
     system_->record_vram_evictions(env.timeline->eviction_log());
@@ -258,7 +257,7 @@ class SystemRun::Uploads final : public IUploadSink {
 // An upload the system accepts: its latency is recorded, then the environment copies it.
 void SystemRun::on_upload(const TileUpload& t, FrameRow& row) {
   const UploadItem& u = *t.item;
-  const TileLatency lat = upload_latency(u, now_, frame_, transfer_ticks(u.bytes, link_Bps_));
+  const TileLatency lat = upload_latency(u, now_, frame_, upload_ticks(cfg_.upload, u.bytes));
   res_.metrics.add_latency(lat);
   level_upload_[u.key.level()] += u.bytes;
   row.upload_bytes += u.bytes;

@@ -238,7 +238,6 @@ class SystemRun {
   IStreamingSystem* system_ = nullptr;  // the runtime's
   Pipeline* pipe_ = nullptr;            // the runtime's
   int num_levels_ = 1;
-  double link_Bps_ = 0.0;
 
   // Frame state.
   int frame_ = 0;

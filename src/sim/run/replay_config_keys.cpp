@@ -216,6 +216,8 @@ const ConfigTable<ReplayConfig>& replay_config_table() {
         .add(cfg::integer<C>("upload.bytes_per_frame", at(&C::upload, &UploadModel::bytes_per_frame), -1, std::int64_t{1} << 40,
                              "upload budget, bytes per frame; -1 = no byte limit (0 is rejected)"))
         .add(cfg::real<C>("upload.link_MBps", at(&C::upload, &UploadModel::link_MBps), 0.0, kInf, "host to VRAM link, MB/s; 0 = unlimited"))
+        .add(cfg::real<C>("upload.per_tile_us", at(&C::upload, &UploadModel::per_tile_us), 0.0, 1e6,
+                          "fixed cost of each tile's copy (map, submit, driver), us; > 0: the link's budget is a frame of copy time"))
         .add(cfg::integer<C>("io.max_in_flight", at(&C::io, &IoConfig::max_in_flight), 1, 1 << 20, "jobs submitted to the IO/decode executor at once"))
         .add(cfg::integer<C>("io.max_retries", at(&C::io, &IoConfig::max_retries), 0, 100, "retries of a faulted tile before it fails"))
         .add(cfg::integer<C>("io.retry_backoff_frames", at(&C::io, &IoConfig::retry_backoff_frames), 0, 100000, "frames before a retry"))

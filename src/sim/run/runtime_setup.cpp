@@ -1,5 +1,8 @@
 #include "sim/run/runtime_setup.h"
 
+#include <fmt/format.h>
+
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -39,6 +42,10 @@ double service_Bps(const ReplayConfig& cfg, const IStreamingSystem& system, cons
     service = std::min(service, decode_throughput_Bps(cfg.decode, mean_dec));
   }
   if (budget.bytes) service = std::min(service, static_cast<double>(budget.bytes) / period_s);
+  if (budget.link_ticks > 0) {  // the link's copy time a frame, at the mean tile
+    const auto copy = static_cast<double>(budget.per_tile_ticks + transfer_ticks(static_cast<std::uint64_t>(mean_dec), budget.link_Bps));
+    service = std::min(service, std::floor(static_cast<double>(budget.link_ticks) / copy) * mean_dec / period_s);
+  }
   if (budget.tiles) service = std::min(service, budget.tiles * mean_dec / period_s);
   return std::isfinite(service) ? service : 0.0;  // 0: unlimited
 }
@@ -84,7 +91,18 @@ RuntimeParts runtime_parts(const ReplayConfig& cfg, TextureExtent extent, double
   // The upload budget the config and the link allow per frame.
   p.budget = UploadBudget{cfg.upload.bytes_per_frame < 0 ? 0 : static_cast<std::uint64_t>(cfg.upload.bytes_per_frame),
                           cfg.upload.tiles_per_frame < 0 ? 0 : cfg.upload.tiles_per_frame};
-  if (cfg.upload.link_MBps > 0) {
+  if (cfg.upload.per_tile_us > 0) {
+    // A fixed cost per copy: the link's budget is a frame period of copy time (upload_ticks).
+    p.budget.link_ticks = seconds_to_ticks(period_s);
+    p.budget.per_tile_ticks = upload_ticks(cfg.upload, 0);
+    p.budget.link_Bps = cfg.upload.link_MBps * 1e6;
+    std::uint64_t max_tile = 0;
+    for (const auto& L : cfg.texture.layers.specs) max_tile = std::max(max_tile, tile_decoded_bytes(cfg, L));
+    if (upload_ticks(cfg.upload, max_tile) > p.budget.link_ticks)
+      throw InputError("config", fmt::format("field 'upload.per_tile_us': a {}-byte tile's copy takes {:.1f} us over the link, longer "
+                                             "than a frame ({:.1f} us): nothing could upload",
+                                             max_tile, ticks_to_seconds(upload_ticks(cfg.upload, max_tile)) * 1e6, period_s * 1e6));
+  } else if (cfg.upload.link_MBps > 0) {
     const auto link_bytes = static_cast<std::uint64_t>(cfg.upload.link_MBps * 1e6 * period_s);
     p.budget.bytes = p.budget.bytes ? std::min(p.budget.bytes, link_bytes) : link_bytes;
   }

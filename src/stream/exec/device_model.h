@@ -40,12 +40,21 @@ struct DecodeModel {
 
 // Upload to VRAM: a per-frame budget (bytes and/or tiles) over a link of finite bandwidth. Uploads
 // issued in a frame are visible in that frame; the link caps a frame's bytes at link bandwidth x
-// frame period. The fields are the config's [upload] section.
+// frame period. The fields are the config's [upload] section. A tile's copy (the latency stage
+// "upload") takes per_tile_us + bytes / link_MBps (upload_ticks); with per_tile_us > 0 the link
+// caps a frame's copies at one frame period of that time instead of its bytes.
 struct UploadModel {
   int tiles_per_frame = 16;              // budget, tiles per frame; -1 = no tile limit (Unity Clipmap: MaxUploadsPerFrame)
   std::int64_t bytes_per_frame = -1;     // budget, bytes per frame; -1 = no byte limit
   double link_MBps = 12000.0;            // host -> VRAM link bandwidth, MB/s; 0 = unlimited (~PCIe 3.0 x16)
+  double per_tile_us = 0.0;              // fixed cost of one tile's copy (map, submit, driver), us (vtsim gl calibrate-upload)
 };
+// One tile's copy over the link, ticks: per_tile_us (rounded to the nanosecond) + bytes / link_MBps
+// (rounded up; 0 when the link is unlimited).
+inline Ticks upload_ticks(const UploadModel& m, std::uint64_t bytes) {
+  const Ticks fixed = static_cast<Ticks>(m.per_tile_us * 1000.0 + 0.5);
+  return fixed + transfer_ticks(bytes, m.link_MBps * 1e6);
+}
 
 // A disk preset: a named DiskModel with what it stands for.
 struct DevicePreset {

@@ -301,9 +301,15 @@ void Pipeline::take_uploads(const UploadBudget& budget, std::vector<UploadItem>&
   });
   std::uint64_t bytes = 0;
   int tiles = 0;
+  Ticks link = 0;
   for (Request* q : scratch_) {
     if (budget.tiles > 0 && tiles >= budget.tiles) break;
     if (budget.bytes > 0 && bytes + q->sizes.decoded_bytes > budget.bytes) continue;  // a smaller one may fit
+    if (budget.link_ticks > 0) {
+      const Ticks copy = budget.per_tile_ticks + transfer_ticks(q->sizes.decoded_bytes, budget.link_Bps);
+      if (link + copy > budget.link_ticks) continue;  // likewise
+      link += copy;
+    }
     bytes += q->sizes.decoded_bytes;
     ++tiles;
     UploadItem u;

@@ -85,6 +85,11 @@ struct UploadItem {
 struct UploadBudget {
   std::uint64_t bytes = 0;  // 0 = unlimited
   int tiles = 0;            // 0 = unlimited
+  // The link's copy time a frame (upload.per_tile_us > 0: the frame period), ticks; 0 = unlimited.
+  // A tile costs per_tile_ticks + bytes / link_Bps (upload_ticks).
+  Ticks link_ticks = 0;
+  Ticks per_tile_ticks = 0;
+  double link_Bps = 0.0;  // 0 = unlimited
 };
 
 // Counters, cumulative over the run (bytes and tiles).
