@@ -87,7 +87,6 @@ class SimExecutor final : public IExecutor {
   std::unordered_map<RequestId, Job> jobs_;
   std::map<QueueKey, RequestId> disk_queue_, decode_queue_, produce_queue_;
   EventQueue<Event> events_;
-  std::vector<JobResult>* sink_ = nullptr;
 };
 
 }  // namespace vtsim
