@@ -32,7 +32,7 @@ Trace town_walk_prefix(double seconds) {
 }
 
 // `frames` poses at 60 Hz of one still camera over the plane, looking down 25 degrees.
-Trace still_trace(int width, int height, int frames) {
+Trace frame_loop_still_trace(int width, int height, int frames) {
   Trace t;
   t.image_width = width;
   t.image_height = height;
@@ -120,7 +120,7 @@ TEST_CASE("frame loop: view.feedback_latency = k hands the runtime the feedback 
   // A still camera: every frame renders the same view, so a run whose runtime reads each frame's
   // feedback k frames late is the run without latency, k frames later. Pop-in is measured on the
   // current frame either way.
-  const Trace t = still_trace(320, 180, 40);
+  const Trace t = frame_loop_still_trace(320, 180, 40);
   // No locked levels: the locked pages are requested at frame 0 whatever the feedback says.
   const ReplayConfig base = load_replay_config("", {"run.system=vt", "view.render_threads=0", "vt.locked_levels=0"});
   const auto scene = make_scene_from_config(base);
@@ -164,7 +164,7 @@ TEST_CASE("frame loop: view.feedback_latency = k hands the runtime the feedback 
 TEST_CASE("frame loop: view.feedback_sampling = sequence renders frame f's feedback at the tile pixel of f, every frame") {
   // A still camera: with the middle pixel the plan renders frame 0 only; with the sequence every
   // frame, each the GPU model at that frame's pixel of the sequence, in the loop and ahead alike.
-  const Trace t = still_trace(160, 90, 20);
+  const Trace t = frame_loop_still_trace(160, 90, 20);
   CHECK_THROWS_WITH_AS(load_replay_config("", {"view.feedback_sampling=sequence"}), doctest::Contains("view.feedback_sampling"),
                        InputError);
   CHECK_THROWS_WITH_AS(load_replay_config("", {"view.feedback_sampling=random", "view.lod_model=gpu"}),
